@@ -5,6 +5,9 @@ use thiserror::Error;
 /// A malformed or unsupported PLY file, naming the line, element, property or row.
 #[derive(Debug, Error, Clone, PartialEq, Eq)]
 pub enum PlyProblem {
+    /// The file is empty.
+    #[error("file is empty")]
+    Empty,
     /// The file does not start with the `ply` magic line.
     #[error("not a PLY file (first line is not `ply`)")]
     NotPly,

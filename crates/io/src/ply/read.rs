@@ -84,6 +84,9 @@ fn read_header_lines<R: BufRead>(reader: &mut R) -> Result<(Vec<String>, usize),
         let budget = (HEADER_LIMIT - consumed) as u64;
         let n = reader.by_ref().take(budget).read_until(b'\n', &mut buf)?;
         consumed += n;
+        if consumed == 0 {
+            return Err(PlyProblem::Empty.into());
+        }
         if n == 0 || !buf.ends_with(b"\n") {
             if lines.is_empty() && !buf.is_empty() && !b"ply".starts_with(&buf[..]) {
                 return Err(PlyProblem::NotPly.into());
