@@ -7,7 +7,7 @@ use std::io::Write;
 use std::path::Path;
 
 use glam::{Mat3, Vec3};
-use serde_json::json;
+use serde::Serialize;
 use splat_raster::Camera;
 
 use crate::IoError;
@@ -87,7 +87,8 @@ fn parse_nerfies(fields: &Fields<'_>) -> Result<CameraInfo, IoError> {
         width,
         height,
         fx: focal as f32,
-        fy: (focal * aspect) as f32,
+        // fx is stored in f32; the aspect ratio applies to that value.
+        fy: (f64::from(focal as f32) * aspect) as f32,
         cx: principal[0] as f32,
         cy: principal[1] as f32,
         rotation,
@@ -100,29 +101,40 @@ fn parse_nerfies(fields: &Fields<'_>) -> Result<CameraInfo, IoError> {
     })
 }
 
+/// The nerfies JSON layout as written: f32 values print in their shortest form, the centre and
+/// the aspect ratio in f64 so that the camera reads back to the same f32 values.
+#[derive(Serialize)]
+struct NerfiesOut {
+    orientation: [[f32; 3]; 3],
+    position: [f64; 3],
+    focal_length: f32,
+    principal_point: [f32; 2],
+    skew: f32,
+    pixel_aspect_ratio: f64,
+    radial_distortion: [f32; 3],
+    tangential_distortion: [f32; 2],
+    image_size: [u32; 2],
+}
+
 /// The nerfies JSON text of a camera (pretty-printed, trailing newline).
 pub fn nerfies_camera_json(info: &CameraInfo) -> String {
     let c = &info.camera;
-    let rows: Vec<[f64; 3]> = (0..3)
-        .map(|i| c.rotation.row(i).to_array().map(f64::from))
-        .collect();
+    let rows = [0, 1, 2].map(|i| c.rotation.row(i).to_array());
     // C = −Rᵀ t in f64.
     let t = c.translation.to_array().map(f64::from);
-    let position: Vec<f64> = (0..3)
-        .map(|j| -(rows[0][j] * t[0] + rows[1][j] * t[1] + rows[2][j] * t[2]))
-        .collect();
-    let value = json!({
-        "orientation": rows,
-        "position": position,
-        "focal_length": f64::from(c.fx),
-        "principal_point": [f64::from(c.cx), f64::from(c.cy)],
-        "skew": f64::from(info.skew),
-        "pixel_aspect_ratio": f64::from(c.fy) / f64::from(c.fx),
-        "radial_distortion": info.distortion.radial.map(f64::from),
-        "tangential_distortion": info.distortion.tangential.map(f64::from),
-        "image_size": [c.width, c.height],
-    });
-    let mut text = serde_json::to_string_pretty(&value).unwrap_or_default();
+    let position = [0, 1, 2].map(|j| -(0..3).map(|i| f64::from(rows[i][j]) * t[i]).sum::<f64>());
+    let out = NerfiesOut {
+        orientation: rows,
+        position,
+        focal_length: c.fx,
+        principal_point: [c.cx, c.cy],
+        skew: info.skew,
+        pixel_aspect_ratio: f64::from(c.fy) / f64::from(c.fx),
+        radial_distortion: info.distortion.radial,
+        tangential_distortion: info.distortion.tangential,
+        image_size: [c.width, c.height],
+    };
+    let mut text = serde_json::to_string_pretty(&out).unwrap_or_default();
     text.push('\n');
     text
 }

@@ -80,7 +80,8 @@ fn box_divisor(image: &ImageRgb, factor: f32) -> Option<u32> {
     let n = (1.0 / factor as f64).round();
     let exact = (n * factor as f64 - 1.0).abs() < 1e-6;
     let n = n as u32;
-    (exact && n >= 2 && image.width % n == 0 && image.height % n == 0).then_some(n)
+    (exact && n >= 2 && image.width.is_multiple_of(n) && image.height.is_multiple_of(n))
+        .then_some(n)
 }
 
 /// Resizes by `factor` (> 0) to the size [`Camera::scaled`] gives. A factor `1/n` whose `n`
