@@ -111,7 +111,7 @@ mod tests {
                 seen[slot] += 1;
             }
             assert!(seen.iter().all(|&n| n == 1), "degree {degree}: {seen:?}");
-            assert_eq!(property_names(degree).len(), 14 + rest_count(degree));
+            assert_eq!(property_names(degree).len(), 17 + rest_count(degree));
         }
     }
 
