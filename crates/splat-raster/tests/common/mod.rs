@@ -55,6 +55,8 @@ pub struct Params {
     pub rotations: Vec<f64>,
     pub logits: Vec<f64>,
     pub sh: Vec<f64>,
+    /// Offsets added to each projected mean (u, v) in pixels: zero, poked to check dL/d(u, v).
+    pub uv_offset: Vec<f64>,
 }
 
 impl Params {
@@ -67,6 +69,7 @@ impl Params {
             rotations: f(g.rotations.as_flattened()),
             logits: f(&g.opacity_logits),
             sh: f(&g.sh),
+            uv_offset: vec![0.0; 2 * g.len()],
         }
     }
 
@@ -82,6 +85,7 @@ impl Params {
             "rotations" => &mut self.rotations,
             "opacity_logits" => &mut self.logits,
             "sh" => &mut self.sh,
+            "means2d" => &mut self.uv_offset,
             _ => panic!("unknown kind {kind}"),
         }
     }
@@ -302,8 +306,8 @@ pub fn render(p: &Params, cam: &RefCam, background: [f64; 3], active: u32) -> Re
         if det <= 0.0 {
             continue;
         }
-        let u = cam.fx * rx + cam.cx;
-        let v = cam.fy * ry + cam.cy;
+        let u = cam.fx * rx + cam.cx + p.uv_offset[2 * i];
+        let v = cam.fy * ry + cam.cy + p.uv_offset[2 * i + 1];
         let dv: [f64; 3] = std::array::from_fn(|k| mean[k] - center[k]);
         let len = dv.iter().map(|v| v * v).sum::<f64>().sqrt();
         let basis = sh_basis(dv.map(|v| v / len), active);
