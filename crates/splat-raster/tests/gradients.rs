@@ -121,16 +121,17 @@ fn check_gradients(seed0: u64, width: u32, height: u32, degree: u32, n: usize, c
         let mut p = params.clone();
         let len = p.kind_mut(kind).len();
         assert_eq!(an.len(), len, "{kind}: gradient length");
-        let mut fd = vec![0.0f64; len];
-        for k in 0..len {
-            let x = p.kind_mut(kind)[k];
-            p.kind_mut(kind)[k] = x + h;
-            let lp = loss(&w, &common::render(&p, &rcam, bg, degree));
-            p.kind_mut(kind)[k] = x - h;
-            let lm = loss(&w, &common::render(&p, &rcam, bg, degree));
-            p.kind_mut(kind)[k] = x;
-            fd[k] = (lp - lm) / (2.0 * h);
-        }
+        let fd: Vec<f64> = (0..len)
+            .map(|k| {
+                let x = p.kind_mut(kind)[k];
+                p.kind_mut(kind)[k] = x + h;
+                let lp = loss(&w, &common::render(&p, &rcam, bg, degree));
+                p.kind_mut(kind)[k] = x - h;
+                let lm = loss(&w, &common::render(&p, &rcam, bg, degree));
+                p.kind_mut(kind)[k] = x;
+                (lp - lm) / (2.0 * h)
+            })
+            .collect();
         let scale = fd.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(
             scale > 1e-3,
