@@ -6,6 +6,9 @@ mod common;
 use rand::RngExt;
 use splat_raster::{Camera, CpuRasterizer, Gaussians, Gradients, Rasterizer, RenderOptions};
 
+/// One way of making a Gaussian culled.
+type Edit = Box<dyn Fn(&mut Gaussians)>;
+
 fn setup(seed: u64, n: usize) -> (Camera, Gaussians, RenderOptions) {
     let mut rng = common::rng(seed);
     let cam = common::random_camera(&mut rng, 45, 37);
@@ -69,7 +72,7 @@ fn culled_gaussians_change_nothing() {
     let behind = (cam.center() - (cam.rotation.transpose() * glam::Vec3::Z)).to_array();
     let off =
         (cam.center() + cam.rotation.transpose() * glam::Vec3::new(40.0, 0.0, 4.0)).to_array();
-    let cases: [(&str, Box<dyn Fn(&mut Gaussians)>); 6] = [
+    let cases: [(&str, Edit); 6] = [
         (
             "non_finite",
             Box::new(|b: &mut Gaussians| b.log_scales[0][1] = f32::NAN),
