@@ -351,6 +351,10 @@ impl CpuRasterizer {
             .par_chunks_mut(stride)
             .enumerate()
             .map(|(i, sh_out)| {
+                // Culled in the forward pass (off screen included): zero gradient.
+                if st.splats[i].opacity <= 0.0 {
+                    return None;
+                }
                 let grad =
                     project::project_backward(&frame, &g, active, i, &per_gaussian[i], sh_out)?;
                 let finite = grad.mean.iter().all(|v| v.is_finite())

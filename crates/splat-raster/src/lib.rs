@@ -34,7 +34,9 @@ pub use error::RasterError;
 pub use gaussians::{Gaussians, GaussiansView, sh_coeff_count};
 pub use options::{CullStats, RenderOptions};
 pub use output::{ForwardOutput, Gradients};
-pub use project::{ALPHA_MAX, ALPHA_MIN, DILATION, NEAR_PLANE, QUAT_NORM2_MIN, T_MIN, TILE};
+pub use project::{
+    ALPHA_MAX, ALPHA_MIN, DILATION, MAX_COLOR, NEAR_PLANE, QUAT_NORM2_MIN, T_MIN, TILE,
+};
 
 /// A rasterizer backend: the CPU one here, a wgpu one later.
 pub trait Rasterizer {

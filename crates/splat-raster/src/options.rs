@@ -32,7 +32,8 @@ pub struct CullStats {
     pub total: usize,
     /// Gaussians that touched at least one tile and were composited.
     pub drawn: usize,
-    /// Some raw parameter (mean, log-scale, quaternion, opacity logit, SH) is NaN or infinite.
+    /// Some raw parameter (mean, log-scale, quaternion, opacity logit, SH) is NaN or infinite, or
+    /// the SH colour exceeds `MAX_COLOR` (1e18).
     pub non_finite: usize,
     /// `|q|²` below `1e-12`: no rotation can be recovered.
     pub zero_quaternion: usize,

@@ -19,6 +19,9 @@ pub const ALPHA_MAX: f32 = 0.99;
 pub const T_MIN: f32 = 1e-4;
 /// A quaternion with `|q|² < QUAT_NORM2_MIN` counts as zero.
 pub const QUAT_NORM2_MIN: f32 = 1e-12;
+/// A Gaussian whose SH colour exceeds this (from finite but extreme coefficients) is culled as
+/// non-finite, so that sums of colours can never overflow to infinity.
+pub const MAX_COLOR: f32 = 1e18;
 /// Tile side in pixels.
 pub const TILE: u32 = 16;
 
@@ -294,6 +297,9 @@ pub(crate) fn project(
     let lambda_max = mid + (mid * mid - det).max(0.0).sqrt();
     let radius = 3.0 * lambda_max.sqrt();
     let rgb = color(frame, r.mean, r.sh, active_degree).0;
+    if !rgb.iter().all(|c| c.is_finite() && *c <= MAX_COLOR) {
+        return Err(CullReason::NonFinite);
+    }
     Ok(Projected {
         splat: Splat {
             u,

@@ -158,6 +158,34 @@ fn nan_or_inf_in_any_field_is_culled_and_counted() {
     assert!(grads.means[15].iter().any(|&v| v != 0.0));
 }
 
+#[test]
+fn extreme_colours_are_culled_and_empty_scenes_give_the_background() {
+    let mut bright = one([0.0, 0.0, 3.0], [-1.0; 3], Q, 1.0, 0);
+    bright.sh = vec![3e38, 3e38, 3e38];
+    let mut stack = Vec::new();
+    for _ in 0..4 {
+        stack.push(bright.clone());
+    }
+    let (s, _) = render_all_finite(&concat(&stack), &camera());
+    assert_eq!(s.non_finite, 4, "{s}");
+    let empty = Gaussians::with_degree(1);
+    let (s, grads) = render_all_finite(&empty, &camera());
+    assert_eq!((s.total, s.drawn), (0, 0));
+    assert!(grads.means.is_empty());
+    let out = CpuRasterizer::new()
+        .forward(
+            empty.view(),
+            &camera(),
+            &RenderOptions {
+                background: [0.25, 0.5, 0.75],
+                sh_degree: None,
+            },
+        )
+        .unwrap();
+    assert!(out.color.iter().all(|c| *c == [0.25, 0.5, 0.75]));
+    assert!(out.alpha.iter().chain(&out.depth).all(|&v| v == 0.0));
+}
+
 fn any_float() -> impl Strategy<Value = f32> {
     prop_oneof![
         4 => -3.0f32..3.0,
