@@ -15,23 +15,42 @@ fn sigma(s: &Splat, px: f32, py: f32) -> f32 {
     0.5 * (s.a * dx * dx + s.c * dy * dy) + s.b * dx * dy
 }
 
-/// SPEC §3 alpha at a pixel with power `sig`: `None` when the pixel is skipped (σ < 0 or
-/// α < 1/255), else `(α, exp(-σ), capped)` where `capped` means the 0.99 cap was active.
-///
-/// Pixels with `σ > sigma_cut` are skipped without evaluating `exp`; `sigma_cut` is chosen so
-/// that every such pixel has `α < 1/255` anyway, so the result is that of the plain formula.
+/// `exp(x)` for `x <= 0`, branch-free so that loops over lanes vectorise: Cody–Waite range
+/// reduction and the Cephes `expf` polynomial (about 1 ulp; the inputs are clamped to [-87, 0], so
+/// NaN gives `exp(-87)`). Forward and backward use this same function, so they make the same
+/// decisions at every pixel.
 #[inline(always)]
-fn alpha_at(s: &Splat, sig: f32) -> Option<(f32, f32, bool)> {
-    if !(sig >= 0.0 && sig <= s.sigma_cut) {
-        return None;
-    }
-    let g = (-sig).exp();
-    let raw = s.opacity * g;
-    let alpha = raw.min(ALPHA_MAX);
-    if alpha < ALPHA_MIN {
-        return None;
-    }
-    Some((alpha, g, raw > ALPHA_MAX))
+pub(crate) fn exp_neg(x: f32) -> f32 {
+    const LOG2E: f32 = std::f32::consts::LOG2_E;
+    const C1: f32 = 0.693_359_4;
+    const C2: f32 = -2.121_944_4e-4;
+    // 1.5 * 2^23: adding it rounds to an integer held in the low mantissa bits.
+    const MAGIC: f32 = 12_582_912.0;
+    let x = x.max(-87.0).min(0.0);
+    let shifted = x * LOG2E + MAGIC;
+    let k = shifted - MAGIC;
+    let ki = shifted.to_bits() as i32 - MAGIC.to_bits() as i32;
+    let r = x - k * C1 - k * C2;
+    let z = r * r;
+    let p = ((((1.987_569_1e-4 * r + 1.398_199_9e-3) * r + 8.333_452e-3) * r + 4.166_579_6e-2) * r
+        + 1.666_666_5e-1)
+        * r
+        + 5.000_000_1e-1;
+    let y = p * z + r + 1.0;
+    y * f32::from_bits(((ki + 127) << 23) as u32)
+}
+
+/// SPEC §3 alpha at a pixel with power `sig`, as `(α, exp(-σ), blendable)`: `blendable` is false
+/// when the pixel is skipped (σ < 0, σ beyond the Gaussian's cut-off, or α < 1/255).
+///
+/// `sigma_cut` is chosen so that every pixel beyond it has `α < 1/255` anyway, so the test is
+/// that of the plain formula.
+#[inline(always)]
+fn alpha_at(s: &Splat, sig: f32) -> (f32, f32, bool) {
+    let g = exp_neg(-sig);
+    let alpha = (s.opacity * g).min(ALPHA_MAX);
+    let ok = (sig >= 0.0) & (sig <= s.sigma_cut) & (alpha >= ALPHA_MIN);
+    (alpha, g, ok)
 }
 
 /// Pixel-centre coordinates of a tile's lanes and how many lanes lie inside the image.
@@ -93,6 +112,10 @@ pub(crate) struct Counters {
 }
 
 /// Composites one tile front to back. Background is added to the colour.
+///
+/// Gaussian-major: for each list entry, `σ` is computed for every lane (pixel) in a loop that
+/// vectorises, then only lanes inside the Gaussian's cut-off are blended; a lane that stops keeps
+/// its state; the tile ends when all lanes have stopped.
 pub(crate) fn forward_tile(
     frame: &Frame,
     tile: usize,
@@ -104,28 +127,33 @@ pub(crate) fn forward_tile(
     let lanes = Lanes::new(frame, tile);
     let mut t = [1.0f32; LANES];
     let mut done = lanes.inside.map(|inside| !inside);
-    let mut active = lanes.count;
-    let mut color = [[0.0f32; 3]; LANES];
+    let mut red = [0.0f32; LANES];
+    let mut green = [0.0f32; LANES];
+    let mut blue = [0.0f32; LANES];
     let mut depth = [0.0f32; LANES];
     let mut last = [0u32; LANES];
     let mut sig = [0.0f32; LANES];
+    let mut active = lanes.count;
     let mut counters = Counters::default();
     for (j, &id) in ids.iter().enumerate() {
         if active == 0 {
             break;
         }
         let s = &splats[id as usize];
+        let pos = j as u32 + 1;
+        counters.evaluations += lanes.count as u64;
+        // σ for every lane (vectorises), then the few lanes inside the cut-off.
         for ((out, &px), &py) in sig.iter_mut().zip(&lanes.px).zip(&lanes.py) {
             *out = sigma(s, px, py);
         }
-        counters.evaluations += lanes.count as u64;
         for l in 0..LANES {
-            if done[l] {
+            if !(sig[l] <= s.sigma_cut) | done[l] {
                 continue;
             }
-            let Some((alpha, _, _)) = alpha_at(s, sig[l]) else {
+            let (alpha, _, ok) = alpha_at(s, sig[l]);
+            if !ok {
                 continue;
-            };
+            }
             let next = t[l] * (1.0 - alpha);
             if next < T_MIN {
                 done[l] = true;
@@ -133,19 +161,21 @@ pub(crate) fn forward_tile(
                 continue;
             }
             let w = alpha * t[l];
-            for (c, rgb) in color[l].iter_mut().zip(s.rgb) {
-                *c += rgb * w;
-            }
+            red[l] += s.rgb[0] * w;
+            green[l] += s.rgb[1] * w;
+            blue[l] += s.rgb[2] * w;
             depth[l] += s.z * w;
             t[l] = next;
-            last[l] = j as u32 + 1;
+            last[l] = pos;
             counters.blended += 1;
         }
     }
     for l in 0..LANES {
-        for ch in 0..3 {
-            out.color[l][ch] = color[l][ch] + t[l] * background[ch];
-        }
+        out.color[l] = [
+            red[l] + t[l] * background[0],
+            green[l] + t[l] * background[1],
+            blue[l] + t[l] * background[2],
+        ];
     }
     out.depth.copy_from_slice(&depth);
     out.final_t.copy_from_slice(&t);
@@ -207,10 +237,11 @@ pub(crate) fn backward_tile(
                 continue;
             }
             let (px, py) = (lanes.px[l], lanes.py[l]);
-            let sig = sigma(s, px, py);
-            let Some((alpha, g, capped)) = alpha_at(s, sig) else {
+            let (alpha, g, ok) = alpha_at(s, sigma(s, px, py));
+            if !ok {
                 continue;
-            };
+            }
+            let capped = s.opacity * g > ALPHA_MAX;
             let tj = t[l] / (1.0 - alpha);
             t[l] = tj;
             let w = alpha * tj;
@@ -241,5 +272,23 @@ pub(crate) fn backward_tile(
             acc.v -= d_sig * (s.b * dx + s.c * dy);
         }
         out[j] = acc;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exp_neg_is_within_two_ulp_of_libm() {
+        let mut x = 0.0f32;
+        while x > -20.0 {
+            let (a, b) = (exp_neg(x), x.exp());
+            assert!((a - b).abs() <= 2.5e-7 * b, "x={x}: {a} vs {b}");
+            x -= 0.000_37;
+        }
+        assert_eq!(exp_neg(0.0), 1.0);
+        assert!(exp_neg(f32::NAN).is_finite());
+        assert!(exp_neg(-1e30) >= 0.0 && exp_neg(-1e30) < 1e-37);
     }
 }

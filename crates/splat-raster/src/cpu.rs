@@ -198,7 +198,13 @@ impl CpuRasterizer {
                 Err(reason) => count(&mut stats, reason),
             }
         }
-        let lists = tiles::bin(&rects, &depth, frame.tiles_x, frame.tiles_y);
+        let lists = tiles::bin(
+            &rects,
+            &depth,
+            frame.tiles_x,
+            frame.tiles_y,
+            |id, tx, ty| splats[id as usize].touches_tile(&frame, tx, ty),
+        );
         let n_tiles = frame.tiles_x as usize * frame.tiles_y as usize;
         let mut color_t = vec![[0.0f32; 3]; n_tiles * LANES];
         let mut depth_t = vec![0.0f32; n_tiles * LANES];

@@ -101,6 +101,50 @@ pub(crate) struct Splat {
     pub z: f32,
 }
 
+impl Splat {
+    /// `σ` at offset `(dx, dy)` from the projected mean.
+    fn sigma_at(&self, dx: f32, dy: f32) -> f32 {
+        0.5 * (self.a * dx * dx + self.c * dy * dy) + self.b * dx * dy
+    }
+
+    /// Smallest `σ` over the continuous rectangle `[x0, x1] × [y0, y1]` (pixel coordinates).
+    /// `σ` is a convex quadratic with its minimum 0 at the mean, so when the mean lies outside
+    /// the rectangle the minimum lies on one of its edges, where it is a 1-D clamped minimum.
+    pub fn min_sigma_over(&self, x0: f32, x1: f32, y0: f32, y1: f32) -> f32 {
+        let (dx0, dx1, dy0, dy1) = (x0 - self.u, x1 - self.u, y0 - self.v, y1 - self.v);
+        if dx0 <= 0.0 && dx1 >= 0.0 && dy0 <= 0.0 && dy1 >= 0.0 {
+            return 0.0;
+        }
+        let mut best = f32::INFINITY;
+        for dx in [dx0, dx1] {
+            let dy = (-self.b * dx / self.c).clamp(dy0, dy1);
+            best = best.min(self.sigma_at(dx, dy));
+        }
+        for dy in [dy0, dy1] {
+            let dx = (-self.b * dy / self.a).clamp(dx0, dx1);
+            best = best.min(self.sigma_at(dx, dy));
+        }
+        best
+    }
+
+    /// Whether some pixel centre of tile `(tx, ty)` inside the image may reach `σ <= sigma_cut`
+    /// (with a small slack for rounding, so no pixel that the per-pixel test keeps is lost).
+    pub fn touches_tile(&self, frame: &Frame, tx: u32, ty: u32) -> bool {
+        let x0 = tx * TILE;
+        let y0 = ty * TILE;
+        let x1 = (x0 + TILE - 1).min(frame.width - 1);
+        let y1 = (y0 + TILE - 1).min(frame.height - 1);
+        let m = self.min_sigma_over(
+            x0 as f32 + 0.5,
+            x1 as f32 + 0.5,
+            y0 as f32 + 0.5,
+            y1 as f32 + 0.5,
+        );
+        // NaN (degenerate arithmetic) keeps the tile: the per-pixel test decides.
+        !(m > self.sigma_cut * (1.0 + 1e-4) + 1e-4)
+    }
+}
+
 /// A drawn Gaussian: its record, its tile rectangle (inclusive) and its 3σ screen radius.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Projected {
@@ -300,18 +344,24 @@ pub(crate) fn project(
     if !rgb.iter().all(|c| c.is_finite() && *c <= MAX_COLOR) {
         return Err(CullReason::NonFinite);
     }
+    let splat = Splat {
+        u,
+        v,
+        a,
+        b,
+        c,
+        opacity: geo.opacity,
+        sigma_cut,
+        rgb,
+        z: p.z,
+    };
+    let touches_any = (tiles[1]..=tiles[3])
+        .any(|ty| (tiles[0]..=tiles[2]).any(|tx| splat.touches_tile(frame, tx, ty)));
+    if !touches_any {
+        return Err(CullReason::OffScreen);
+    }
     Ok(Projected {
-        splat: Splat {
-            u,
-            v,
-            a,
-            b,
-            c,
-            opacity: geo.opacity,
-            sigma_cut,
-            rgb,
-            z: p.z,
-        },
+        splat,
         tiles,
         radius: if radius.is_finite() { radius } else { f32::MAX },
     })
@@ -503,4 +553,44 @@ pub(crate) fn project_backward(
         q,
         logit,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn min_sigma_over_rectangle_matches_a_dense_grid() {
+        let mut state = 12345u64;
+        let mut next = move || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for _ in 0..200 {
+            let (sx, sy, rho) = (0.5 + 20.0 * next(), 0.5 + 20.0 * next(), 1.8 * next() - 0.9);
+            let (ca, cc, cb) = (sx * sx, sy * sy, rho * sx * sy);
+            let det = ca * cc - cb * cb;
+            let s = Splat {
+                u: 100.0 * next() - 50.0,
+                v: 100.0 * next() - 50.0,
+                a: cc / det,
+                b: -cb / det,
+                c: ca / det,
+                ..Splat::default()
+            };
+            let (x0, y0) = (60.0 * next() - 30.0, 60.0 * next() - 30.0);
+            let (x1, y1) = (x0 + 15.0, y0 + 15.0);
+            let m = s.min_sigma_over(x0, x1, y0, y1);
+            let mut grid = f32::INFINITY;
+            for i in 0..=150 {
+                for j in 0..=150 {
+                    let x = x0 + (x1 - x0) * i as f32 / 150.0;
+                    let y = y0 + (y1 - y0) * j as f32 / 150.0;
+                    grid = grid.min(s.sigma_at(x - s.u, y - s.v));
+                }
+            }
+            assert!(m <= grid * (1.0 + 1e-5) + 1e-6, "{m} above grid minimum {grid}");
+            assert!(m >= grid * 0.95 - 1e-2, "{m} far below grid minimum {grid}");
+        }
+    }
 }

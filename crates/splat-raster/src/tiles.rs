@@ -17,12 +17,14 @@ impl TileLists {
 }
 
 /// Bins drawn Gaussians into tiles. `rects[i]` is Gaussian `i`'s inclusive tile rectangle
-/// `[x0, y0, x1, y1]` (None when culled) and `depth[i]` its camera z (> 0 when drawn).
+/// `[x0, y0, x1, y1]` (None when culled) and `depth[i]` its camera z (> 0 when drawn); within the
+/// rectangle, only tiles `(tx, ty)` with `touches(i, tx, ty)` get the Gaussian.
 pub(crate) fn bin(
     rects: &[Option<[u32; 4]>],
     depth: &[f32],
     tiles_x: u32,
     tiles_y: u32,
+    touches: impl Fn(u32, u32, u32) -> bool,
 ) -> TileLists {
     // z > 0 is finite and positive, so its bit pattern orders like the number.
     let mut keys: Vec<u64> = rects
@@ -35,11 +37,14 @@ pub(crate) fn bin(
     let n_tiles = tiles_x as usize * tiles_y as usize;
     let mut counts = vec![0usize; n_tiles + 1];
     for &key in &keys {
-        let [x0, y0, x1, y1] = rects[(key & 0xffff_ffff) as usize].unwrap_or_default();
+        let id = (key & 0xffff_ffff) as u32;
+        let [x0, y0, x1, y1] = rects[id as usize].unwrap_or_default();
         for ty in y0..=y1 {
             let row = ty as usize * tiles_x as usize;
             for tx in x0..=x1 {
-                counts[row + tx as usize + 1] += 1;
+                if touches(id, tx, ty) {
+                    counts[row + tx as usize + 1] += 1;
+                }
             }
         }
     }
@@ -55,9 +60,11 @@ pub(crate) fn bin(
         for ty in y0..=y1 {
             let row = ty as usize * tiles_x as usize;
             for tx in x0..=x1 {
-                let t = row + tx as usize;
-                ids[cursor[t]] = id;
-                cursor[t] += 1;
+                if touches(id, tx, ty) {
+                    let t = row + tx as usize;
+                    ids[cursor[t]] = id;
+                    cursor[t] += 1;
+                }
             }
         }
     }
@@ -77,8 +84,8 @@ mod tests {
             Some([0, 0, 0, 0]),
         ];
         let depth = [2.0, 1.0, 2.0, 0.5];
-        let lists = bin(&rects, &depth, 2, 1);
-        assert_eq!(lists.tile(0), &[3, 0]);
+        let lists = bin(&rects, &depth, 2, 1, |id, tx, _| id != 0 || tx == 1);
+        assert_eq!(lists.tile(0), &[3]);
         assert_eq!(lists.tile(1), &[0, 2]);
     }
 }
