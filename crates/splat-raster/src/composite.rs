@@ -26,7 +26,7 @@ pub(crate) fn exp_neg(x: f32) -> f32 {
     const C2: f32 = -2.121_944_4e-4;
     // 1.5 * 2^23: adding it rounds to an integer held in the low mantissa bits.
     const MAGIC: f32 = 12_582_912.0;
-    let x = x.max(-87.0).min(0.0);
+    let x = if x > -87.0 { x.min(0.0) } else { -87.0 };
     let shifted = x * LOG2E + MAGIC;
     let k = shifted - MAGIC;
     let ki = shifted.to_bits() as i32 - MAGIC.to_bits() as i32;
@@ -35,7 +35,7 @@ pub(crate) fn exp_neg(x: f32) -> f32 {
     let p = ((((1.987_569_1e-4 * r + 1.398_199_9e-3) * r + 8.333_452e-3) * r + 4.166_579_6e-2) * r
         + 1.666_666_5e-1)
         * r
-        + 5.000_000_1e-1;
+        + 0.5;
     let y = p * z + r + 1.0;
     y * f32::from_bits(((ki + 127) << 23) as u32)
 }
@@ -147,7 +147,8 @@ pub(crate) fn forward_tile(
             *out = sigma(s, px, py);
         }
         for l in 0..LANES {
-            if !(sig[l] <= s.sigma_cut) | done[l] {
+            let inside = sig[l] <= s.sigma_cut;
+            if !inside || done[l] {
                 continue;
             }
             let (alpha, _, ok) = alpha_at(s, sig[l]);

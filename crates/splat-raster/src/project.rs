@@ -141,7 +141,8 @@ impl Splat {
             y1 as f32 + 0.5,
         );
         // NaN (degenerate arithmetic) keeps the tile: the per-pixel test decides.
-        !(m > self.sigma_cut * (1.0 + 1e-4) + 1e-4)
+        let beyond = m > self.sigma_cut * (1.0 + 1e-4) + 1e-4;
+        !beyond
     }
 }
 
@@ -563,7 +564,9 @@ mod tests {
     fn min_sigma_over_rectangle_matches_a_dense_grid() {
         let mut state = 12345u64;
         let mut next = move || {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             (state >> 40) as f32 / (1u64 << 24) as f32
         };
         for _ in 0..200 {
@@ -589,7 +592,10 @@ mod tests {
                     grid = grid.min(s.sigma_at(x - s.u, y - s.v));
                 }
             }
-            assert!(m <= grid * (1.0 + 1e-5) + 1e-6, "{m} above grid minimum {grid}");
+            assert!(
+                m <= grid * (1.0 + 1e-5) + 1e-6,
+                "{m} above grid minimum {grid}"
+            );
             assert!(m >= grid * 0.95 - 1e-2, "{m} far below grid minimum {grid}");
         }
     }
