@@ -3,13 +3,63 @@
 //! What it is: the forward pass (projection, tiling, depth sort, front-to-back compositing) and the
 //! backward pass (gradients to every raw Gaussian parameter) of 3DGS, exactly as pinned in the
 //! project's SPEC §3, over plain structure-of-arrays inputs ([`GaussiansView`]) and an OpenCV-axes
-//! pinhole [`Camera`].
+//! pinhole [`Camera`]. The [`Rasterizer`] trait is the backend interface; [`CpuRasterizer`] is the
+//! rayon-parallel CPU backend.
+//!
+//! Conventions beyond SPEC §3, fixed here:
+//! - depth output is the un-normalised expected depth `Σ z·α·T` (camera-space z); divide by the
+//!   alpha output for a normalised depth;
+//! - `d = pixel centre − projected mean` in `σ`; the 2D-mean gradient is dL/d(u, v) in pixels;
+//! - the 0.99 alpha cap and the `max(·, 0)` colour clamp pass zero gradient where active;
+//! - the screen radius is `3·sqrt(λ_max(Σ2d))` pixels (3DGS convention);
+//! - a pixel's loop stops at the first Gaussian that would take `T` below `1e-4` (not blended).
 //!
 //! What it is not: a trainer, an optimiser, a file reader or a deformation model. Those live in
 //! other crates of the workspace and hand this crate slices.
 
 pub mod camera;
+mod composite;
+mod cpu;
+mod error;
 pub mod gaussians;
+mod options;
+mod output;
+mod project;
+pub mod sh;
+mod tiles;
 
 pub use camera::Camera;
+pub use cpu::CpuRasterizer;
+pub use error::RasterError;
 pub use gaussians::{Gaussians, GaussiansView, sh_coeff_count};
+pub use options::{CullStats, RenderOptions};
+pub use output::{ForwardOutput, Gradients};
+pub use project::{
+    ALPHA_MAX, ALPHA_MIN, DILATION, MAX_COLOR, NEAR_PLANE, QUAT_NORM2_MIN, T_MIN, TILE,
+};
+
+/// A rasterizer backend: the CPU one here, a wgpu one later.
+pub trait Rasterizer {
+    /// Renders colour, alpha and expected depth, keeping what the backward pass needs.
+    fn forward(
+        &self,
+        g: GaussiansView<'_>,
+        cam: &Camera,
+        opts: &RenderOptions,
+    ) -> Result<ForwardOutput, RasterError>;
+
+    /// Gradients of a loss with respect to every raw parameter, given the loss gradients of the
+    /// forward outputs (`d_alpha`, `d_depth` may be omitted when the loss does not use them).
+    /// `fwd` must be the output of `forward` on the same inputs.
+    #[allow(clippy::too_many_arguments)]
+    fn backward(
+        &self,
+        g: GaussiansView<'_>,
+        cam: &Camera,
+        opts: &RenderOptions,
+        fwd: &ForwardOutput,
+        d_color: &[[f32; 3]],
+        d_alpha: Option<&[f32]>,
+        d_depth: Option<&[f32]>,
+    ) -> Result<Gradients, RasterError>;
+}

@@ -1,0 +1,432 @@
+//! The CPU backend: per-Gaussian work and per-tile compositing in parallel with rayon.
+//!
+//! Determinism: the forward image does not depend on the thread count (each tile is composited
+//! by one thread in a fixed order), and neither do the gradients: each tile writes its per-entry
+//! gradients into its own slots, which are then summed per Gaussian in tile order.
+
+use std::sync::Arc;
+
+use rayon::prelude::*;
+
+use crate::Rasterizer;
+use crate::camera::Camera;
+use crate::composite::{self, Counters, LANES, PixelGrads, TileOut};
+use crate::error::RasterError;
+use crate::gaussians::GaussiansView;
+use crate::options::{CullStats, RenderOptions};
+use crate::output::{BackwardState, ForwardOutput, Gradients};
+use crate::project::{self, CullReason, Frame, Splat, SplatGrad, TILE};
+use crate::tiles;
+
+/// The CPU rasterizer. By default it runs on rayon's global pool.
+#[derive(Clone, Debug, Default)]
+pub struct CpuRasterizer {
+    pool: Option<Arc<rayon::ThreadPool>>,
+}
+
+impl CpuRasterizer {
+    /// A rasterizer on rayon's global thread pool.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// A rasterizer on its own pool of `threads` threads.
+    pub fn with_threads(threads: usize) -> Result<Self, RasterError> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| RasterError::ThreadPool {
+                threads,
+                message: e.to_string(),
+            })?;
+        Ok(Self {
+            pool: Some(Arc::new(pool)),
+        })
+    }
+
+    fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+        match &self.pool {
+            Some(pool) => pool.install(f),
+            None => f(),
+        }
+    }
+}
+
+/// Checks the inputs and returns the active SH degree.
+fn validate(g: &GaussiansView<'_>, cam: &Camera, opts: &RenderOptions) -> Result<u32, RasterError> {
+    if g.sh_degree > 3 {
+        return Err(RasterError::ShDegree(g.sh_degree));
+    }
+    let n = g.len();
+    let checks = [
+        ("log_scales", g.log_scales.len(), n),
+        ("rotations", g.rotations.len(), n),
+        ("opacity_logits", g.opacity_logits.len(), n),
+        ("sh", g.sh.len(), n * g.sh_stride()),
+    ];
+    for (field, got, expected) in checks {
+        if got != expected {
+            return Err(RasterError::LengthMismatch {
+                field,
+                got,
+                expected,
+            });
+        }
+    }
+    if n > u32::MAX as usize {
+        return Err(RasterError::LengthMismatch {
+            field: "means",
+            got: n,
+            expected: u32::MAX as usize,
+        });
+    }
+    let active = opts.sh_degree.unwrap_or(g.sh_degree);
+    if active > g.sh_degree {
+        return Err(RasterError::ActiveShDegree {
+            requested: active,
+            available: g.sh_degree,
+        });
+    }
+    if cam.width == 0 || cam.height == 0 {
+        return Err(RasterError::EmptyImage {
+            width: cam.width,
+            height: cam.height,
+        });
+    }
+    for (field, value) in [("fx", cam.fx), ("fy", cam.fy)] {
+        if !(value.is_finite() && value > 0.0) {
+            return Err(RasterError::BadCamera {
+                field,
+                value,
+                why: "must be finite and positive",
+            });
+        }
+    }
+    let finite = [
+        ("cx", vec![cam.cx]),
+        ("cy", vec![cam.cy]),
+        ("rotation", cam.rotation.to_cols_array().to_vec()),
+        ("translation", cam.translation.to_array().to_vec()),
+    ];
+    for (field, values) in finite {
+        if let Some(&value) = values.iter().find(|v| !v.is_finite()) {
+            return Err(RasterError::BadCamera {
+                field,
+                value,
+                why: "must be finite",
+            });
+        }
+    }
+    for (channel, &value) in opts.background.iter().enumerate() {
+        if !value.is_finite() {
+            return Err(RasterError::BadBackground { channel, value });
+        }
+    }
+    Ok(active)
+}
+
+fn count(stats: &mut CullStats, reason: CullReason) {
+    match reason {
+        CullReason::NonFinite => stats.non_finite += 1,
+        CullReason::ZeroQuaternion => stats.zero_quaternion += 1,
+        CullReason::LowOpacity => stats.low_opacity += 1,
+        CullReason::BehindNearPlane => stats.behind_near_plane += 1,
+        CullReason::DegenerateCovariance => stats.degenerate_covariance += 1,
+        CullReason::OffScreen => stats.off_screen += 1,
+    }
+}
+
+/// Row-major pixel index → (tile, lane).
+fn tile_lane(frame: &Frame, x: usize, y: usize) -> (usize, usize) {
+    let t = TILE as usize;
+    (
+        (y / t) * frame.tiles_x as usize + x / t,
+        (y % t) * t + x % t,
+    )
+}
+
+fn check_pixels<T: Copy>(
+    field: &'static str,
+    data: &[T],
+    expected: usize,
+    finite: impl Fn(T) -> bool,
+) -> Result<(), RasterError> {
+    if data.len() != expected {
+        return Err(RasterError::GradientLength {
+            field,
+            got: data.len(),
+            expected,
+        });
+    }
+    match data.iter().position(|&v| !finite(v)) {
+        Some(pixel) => Err(RasterError::NonFiniteGradient { field, pixel }),
+        None => Ok(()),
+    }
+}
+
+impl CpuRasterizer {
+    fn forward_impl(
+        &self,
+        g: GaussiansView<'_>,
+        cam: &Camera,
+        opts: &RenderOptions,
+    ) -> Result<ForwardOutput, RasterError> {
+        let active = validate(&g, cam, opts)?;
+        let frame = Frame::new(cam);
+        let n = g.len();
+        let projected: Vec<Result<project::Projected, CullReason>> = (0..n)
+            .into_par_iter()
+            .map(|i| project::project(&frame, &g, active, i))
+            .collect();
+        let mut stats = CullStats {
+            total: n,
+            ..CullStats::default()
+        };
+        let mut splats = vec![Splat::default(); n];
+        let mut rects = vec![None; n];
+        let mut depth = vec![0.0f32; n];
+        let mut radii = vec![0.0f32; n];
+        for (i, p) in projected.into_iter().enumerate() {
+            match p {
+                Ok(p) => {
+                    stats.drawn += 1;
+                    splats[i] = p.splat;
+                    rects[i] = Some(p.tiles);
+                    depth[i] = p.splat.z;
+                    radii[i] = p.radius;
+                }
+                Err(reason) => count(&mut stats, reason),
+            }
+        }
+        let lists = tiles::bin(
+            &rects,
+            &depth,
+            frame.tiles_x,
+            frame.tiles_y,
+            |id, tx, ty| splats[id as usize].touches_tile(&frame, tx, ty),
+        );
+        let n_tiles = frame.tiles_x as usize * frame.tiles_y as usize;
+        let mut color_t = vec![[0.0f32; 3]; n_tiles * LANES];
+        let mut depth_t = vec![0.0f32; n_tiles * LANES];
+        let mut final_t = vec![0.0f32; n_tiles * LANES];
+        let mut last = vec![0u32; n_tiles * LANES];
+        let counters = color_t
+            .par_chunks_mut(LANES)
+            .zip(depth_t.par_chunks_mut(LANES))
+            .zip(final_t.par_chunks_mut(LANES))
+            .zip(last.par_chunks_mut(LANES))
+            .enumerate()
+            .map(|(tile, (((color, depth), final_t), last))| {
+                composite::forward_tile(
+                    &frame,
+                    tile,
+                    lists.tile(tile),
+                    &splats,
+                    opts.background,
+                    TileOut {
+                        color,
+                        depth,
+                        final_t,
+                        last,
+                    },
+                )
+            })
+            .reduce(Counters::default, |a, b| Counters {
+                evaluations: a.evaluations + b.evaluations,
+                blended: a.blended + b.blended,
+            });
+        let (w, h) = (cam.width as usize, cam.height as usize);
+        let mut color = Vec::with_capacity(w * h);
+        let mut alpha = Vec::with_capacity(w * h);
+        let mut depth_img = Vec::with_capacity(w * h);
+        for y in 0..h {
+            for x in 0..w {
+                let (t, l) = tile_lane(&frame, x, y);
+                let k = t * LANES + l;
+                color.push(color_t[k]);
+                alpha.push(1.0 - final_t[k]);
+                depth_img.push(depth_t[k]);
+            }
+        }
+        Ok(ForwardOutput {
+            width: cam.width,
+            height: cam.height,
+            color,
+            alpha,
+            depth: depth_img,
+            stats,
+            state: BackwardState {
+                n_gaussians: n,
+                sh_degree: g.sh_degree,
+                active_degree: active,
+                background: opts.background,
+                splats,
+                radii,
+                lists,
+                final_t,
+                last,
+                counters,
+            },
+        })
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn backward_impl(
+        &self,
+        g: GaussiansView<'_>,
+        cam: &Camera,
+        opts: &RenderOptions,
+        fwd: &ForwardOutput,
+        d_color: &[[f32; 3]],
+        d_alpha: Option<&[f32]>,
+        d_depth: Option<&[f32]>,
+    ) -> Result<Gradients, RasterError> {
+        let active = validate(&g, cam, opts)?;
+        let st = &fwd.state;
+        let mismatch = |what: String| Err(RasterError::ForwardMismatch(what));
+        if st.n_gaussians != g.len() {
+            return mismatch(format!(
+                "forward saw {} Gaussians, backward got {}",
+                st.n_gaussians,
+                g.len()
+            ));
+        }
+        if (fwd.width, fwd.height) != (cam.width, cam.height) {
+            return mismatch(format!(
+                "forward image is {}x{}, camera is {}x{}",
+                fwd.width, fwd.height, cam.width, cam.height
+            ));
+        }
+        if st.sh_degree != g.sh_degree || st.active_degree != active {
+            return mismatch("SH degree differs".into());
+        }
+        if st.background.map(f32::to_bits) != opts.background.map(f32::to_bits) {
+            return mismatch("background differs".into());
+        }
+        let npix = cam.pixel_count();
+        check_pixels("d_color", d_color, npix, |c: [f32; 3]| {
+            c.iter().all(|v| v.is_finite())
+        })?;
+        if let Some(d) = d_alpha {
+            check_pixels("d_alpha", d, npix, f32::is_finite)?;
+        }
+        if let Some(d) = d_depth {
+            check_pixels("d_depth", d, npix, f32::is_finite)?;
+        }
+        let frame = Frame::new(cam);
+        let pixel_grads = PixelGrads {
+            color: d_color,
+            alpha: d_alpha,
+            depth: d_depth,
+        };
+
+        // Per list entry gradients, each tile writing its own slots.
+        let lists = &st.lists;
+        let mut entries = vec![SplatGrad::default(); lists.ids.len()];
+        let mut slots: Vec<&mut [SplatGrad]> = Vec::with_capacity(lists.offsets.len());
+        let mut rest = entries.as_mut_slice();
+        for t in 0..lists.offsets.len() - 1 {
+            let (head, tail) = rest.split_at_mut(lists.offsets[t + 1] - lists.offsets[t]);
+            slots.push(head);
+            rest = tail;
+        }
+        slots.into_par_iter().enumerate().for_each(|(tile, out)| {
+            let lanes = tile * LANES..(tile + 1) * LANES;
+            composite::backward_tile(
+                &frame,
+                tile,
+                lists.tile(tile),
+                &st.splats,
+                st.background,
+                &st.final_t[lanes.clone()],
+                &st.last[lanes],
+                pixel_grads,
+                out,
+            );
+        });
+        // Fixed-order reduction per Gaussian.
+        let n = g.len();
+        let mut per_gaussian = vec![SplatGrad::default(); n];
+        for (entry, &id) in entries.iter().zip(&lists.ids) {
+            per_gaussian[id as usize].add(entry);
+        }
+
+        let stride = g.sh_stride();
+        let mut sh = vec![0.0f32; n * stride];
+        let raw: Vec<Option<project::RawGrad>> = sh
+            .par_chunks_mut(stride)
+            .enumerate()
+            .map(|(i, sh_out)| {
+                // Culled in the forward pass (off screen included): zero gradient.
+                if st.splats[i].opacity <= 0.0 {
+                    return None;
+                }
+                let grad =
+                    project::project_backward(&frame, &g, active, i, &per_gaussian[i], sh_out)?;
+                let finite = grad.mean.iter().all(|v| v.is_finite())
+                    && grad.log_scale.iter().all(|v| v.is_finite())
+                    && grad.q.iter().all(|v| v.is_finite())
+                    && grad.logit.is_finite()
+                    && sh_out.iter().all(|v| v.is_finite())
+                    && per_gaussian[i].u.is_finite()
+                    && per_gaussian[i].v.is_finite();
+                if finite {
+                    Some(grad)
+                } else {
+                    sh_out.fill(0.0);
+                    Some(project::RawGrad {
+                        logit: f32::NAN,
+                        ..project::RawGrad::default()
+                    })
+                }
+            })
+            .collect();
+        let mut out = Gradients {
+            means: vec![[0.0; 3]; n],
+            log_scales: vec![[0.0; 3]; n],
+            rotations: vec![[0.0; 4]; n],
+            opacity_logits: vec![0.0; n],
+            sh,
+            means2d: vec![[0.0; 2]; n],
+            radii: st.radii.clone(),
+            zeroed_non_finite: 0,
+        };
+        for (i, grad) in raw.into_iter().enumerate() {
+            let Some(grad) = grad else { continue };
+            if grad.logit.is_nan() {
+                out.zeroed_non_finite += 1;
+                continue;
+            }
+            out.means[i] = grad.mean;
+            out.log_scales[i] = grad.log_scale;
+            out.rotations[i] = grad.q;
+            out.opacity_logits[i] = grad.logit;
+            out.means2d[i] = [per_gaussian[i].u, per_gaussian[i].v];
+        }
+        Ok(out)
+    }
+}
+
+impl Rasterizer for CpuRasterizer {
+    fn forward(
+        &self,
+        g: GaussiansView<'_>,
+        cam: &Camera,
+        opts: &RenderOptions,
+    ) -> Result<ForwardOutput, RasterError> {
+        self.install(|| self.forward_impl(g, cam, opts))
+    }
+
+    fn backward(
+        &self,
+        g: GaussiansView<'_>,
+        cam: &Camera,
+        opts: &RenderOptions,
+        fwd: &ForwardOutput,
+        d_color: &[[f32; 3]],
+        d_alpha: Option<&[f32]>,
+        d_depth: Option<&[f32]>,
+    ) -> Result<Gradients, RasterError> {
+        self.install(|| self.backward_impl(g, cam, opts, fwd, d_color, d_alpha, d_depth))
+    }
+}

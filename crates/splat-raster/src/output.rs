@@ -1,0 +1,93 @@
+//! What the passes return: the rendered images with the state the backward pass needs, and the
+//! gradients of every raw parameter.
+
+use crate::composite::Counters;
+use crate::options::CullStats;
+use crate::project::Splat;
+use crate::tiles::TileLists;
+
+/// A rendered image and the state its backward pass needs.
+///
+/// Images are row-major (`index = y * width + x`). `depth` is the un-normalised expected depth
+/// `Σ z·α·T` over the blended Gaussians (camera-space z); divide by `alpha` for the normalised
+/// one. The backward state is bounded as in 3DGS: per pixel the final transmittance and the
+/// position of the last contributor, per tile the depth-sorted Gaussian list, per Gaussian its
+/// compositing record — no per-(Gaussian, pixel) state.
+#[derive(Clone, Debug)]
+pub struct ForwardOutput {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Composited colour, background included.
+    pub color: Vec<[f32; 3]>,
+    /// Accumulated opacity `1 - T_final`.
+    pub alpha: Vec<f32>,
+    /// Un-normalised expected depth `Σ z·α·T`.
+    pub depth: Vec<f32>,
+    /// Culling statistics.
+    pub stats: CullStats,
+    pub(crate) state: BackwardState,
+}
+
+/// Per-frame state kept for the backward pass.
+#[derive(Clone, Debug)]
+pub(crate) struct BackwardState {
+    pub n_gaussians: usize,
+    pub sh_degree: u32,
+    pub active_degree: u32,
+    pub background: [f32; 3],
+    pub splats: Vec<Splat>,
+    pub radii: Vec<f32>,
+    pub lists: TileLists,
+    /// Tile-major (tile, lane) final transmittance.
+    pub final_t: Vec<f32>,
+    /// Tile-major one-past-last contributor position in the tile list.
+    pub last: Vec<u32>,
+    pub counters: Counters,
+}
+
+impl ForwardOutput {
+    /// Gaussian-pixel pairs the compositing loop visited: for every tile, the list entries it
+    /// processed before all its pixels stopped, times the tile's pixels inside the image.
+    pub fn pair_evaluations(&self) -> u64 {
+        self.state.counters.evaluations
+    }
+
+    /// Mean number of Gaussians blended into a pixel.
+    pub fn mean_contributors(&self) -> f64 {
+        self.state.counters.blended as f64 / self.color.len().max(1) as f64
+    }
+
+    /// Per-Gaussian screen radius in pixels (3σ of the major axis of Σ2d; 0 when culled).
+    pub fn radii(&self) -> &[f32] {
+        &self.state.radii
+    }
+
+    /// Total length of the per-tile Gaussian lists (Gaussian-tile pairs).
+    pub fn tile_pairs(&self) -> usize {
+        self.state.lists.ids.len()
+    }
+}
+
+/// Loss gradients with respect to every raw Gaussian parameter (zero for culled Gaussians).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Gradients {
+    /// dL/d mean.
+    pub means: Vec<[f32; 3]>,
+    /// dL/d log-scale.
+    pub log_scales: Vec<[f32; 3]>,
+    /// dL/d raw (unnormalised) quaternion `w, x, y, z`.
+    pub rotations: Vec<[f32; 4]>,
+    /// dL/d opacity logit.
+    pub opacity_logits: Vec<f32>,
+    /// dL/d SH coefficients, same layout as the input (zero outside the active bands).
+    pub sh: Vec<f32>,
+    /// dL/d projected mean `(u, v)`, in pixels (densification statistic).
+    pub means2d: Vec<[f32; 2]>,
+    /// Screen radius per Gaussian in pixels, 3σ of the major axis (0 when culled); callers keep
+    /// the maximum over views for densification.
+    pub radii: Vec<f32>,
+    /// Gaussians whose gradient overflowed `f32` and was set to zero instead of NaN/Inf.
+    pub zeroed_non_finite: usize,
+}

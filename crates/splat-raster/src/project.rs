@@ -1,0 +1,602 @@
+//! Per-Gaussian work of SPEC §3: activation, culling, covariance projection with the clamped
+//! Jacobian and 0.3 dilation, conic, opacity-aware screen extent, SH colour; and its backward pass.
+
+use glam::{Mat3, Vec3};
+
+use crate::camera::Camera;
+use crate::gaussians::GaussiansView;
+use crate::sh;
+
+/// Dilation added to the diagonal of the projected covariance.
+pub const DILATION: f32 = 0.3;
+/// Gaussians at camera-space `z <= NEAR_PLANE` are culled.
+pub const NEAR_PLANE: f32 = 0.01;
+/// Blending threshold: a pixel is blended only when `α >= ALPHA_MIN`.
+pub const ALPHA_MIN: f32 = 1.0 / 255.0;
+/// Cap on a single Gaussian's alpha.
+pub const ALPHA_MAX: f32 = 0.99;
+/// A pixel stops when its transmittance would fall below this.
+pub const T_MIN: f32 = 1e-4;
+/// A quaternion with `|q|² < QUAT_NORM2_MIN` counts as zero.
+pub const QUAT_NORM2_MIN: f32 = 1e-12;
+/// A Gaussian whose SH colour exceeds this (from finite but extreme coefficients) is culled as
+/// non-finite, so that sums of colours can never overflow to infinity.
+pub const MAX_COLOR: f32 = 1e18;
+/// Tile side in pixels.
+pub const TILE: u32 = 16;
+
+/// Why one Gaussian was not drawn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum CullReason {
+    NonFinite,
+    ZeroQuaternion,
+    LowOpacity,
+    BehindNearPlane,
+    DegenerateCovariance,
+    OffScreen,
+}
+
+/// Camera quantities shared by every Gaussian of a frame.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Frame {
+    pub fx: f32,
+    pub fy: f32,
+    pub cx: f32,
+    pub cy: f32,
+    pub width: u32,
+    pub height: u32,
+    /// Clamp range of x/z and y/z for the Jacobian.
+    pub lim_x: [f32; 2],
+    pub lim_y: [f32; 2],
+    pub w: Mat3,
+    pub t: Vec3,
+    pub center: Vec3,
+    pub tiles_x: u32,
+    pub tiles_y: u32,
+}
+
+impl Frame {
+    pub fn new(cam: &Camera) -> Self {
+        let tan_x = 0.5 * cam.width as f32 / cam.fx;
+        let tan_y = 0.5 * cam.height as f32 / cam.fy;
+        Self {
+            fx: cam.fx,
+            fy: cam.fy,
+            cx: cam.cx,
+            cy: cam.cy,
+            width: cam.width,
+            height: cam.height,
+            lim_x: [
+                -(cam.cx / cam.fx + 0.3 * tan_x),
+                (cam.width as f32 - cam.cx) / cam.fx + 0.3 * tan_x,
+            ],
+            lim_y: [
+                -(cam.cy / cam.fy + 0.3 * tan_y),
+                (cam.height as f32 - cam.cy) / cam.fy + 0.3 * tan_y,
+            ],
+            w: cam.rotation,
+            t: cam.translation,
+            center: cam.center(),
+            tiles_x: cam.width.div_ceil(TILE),
+            tiles_y: cam.height.div_ceil(TILE),
+        }
+    }
+}
+
+/// What compositing needs of one drawn Gaussian (the hot loop's record).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Splat {
+    /// Projected mean in pixels.
+    pub u: f32,
+    pub v: f32,
+    /// Conic (a, b, c) = inverse of Σ2d: `σ = 0.5 (a dx² + c dy²) + b dx dy`.
+    pub a: f32,
+    pub b: f32,
+    pub c: f32,
+    pub opacity: f32,
+    /// Pixels with `σ > sigma_cut` cannot reach `α >= 1/255` (a safe pre-filter, see `alpha_at`).
+    pub sigma_cut: f32,
+    pub rgb: [f32; 3],
+    /// Camera-space depth.
+    pub z: f32,
+}
+
+impl Splat {
+    /// `σ` at offset `(dx, dy)` from the projected mean.
+    fn sigma_at(&self, dx: f32, dy: f32) -> f32 {
+        0.5 * (self.a * dx * dx + self.c * dy * dy) + self.b * dx * dy
+    }
+
+    /// Smallest `σ` over the continuous rectangle `[x0, x1] × [y0, y1]` (pixel coordinates).
+    /// `σ` is a convex quadratic with its minimum 0 at the mean, so when the mean lies outside
+    /// the rectangle the minimum lies on one of its edges, where it is a 1-D clamped minimum.
+    pub fn min_sigma_over(&self, x0: f32, x1: f32, y0: f32, y1: f32) -> f32 {
+        let (dx0, dx1, dy0, dy1) = (x0 - self.u, x1 - self.u, y0 - self.v, y1 - self.v);
+        if dx0 <= 0.0 && dx1 >= 0.0 && dy0 <= 0.0 && dy1 >= 0.0 {
+            return 0.0;
+        }
+        let mut best = f32::INFINITY;
+        for dx in [dx0, dx1] {
+            let dy = (-self.b * dx / self.c).clamp(dy0, dy1);
+            best = best.min(self.sigma_at(dx, dy));
+        }
+        for dy in [dy0, dy1] {
+            let dx = (-self.b * dy / self.a).clamp(dx0, dx1);
+            best = best.min(self.sigma_at(dx, dy));
+        }
+        best
+    }
+
+    /// Whether some pixel centre of tile `(tx, ty)` inside the image may reach `σ <= sigma_cut`
+    /// (with a small slack for rounding, so no pixel that the per-pixel test keeps is lost).
+    pub fn touches_tile(&self, frame: &Frame, tx: u32, ty: u32) -> bool {
+        let x0 = tx * TILE;
+        let y0 = ty * TILE;
+        let x1 = (x0 + TILE - 1).min(frame.width - 1);
+        let y1 = (y0 + TILE - 1).min(frame.height - 1);
+        let m = self.min_sigma_over(
+            x0 as f32 + 0.5,
+            x1 as f32 + 0.5,
+            y0 as f32 + 0.5,
+            y1 as f32 + 0.5,
+        );
+        // NaN (degenerate arithmetic) keeps the tile: the per-pixel test decides.
+        let beyond = m > self.sigma_cut * (1.0 + 1e-4) + 1e-4;
+        !beyond
+    }
+}
+
+/// A drawn Gaussian: its record, its tile rectangle (inclusive) and its 3σ screen radius.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Projected {
+    pub splat: Splat,
+    pub tiles: [u32; 4],
+    pub radius: f32,
+}
+
+/// Raw parameters of Gaussian `i`, and whether they are all finite.
+struct Raw<'a> {
+    mean: Vec3,
+    log_scale: Vec3,
+    q: [f32; 4],
+    logit: f32,
+    sh: &'a [f32],
+}
+
+fn raw<'a>(g: &GaussiansView<'a>, i: usize) -> Raw<'a> {
+    let stride = g.sh_stride();
+    Raw {
+        mean: Vec3::from_array(g.means[i]),
+        log_scale: Vec3::from_array(g.log_scales[i]),
+        q: g.rotations[i],
+        logit: g.opacity_logits[i],
+        sh: &g.sh[i * stride..(i + 1) * stride],
+    }
+}
+
+impl Raw<'_> {
+    fn all_finite(&self) -> bool {
+        self.mean.is_finite()
+            && self.log_scale.is_finite()
+            && self.q.iter().all(|v| v.is_finite())
+            && self.logit.is_finite()
+            && self.sh.iter().all(|v| v.is_finite())
+    }
+}
+
+/// Rotation matrix of a unit quaternion `w, x, y, z`.
+fn rotation(q: [f32; 4]) -> Mat3 {
+    let [w, x, y, z] = q;
+    Mat3::from_cols(
+        Vec3::new(
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y + w * z),
+            2.0 * (x * z - w * y),
+        ),
+        Vec3::new(
+            2.0 * (x * y - w * z),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z + w * x),
+        ),
+        Vec3::new(
+            2.0 * (x * z + w * y),
+            2.0 * (y * z - w * x),
+            1.0 - 2.0 * (x * x + y * y),
+        ),
+    )
+}
+
+fn sigmoid(x: f32) -> f32 {
+    1.0 / (1.0 + (-x).exp())
+}
+
+/// Intermediate values of one Gaussian's projection, shared by forward and backward.
+struct Geometry {
+    qn: [f32; 4],
+    q_norm: f32,
+    rot: Mat3,
+    scale: Vec3,
+    /// `M = R S`.
+    m: Mat3,
+    /// Camera-space covariance `W Σ Wᵀ`.
+    sigma_cam: Mat3,
+    p: Vec3,
+    /// Jacobian rows.
+    j0: Vec3,
+    j1: Vec3,
+    /// Clamped x/z and y/z used in the Jacobian, and whether the clamp was active.
+    rxc: f32,
+    ryc: f32,
+    clamped_x: bool,
+    clamped_y: bool,
+    /// Σ2d entries (A, B, C).
+    cov2d: [f32; 3],
+    det: f32,
+    opacity: f32,
+}
+
+fn geometry(frame: &Frame, r: &Raw<'_>) -> Result<Geometry, CullReason> {
+    if !r.all_finite() {
+        return Err(CullReason::NonFinite);
+    }
+    let n2 = r.q.iter().map(|v| v * v).sum::<f32>();
+    if n2 < QUAT_NORM2_MIN {
+        return Err(CullReason::ZeroQuaternion);
+    }
+    let opacity = sigmoid(r.logit);
+    if opacity < ALPHA_MIN {
+        return Err(CullReason::LowOpacity);
+    }
+    let p = frame.w * r.mean + frame.t;
+    if !p.is_finite() {
+        return Err(CullReason::OffScreen);
+    }
+    if p.z <= NEAR_PLANE {
+        return Err(CullReason::BehindNearPlane);
+    }
+    // Normalise via the largest component so that |q|² overflowing f32 does no harm.
+    let q_max = r.q.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    let q_scaled = r.q.map(|v| v / q_max);
+    let scaled_norm = q_scaled.iter().map(|v| v * v).sum::<f32>().sqrt();
+    let q_norm = q_max * scaled_norm;
+    let qn = q_scaled.map(|v| v / scaled_norm);
+    let rot = rotation(qn);
+    let scale = r.log_scale.exp();
+    let m = rot * Mat3::from_diagonal(scale);
+    let sigma = m * m.transpose();
+    let sigma_cam = frame.w * sigma * frame.w.transpose();
+    let z = p.z;
+    let rx = p.x / z;
+    let ry = p.y / z;
+    let rxc = rx.clamp(frame.lim_x[0], frame.lim_x[1]);
+    let ryc = ry.clamp(frame.lim_y[0], frame.lim_y[1]);
+    let j0 = Vec3::new(frame.fx / z, 0.0, -frame.fx * rxc / z);
+    let j1 = Vec3::new(0.0, frame.fy / z, -frame.fy * ryc / z);
+    let s0 = sigma_cam * j0;
+    let s1 = sigma_cam * j1;
+    let cov2d = [j0.dot(s0) + DILATION, j0.dot(s1), j1.dot(s1) + DILATION];
+    let det = cov2d[0] * cov2d[2] - cov2d[1] * cov2d[1];
+    if !det.is_finite() || det <= 0.0 || !cov2d.iter().all(|v| v.is_finite()) {
+        return Err(CullReason::DegenerateCovariance);
+    }
+    Ok(Geometry {
+        qn,
+        q_norm,
+        rot,
+        scale,
+        m,
+        sigma_cam,
+        p,
+        j0,
+        j1,
+        rxc,
+        ryc,
+        clamped_x: rx != rxc,
+        clamped_y: ry != ryc,
+        cov2d,
+        det,
+        opacity,
+    })
+}
+
+/// Forward work of Gaussian `i`: its compositing record, tile rectangle and screen radius.
+pub(crate) fn project(
+    frame: &Frame,
+    g: &GaussiansView<'_>,
+    active_degree: u32,
+    i: usize,
+) -> Result<Projected, CullReason> {
+    let r = raw(g, i);
+    let geo = geometry(frame, &r)?;
+    let p = geo.p;
+    let u = frame.fx * p.x / p.z + frame.cx;
+    let v = frame.fy * p.y / p.z + frame.cy;
+    if !u.is_finite() || !v.is_finite() {
+        return Err(CullReason::OffScreen);
+    }
+    let [ca, cb, cc] = geo.cov2d;
+    let det = geo.det;
+    let (a, b, c) = (cc / det, -cb / det, ca / det);
+    // α >= 1/255 needs o·exp(-σ) >= 1/255, i.e. σ <= ln(255 o). The ellipse dᵀ Σ2d⁻¹ d <= 2 s
+    // spans ±sqrt(2 s Σ2d_xx) in x and ±sqrt(2 s Σ2d_yy) in y. A relative margin and a small
+    // absolute one keep the bound safe under f32 rounding of σ and exp.
+    let s_max = (255.0 * geo.opacity).ln().max(0.0);
+    let sigma_cut = s_max * 1.001 + 1e-3;
+    let ext_x = (2.0 * sigma_cut * ca).sqrt() + 1e-2;
+    let ext_y = (2.0 * sigma_cut * cc).sqrt() + 1e-2;
+    // Pixels i whose centre i + 0.5 lies within [u - ext, u + ext].
+    let x_lo = (u - ext_x - 0.5).ceil().max(0.0);
+    let x_hi = (u + ext_x - 0.5).floor().min(frame.width as f32 - 1.0);
+    let y_lo = (v - ext_y - 0.5).ceil().max(0.0);
+    let y_hi = (v + ext_y - 0.5).floor().min(frame.height as f32 - 1.0);
+    if !(x_lo <= x_hi && y_lo <= y_hi) {
+        return Err(CullReason::OffScreen);
+    }
+    let tiles = [
+        x_lo as u32 / TILE,
+        y_lo as u32 / TILE,
+        x_hi as u32 / TILE,
+        y_hi as u32 / TILE,
+    ];
+    let mid = 0.5 * (ca + cc);
+    let lambda_max = mid + (mid * mid - det).max(0.0).sqrt();
+    let radius = 3.0 * lambda_max.sqrt();
+    let rgb = color(frame, r.mean, r.sh, active_degree).0;
+    if !rgb.iter().all(|c| c.is_finite() && *c <= MAX_COLOR) {
+        return Err(CullReason::NonFinite);
+    }
+    let splat = Splat {
+        u,
+        v,
+        a,
+        b,
+        c,
+        opacity: geo.opacity,
+        sigma_cut,
+        rgb,
+        z: p.z,
+    };
+    let touches_any = (tiles[1]..=tiles[3])
+        .any(|ty| (tiles[0]..=tiles[2]).any(|tx| splat.touches_tile(frame, tx, ty)));
+    if !touches_any {
+        return Err(CullReason::OffScreen);
+    }
+    Ok(Projected {
+        splat,
+        tiles,
+        radius: if radius.is_finite() { radius } else { f32::MAX },
+    })
+}
+
+/// SH colour `max(sh·basis(normalize(mean - C)) + 0.5, 0)`; also returns the unclamped value.
+fn color(frame: &Frame, mean: Vec3, sh: &[f32], degree: u32) -> ([f32; 3], [f32; 3]) {
+    let dir = (mean - frame.center).normalize();
+    let basis = sh::basis(dir.to_array(), degree);
+    let count = crate::gaussians::sh_coeff_count(degree);
+    let mut raw = [0.5f32; 3];
+    for (ch, out) in raw.iter_mut().enumerate() {
+        let mut s = 0.0f32;
+        for (k, bk) in basis.iter().enumerate().take(count) {
+            s += sh[k * 3 + ch] * bk;
+        }
+        *out += s;
+    }
+    (raw.map(|v| v.max(0.0)), raw)
+}
+
+/// Loss gradients with respect to one Gaussian's compositing record.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct SplatGrad {
+    pub u: f32,
+    pub v: f32,
+    pub a: f32,
+    pub b: f32,
+    pub c: f32,
+    pub opacity: f32,
+    pub rgb: [f32; 3],
+    pub z: f32,
+}
+
+impl SplatGrad {
+    pub fn add(&mut self, o: &SplatGrad) {
+        self.u += o.u;
+        self.v += o.v;
+        self.a += o.a;
+        self.b += o.b;
+        self.c += o.c;
+        self.opacity += o.opacity;
+        for ch in 0..3 {
+            self.rgb[ch] += o.rgb[ch];
+        }
+        self.z += o.z;
+    }
+}
+
+/// Gradients of one Gaussian's raw parameters.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct RawGrad {
+    pub mean: [f32; 3],
+    pub log_scale: [f32; 3],
+    pub q: [f32; 4],
+    pub logit: f32,
+}
+
+fn at(m: &Mat3, i: usize, j: usize) -> f32 {
+    m.col(j)[i]
+}
+
+fn outer(a: Vec3, b: Vec3) -> Mat3 {
+    Mat3::from_cols(a * b.x, a * b.y, a * b.z)
+}
+
+/// Backward of [`project`]: chains the record's gradient to the raw parameters of Gaussian `i`.
+/// SH gradients are written to `sh_grad` (`sh_stride` floats, zero outside the active bands).
+/// Returns `None` for a culled Gaussian (its gradient is zero and `sh_grad` is left untouched).
+pub(crate) fn project_backward(
+    frame: &Frame,
+    g: &GaussiansView<'_>,
+    active_degree: u32,
+    i: usize,
+    d: &SplatGrad,
+    sh_grad: &mut [f32],
+) -> Option<RawGrad> {
+    let r = raw(g, i);
+    let geo = geometry(frame, &r).ok()?;
+    let (fx, fy) = (frame.fx, frame.fy);
+    let p = geo.p;
+    let z = p.z;
+    let mut dp = Vec3::new(0.0, 0.0, d.z);
+
+    // Projected mean u = fx x/z + cx, v = fy y/z + cy.
+    dp.x += d.u * fx / z;
+    dp.y += d.v * fy / z;
+    dp.z += -d.u * fx * p.x / (z * z) - d.v * fy * p.y / (z * z);
+
+    // Conic Q = Σ2d⁻¹: G_Σ2d = -Q G_Q Q with G_Q = [[ga, gb/2], [gb/2, gc]].
+    let [ca, cb, cc] = geo.cov2d;
+    let det = geo.det;
+    let (qa, qb, qc) = (cc / det, -cb / det, ca / det);
+    let (ga, gb, gc) = (d.a, 0.5 * d.b, d.c);
+    // X = G_Q Q
+    let x00 = ga * qa + gb * qb;
+    let x01 = ga * qb + gb * qc;
+    let x10 = gb * qa + gc * qb;
+    let x11 = gb * qb + gc * qc;
+    // G = -Q X (symmetric)
+    let g00 = -(qa * x00 + qb * x10);
+    let g01 = -(qa * x01 + qb * x11);
+    let g11 = -(qb * x01 + qc * x11);
+
+    // Σ2d_ab = j_a · S j_b.
+    let sc = geo.sigma_cam;
+    let (j0, j1) = (geo.j0, geo.j1);
+    let g_sc = outer(j0, j0) * g00 + (outer(j0, j1) + outer(j1, j0)) * g01 + outer(j1, j1) * g11;
+    let gj0 = (sc * j0 * g00 + sc * j1 * g01) * 2.0;
+    let gj1 = (sc * j0 * g01 + sc * j1 * g11) * 2.0;
+    // J rows: j0 = (fx/z, 0, -fx r_x / z), r_x = clamp(x/z); same for y.
+    dp.z += -gj0.x * fx / (z * z) - gj1.y * fy / (z * z);
+    let (rxc, ryc) = (geo.rxc, geo.ryc);
+    if geo.clamped_x {
+        dp.z += gj0.z * fx * rxc / (z * z);
+    } else {
+        dp.x += -gj0.z * fx / (z * z);
+        dp.z += gj0.z * 2.0 * fx * p.x / (z * z * z);
+    }
+    if geo.clamped_y {
+        dp.z += gj1.z * fy * ryc / (z * z);
+    } else {
+        dp.y += -gj1.z * fy / (z * z);
+        dp.z += gj1.z * 2.0 * fy * p.y / (z * z * z);
+    }
+    let mut d_mean = frame.w.transpose() * dp;
+
+    // Σ_cam = W Σ Wᵀ, Σ = M Mᵀ, M = R S.
+    let g_sigma = frame.w.transpose() * g_sc * frame.w;
+    let g_m = g_sigma * geo.m * 2.0;
+    let mut g_scale = [0.0f32; 3];
+    let mut g_rot = Mat3::ZERO;
+    for (j, gs) in g_scale.iter_mut().enumerate() {
+        let col = g_m.col(j);
+        *gs = col.dot(geo.rot.col(j));
+        *g_rot.col_mut(j) = col * geo.scale[j];
+    }
+    let log_scale = [
+        g_scale[0] * geo.scale.x,
+        g_scale[1] * geo.scale.y,
+        g_scale[2] * geo.scale.z,
+    ];
+    let [w, x, y, zq] = geo.qn;
+    let gr = |i, j| at(&g_rot, i, j);
+    let dqn = [
+        2.0 * (-zq * gr(0, 1) + y * gr(0, 2) + zq * gr(1, 0) - x * gr(1, 2) - y * gr(2, 0)
+            + x * gr(2, 1)),
+        2.0 * (y * gr(0, 1) + zq * gr(0, 2) + y * gr(1, 0) - 2.0 * x * gr(1, 1) - w * gr(1, 2)
+            + zq * gr(2, 0)
+            + w * gr(2, 1)
+            - 2.0 * x * gr(2, 2)),
+        2.0 * (-2.0 * y * gr(0, 0) + x * gr(0, 1) + w * gr(0, 2) + x * gr(1, 0) + zq * gr(1, 2)
+            - w * gr(2, 0)
+            + zq * gr(2, 1)
+            - 2.0 * y * gr(2, 2)),
+        2.0 * (-2.0 * zq * gr(0, 0) - w * gr(0, 1) + x * gr(0, 2) + w * gr(1, 0)
+            - 2.0 * zq * gr(1, 1)
+            + y * gr(1, 2)
+            + x * gr(2, 0)
+            + y * gr(2, 1)),
+    ];
+    let dot = (0..4).map(|k| geo.qn[k] * dqn[k]).sum::<f32>();
+    let q = std::array::from_fn(|k| (dqn[k] - geo.qn[k] * dot) / geo.q_norm);
+
+    // Opacity sigmoid.
+    let logit = d.opacity * geo.opacity * (1.0 - geo.opacity);
+
+    // SH colour, its clamp, and the view-direction path into the mean.
+    let dirv = r.mean - frame.center;
+    let len = dirv.length();
+    let dir = dirv / len;
+    let (basis, dbasis) = sh::basis_and_grad(dir.to_array(), active_degree);
+    let (_, raw_rgb) = color(frame, r.mean, r.sh, active_degree);
+    let drgb: [f32; 3] = std::array::from_fn(|ch| if raw_rgb[ch] >= 0.0 { d.rgb[ch] } else { 0.0 });
+    let mut d_dir = Vec3::ZERO;
+    for k in 0..crate::gaussians::sh_coeff_count(active_degree) {
+        let mut s = 0.0f32;
+        for ch in 0..3 {
+            sh_grad[k * 3 + ch] = basis[k] * drgb[ch];
+            s += r.sh[k * 3 + ch] * drgb[ch];
+        }
+        d_dir += Vec3::from_array(dbasis[k]) * s;
+    }
+    d_mean += (d_dir - dir * dir.dot(d_dir)) / len;
+
+    Some(RawGrad {
+        mean: d_mean.to_array(),
+        log_scale,
+        q,
+        logit,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn min_sigma_over_rectangle_matches_a_dense_grid() {
+        let mut state = 12345u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for _ in 0..200 {
+            let (sx, sy, rho) = (0.5 + 20.0 * next(), 0.5 + 20.0 * next(), 1.8 * next() - 0.9);
+            let (ca, cc, cb) = (sx * sx, sy * sy, rho * sx * sy);
+            let det = ca * cc - cb * cb;
+            let s = Splat {
+                u: 100.0 * next() - 50.0,
+                v: 100.0 * next() - 50.0,
+                a: cc / det,
+                b: -cb / det,
+                c: ca / det,
+                ..Splat::default()
+            };
+            let (x0, y0) = (60.0 * next() - 30.0, 60.0 * next() - 30.0);
+            let (x1, y1) = (x0 + 15.0, y0 + 15.0);
+            let m = s.min_sigma_over(x0, x1, y0, y1);
+            let mut grid = f32::INFINITY;
+            for i in 0..=150 {
+                for j in 0..=150 {
+                    let x = x0 + (x1 - x0) * i as f32 / 150.0;
+                    let y = y0 + (y1 - y0) * j as f32 / 150.0;
+                    grid = grid.min(s.sigma_at(x - s.u, y - s.v));
+                }
+            }
+            assert!(
+                m <= grid * (1.0 + 1e-5) + 1e-6,
+                "{m} above grid minimum {grid}"
+            );
+            assert!(m >= grid * 0.95 - 1e-2, "{m} far below grid minimum {grid}");
+        }
+    }
+}
