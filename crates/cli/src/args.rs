@@ -4,9 +4,9 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
 
-/// Dynamic 3D Gaussian Splatting with EvoGS.
+/// Dynamic 3D Gaussian Splatting with EvoGS. So far: render a 3DGS PLY or the demo scene.
 #[derive(Debug, Parser)]
-#[command(name = "evogs", version, about, long_about = None)]
+#[command(name = "evogs", version)]
 pub struct Cli {
     /// What to do.
     #[command(subcommand)]

@@ -28,14 +28,21 @@ fn main() -> ExitCode {
                 let _ = err.print();
                 return ExitCode::from(2);
             }
-            // First line of clap's message (the rest is a hint to try --help).
+            // clap's message without the usage and the hint to try --help, joined into one line.
             let rendered = err.render().to_string();
-            let first = rendered
-                .lines()
-                .find(|l| !l.trim().is_empty())
+            let message = rendered
+                .split("\n\nUsage:")
+                .next()
+                .unwrap_or("")
+                .split("\n\nFor more information")
+                .next()
                 .unwrap_or("");
-            let message = first.strip_prefix("error: ").unwrap_or(first);
-            eprintln!("evogs: {} (see --help)", one_line(message));
+            let message = message
+                .trim()
+                .strip_prefix("error: ")
+                .unwrap_or(message.trim());
+            let words: Vec<&str> = message.split_whitespace().collect();
+            eprintln!("evogs: {} (see --help)", words.join(" "));
             return ExitCode::from(2);
         }
     };
