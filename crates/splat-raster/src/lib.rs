@@ -35,6 +35,7 @@ mod output;
 mod project;
 pub mod sh;
 mod tiles;
+mod validate;
 
 pub use camera::Camera;
 pub use cpu::CpuRasterizer;
