@@ -41,6 +41,7 @@
 
 pub mod activation;
 pub mod adam;
+pub mod encoding;
 pub mod error;
 pub mod linalg;
 pub mod mlp;
@@ -48,6 +49,11 @@ pub mod precision;
 
 pub use activation::Activation;
 pub use adam::{Adam, AdamGroup, ExponentialLr, GroupId, LrSchedule};
+pub use encoding::bspline::{BSplineCache, BSplineConfig, BSplineGrads, BSplineTime};
+pub use encoding::sinusoidal::Sinusoidal;
+pub use encoding::triplane::{
+    PlaneCombine, TriPlane, TriPlaneCache, TriPlaneConfig, TriPlaneGrads,
+};
 pub use error::NnError;
 pub use mlp::{LayerShape, Mlp, MlpCache, MlpConfig, MlpGrads};
 pub use precision::{F16_MAX, Precision, Store, StoreMut, StoreRef};
