@@ -45,7 +45,9 @@ pub mod encoding;
 pub mod error;
 pub mod linalg;
 pub mod mlp;
+pub mod nets;
 pub mod precision;
+pub mod weights;
 
 pub use activation::Activation;
 pub use adam::{Adam, AdamGroup, ExponentialLr, GroupId, LrSchedule};
@@ -56,4 +58,9 @@ pub use encoding::triplane::{
 };
 pub use error::NnError;
 pub use mlp::{LayerShape, Mlp, MlpCache, MlpConfig, MlpGrads};
+pub use nets::{
+    DeformCache, DeformConfig, DeformGrads, DeformNet, ObservationCache, ObservationConfig,
+    ObservationGrads, ObservationNet,
+};
 pub use precision::{F16_MAX, Precision, Store, StoreMut, StoreRef};
+pub use weights::Parameters;

@@ -540,3 +540,12 @@ fn concat_rows(a: &[f32], wa: usize, b: &[f32], wb: usize, nr: usize) -> Vec<f32
     }
     out
 }
+
+impl crate::weights::Parameters for Mlp {
+    fn named_params(&self) -> Vec<(String, StoreRef<'_>)> {
+        vec![("params".to_string(), self.params.as_ref())]
+    }
+    fn named_params_mut(&mut self) -> Vec<(String, StoreMut<'_>)> {
+        vec![("params".to_string(), self.params.as_mut())]
+    }
+}

@@ -253,3 +253,12 @@ impl BSplineTime {
         Ok(BSplineGrads { params, times: d_t })
     }
 }
+
+impl crate::weights::Parameters for BSplineTime {
+    fn named_params(&self) -> Vec<(String, StoreRef<'_>)> {
+        vec![("controls".to_string(), self.params.as_ref())]
+    }
+    fn named_params_mut(&mut self) -> Vec<(String, StoreMut<'_>)> {
+        vec![("controls".to_string(), self.params.as_mut())]
+    }
+}

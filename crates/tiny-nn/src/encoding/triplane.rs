@@ -432,3 +432,12 @@ fn sample(planes: StoreRef<'_>, off: usize, lk: &Lookup, out: &mut [f32]) {
         }
     }
 }
+
+impl crate::weights::Parameters for TriPlane {
+    fn named_params(&self) -> Vec<(String, StoreRef<'_>)> {
+        vec![("planes".to_string(), self.params.as_ref())]
+    }
+    fn named_params_mut(&mut self) -> Vec<(String, StoreMut<'_>)> {
+        vec![("planes".to_string(), self.params.as_mut())]
+    }
+}
