@@ -147,7 +147,7 @@ impl RowPlan {
         stride: usize,
         new_rows: NewRows<T>,
     ) -> Result<Vec<T>, RowPlanError> {
-        if stride == 0 || src.len() % stride != 0 {
+        if stride == 0 || !src.len().is_multiple_of(stride) {
             return Err(RowPlanError::BadStride {
                 len: src.len(),
                 stride,
