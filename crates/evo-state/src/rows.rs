@@ -130,8 +130,9 @@ impl RowPlan {
         expected_rows: usize,
         new_rows: NewRows<T>,
     ) -> Result<(), RowPlanError> {
-        let actual = if stride == 0 { 0 } else { data.len() / stride };
-        if stride != 0 && actual != expected_rows {
+        if let Some(actual) = data.len().checked_div(stride)
+            && actual != expected_rows
+        {
             return Err(RowPlanError::RowCount {
                 expected: expected_rows,
                 actual,
