@@ -368,7 +368,7 @@ impl EvoState {
         step.memory_next = Some(memory_next);
         if full {
             step.stats = Some(stats);
-            if matches!(step.gains, Gains::Learned(_)) {
+            if matches!(gains, Gains::Learned(_)) {
                 step.psi_inputs = Some(inputs);
             }
         }

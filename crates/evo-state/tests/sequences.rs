@@ -16,7 +16,11 @@ fn assert_close(a: &[f32], b: &[f32], tol: f32) {
 /// z_i(t) = x0_i + v_i t: after warm-up the prior equals the observation exactly.
 fn constant_velocity(times: Vec<f32>) -> String {
     let frames = Frames::new(times).unwrap();
-    let config = EvoConfig { layout: position_only(), gain: Gain::Fixed(0.3), ..EvoConfig::default() };
+    let config = EvoConfig {
+        layout: position_only(),
+        gain: Gain::Fixed(0.3),
+        ..EvoConfig::default()
+    };
     let mut st = state(config, frames.clone(), 2);
     let x0 = [0.5f32, -1.0, 2.0, 0.0, 0.25, 1.0];
     let v = [1.0f32, 2.0, -0.5, -3.0, 0.0, 4.0];
@@ -48,7 +52,11 @@ fn non_uniform_times_prior_is_exact() {
 /// by hand in the comments.
 #[test]
 fn warm_up_stages_by_hand() {
-    let config = EvoConfig { layout: position_only(), gain: Gain::Fixed(0.25), ..EvoConfig::default() };
+    let config = EvoConfig {
+        layout: position_only(),
+        gain: Gain::Fixed(0.25),
+        ..EvoConfig::default()
+    };
     let mut st = state(config, uniform_frames(5), 1);
     let z = |k: usize| vec![(k * k) as f32, 0.0, 0.0];
     let mut out = String::new();
@@ -72,7 +80,10 @@ fn warm_up_stages_by_hand() {
         assert_eq!(step.gains(), &gains);
         assert!((step.corrected()[0] - corrected).abs() < 1e-6, "frame {k}");
         if let Some(m) = memory {
-            assert!((step.memory_next().unwrap()[0] - m).abs() < 1e-6, "frame {k}");
+            assert!(
+                (step.memory_next().unwrap()[0] - m).abs() < 1e-6,
+                "frame {k}"
+            );
             assert!((st.memory()[0] - m).abs() < 1e-6);
         } else {
             assert!(st.memory().iter().all(|&m| m == 0.0));
@@ -84,7 +95,11 @@ fn warm_up_stages_by_hand() {
     let step = st.forward(st.frames().times()[3], &z(3)).unwrap();
     let s = step.stats().unwrap()[0];
     assert_eq!((s.speed_last, s.speed_prev), (2.0, 1.0));
-    assert!((s.theta as f64 - (2.0f64 / (2.0 + 1e-6)).acos()).abs() < 1e-6, "{}", s.theta);
+    assert!(
+        (s.theta as f64 - (2.0f64 / (2.0 + 1e-6)).acos()).abs() < 1e-6,
+        "{}",
+        s.theta
+    );
     insta::assert_snapshot!(out);
 }
 
@@ -95,11 +110,14 @@ fn learned_gain_stage() {
     let d = st.dim();
     let mut out = String::new();
     for k in 0..5 {
-        let z: Vec<f32> =
-            (0..3 * d).map(|e| ((e * 7 + k * 3) % 11) as f32 * 0.1 + k as f32 * 0.2).collect();
+        let z: Vec<f32> = (0..3 * d)
+            .map(|e| ((e * 7 + k * 3) % 11) as f32 * 0.1 + k as f32 * 0.2)
+            .collect();
         let step = train(&mut st, k, &z);
         if k >= 3 {
-            let Gains::Learned(gains) = step.gains() else { panic!("frame {k}: gain not learned") };
+            let Gains::Learned(gains) = step.gains() else {
+                panic!("frame {k}: gain not learned")
+            };
             let prior = step.prior().unwrap();
             for (i, &g) in gains.iter().enumerate() {
                 assert!(g > 0.0 && g < 1.0);
@@ -118,11 +136,21 @@ fn learned_gain_stage() {
 /// Frames visited in random order: the history only uses committed frames.
 #[test]
 fn frames_in_random_order() {
-    let config = EvoConfig { layout: position_only(), gain: Gain::Fixed(0.5), ..EvoConfig::default() };
+    let config = EvoConfig {
+        layout: position_only(),
+        gain: Gain::Fixed(0.5),
+        ..EvoConfig::default()
+    };
     let mut st = state(config, uniform_frames(6), 1);
     let mut out = String::new();
-    let expected_history: [(usize, &[usize]); 6] =
-        [(3, &[]), (0, &[]), (1, &[0]), (4, &[3, 1, 0]), (2, &[1, 0]), (5, &[4, 3, 2])];
+    let expected_history: [(usize, &[usize]); 6] = [
+        (3, &[]),
+        (0, &[]),
+        (1, &[0]),
+        (4, &[3, 1, 0]),
+        (2, &[1, 0]),
+        (5, &[4, 3, 2]),
+    ];
     for (k, history) in expected_history {
         let z = vec![(k * k) as f32, k as f32, 1.0];
         let step = train(&mut st, k, &z);
@@ -139,14 +167,23 @@ fn frames_in_random_order() {
 /// Gaps larger than max_gap cut the history.
 #[test]
 fn gaps_larger_than_max_gap() {
-    let config = EvoConfig { layout: position_only(), max_gap: 2, ..EvoConfig::default() };
+    let config = EvoConfig {
+        layout: position_only(),
+        max_gap: 2,
+        ..EvoConfig::default()
+    };
     let mut st = state(config, uniform_frames(9), 1);
     for k in [0, 1, 2, 6] {
         train(&mut st, k, &[k as f32, 0.0, 0.0]);
     }
     let mut out = String::new();
     // Query positions: frame 4 (2 after frame 2: ok), 5 (3 after: cut), 8 (6 then 2: gap 4).
-    for (k, history) in [(4usize, &[2usize, 1, 0][..]), (5, &[]), (8, &[6]), (7, &[6])] {
+    for (k, history) in [
+        (4usize, &[2usize, 1, 0][..]),
+        (5, &[]),
+        (8, &[6]),
+        (7, &[6]),
+    ] {
         let t = st.frames().times()[k];
         let z = [k as f32, 0.0, 0.0];
         let step = st.forward(t, &z).unwrap();
@@ -159,7 +196,11 @@ fn gaps_larger_than_max_gap() {
 /// Evaluation between and beyond training frames: read-only, time-scaled prior.
 #[test]
 fn queries_between_and_beyond_frames() {
-    let config = EvoConfig { layout: position_only(), gain: Gain::Fixed(0.0), ..EvoConfig::default() };
+    let config = EvoConfig {
+        layout: position_only(),
+        gain: Gain::Fixed(0.0),
+        ..EvoConfig::default()
+    };
     let mut st = state(config, uniform_frames(5), 1);
     for k in 0..5 {
         train(&mut st, k, &[k as f32, 0.0, 0.0]);
@@ -176,7 +217,10 @@ fn queries_between_and_beyond_frames() {
     let mut fresh = before.clone();
     for t in [0.6f32, 1.2, 2.0] {
         let step = fresh.forward(t, &[100.0, 0.0, 0.0]).unwrap();
-        assert!(matches!(fresh.commit(&step), Err(evo_state::EvoError::NotAFrame(_))));
+        assert!(matches!(
+            fresh.commit(&step),
+            Err(evo_state::EvoError::NotAFrame(_))
+        ));
     }
     assert_eq!(fresh, before);
     insta::assert_snapshot!(out);

@@ -6,11 +6,22 @@ use std::fmt::Write;
 
 /// Position-only layout (D = 3).
 pub fn position_only() -> Layout {
-    Layout { position: true, rotation: false, scale: false, opacity: false, colour: false }
+    Layout {
+        position: true,
+        rotation: false,
+        scale: false,
+        opacity: false,
+        colour: false,
+    }
 }
 
 pub fn uniform_frames(count: usize) -> Frames {
-    Frames::new((0..count).map(|k| k as f32 / (count - 1).max(1) as f32).collect()).unwrap()
+    Frames::new(
+        (0..count)
+            .map(|k| k as f32 / (count - 1).max(1) as f32)
+            .collect(),
+    )
+    .unwrap()
 }
 
 pub fn state(config: EvoConfig, frames: Frames, rows: usize) -> EvoState {
@@ -27,8 +38,16 @@ pub fn train(state: &mut EvoState, k: usize, z: &[f32]) -> Step {
 
 fn list(v: &[f32]) -> String {
     // Values that round to zero print without a sign, so rounding noise cannot flip "-0".
-    let items: Vec<String> =
-        v.iter().map(|&x| if x.abs() < 5e-5 { "0.0000".into() } else { format!("{x:.4}") }).collect();
+    let items: Vec<String> = v
+        .iter()
+        .map(|&x| {
+            if x.abs() < 5e-5 {
+                "0.0000".into()
+            } else {
+                format!("{x:.4}")
+            }
+        })
+        .collect();
     format!("[{}]", items.join(", "))
 }
 
@@ -52,7 +71,12 @@ pub fn trace(state: &EvoState, step: &Step, z: &[f32]) -> String {
     );
     for i in 0..step.rows() {
         let row = i * d..(i + 1) * d;
-        let _ = write!(out, "  row {i}: z={} d~={}", list(&z[row.clone()]), list(&step.corrected()[row.clone()]));
+        let _ = write!(
+            out,
+            "  row {i}: z={} d~={}",
+            list(&z[row.clone()]),
+            list(&step.corrected()[row.clone()])
+        );
         if let Some(p) = step.prior() {
             let _ = write!(out, " prior={}", list(&p[row.clone()]));
         }
