@@ -133,7 +133,18 @@ impl GainNet {
     /// Gradient of the loss with respect to the parameters, given the inputs `x` and the
     /// gradient with respect to each row's output K (`dk`). Rows with `dk = 0` are skipped.
     /// Deterministic: per-chunk partial sums are added in chunk order.
+    ///
+    /// Huge output gradients are scaled down by a power of two (exact) before accumulation and
+    /// the result scaled back in f64 and saturated to the f32 range, so finite inputs give
+    /// finite gradients.
     pub fn backward(&self, x: &[f32], dk: &[f32]) -> Vec<f32> {
+        let largest = dk.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        let exponent = if largest > 1e18 {
+            largest.log2().ceil() as i32
+        } else {
+            0
+        };
+        let down = (-exponent as f32).exp2();
         let o = Self::offsets(self.inputs);
         let n_in = self.inputs;
         let p = &self.params;
@@ -152,7 +163,7 @@ impl GainNet {
                     let xr = &x[row * n_in..(row + 1) * n_in];
                     let logit = self.row_forward(xr, &mut h1, &mut h2);
                     let k = sigmoid(logit);
-                    let dlogit = dk * k * (1.0 - k);
+                    let dlogit = dk * down * k * (1.0 - k);
                     // Layer 2.
                     g[o.b2] += dlogit;
                     for j in 0..HIDDEN {
@@ -194,13 +205,17 @@ impl GainNet {
                 g
             })
             .collect();
-        let mut grads = vec![0.0f32; o.end];
+        let mut grads = vec![0.0f64; o.end];
         for part in partials {
             for (g, p) in grads.iter_mut().zip(part) {
-                *g += p;
+                *g += p as f64;
             }
         }
+        let up = (exponent as f64).exp2();
         grads
+            .iter()
+            .map(|g| (g * up).clamp(-(f32::MAX as f64), f32::MAX as f64) as f32)
+            .collect()
     }
 }
 
