@@ -121,7 +121,7 @@ fn save_and_load_are_bit_exact() {
         assert_eq!(loaded, st, "config {i}");
         // Bit-exact, including -0.0 and every float of Ψ.
         let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-        assert_eq!(bits(loaded.psi().params()), bits(st.psi().params()));
+        assert_eq!(bits(&loaded.psi().params()), bits(&st.psi().params()));
         assert_eq!(bits(loaded.memory()), bits(st.memory()));
         // Saving the loaded state and loading it again changes nothing (the metadata order in
         // the file is not fixed, so bytes are not compared).
