@@ -1,0 +1,72 @@
+//! Atomic file output: write to a temporary file in the target's directory, then rename it into
+//! place, so a reader never sees a half-written file and a failed write leaves the old one intact.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+use crate::IoError;
+
+/// Writes `path` atomically: `fill` writes the whole content into a buffered temporary file in the
+/// same directory, which is flushed, synced and renamed over `path` only if `fill` succeeded.
+pub fn write_atomically<F>(path: &Path, fill: F) -> Result<(), IoError>
+where
+    F: FnOnce(&mut BufWriter<File>) -> Result<(), IoError>,
+{
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let temp = tempfile::Builder::new()
+        .prefix(".evogs-tmp-")
+        .tempfile_in(dir)
+        .map_err(|e| IoError::io(path, e))?;
+    let (file, temp_path) = temp.into_parts();
+    let mut writer = BufWriter::with_capacity(1 << 20, file);
+    fill(&mut writer)?;
+    writer.flush().map_err(|e| IoError::io(path, e))?;
+    let file = writer
+        .into_inner()
+        .map_err(|e| IoError::io(path, e.into_error()))?;
+    file.sync_all().map_err(|e| IoError::io(path, e))?;
+    drop(file);
+    temp_path
+        .persist(path)
+        .map_err(|e| IoError::io(path, e.error))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn failed_fill_leaves_existing_file_and_no_temp_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out.txt");
+        std::fs::write(&target, b"old").unwrap();
+        let result = write_atomically(&target, |w| {
+            w.write_all(b"half").unwrap();
+            Err(IoError::InvalidData {
+                path: target.clone(),
+                problem: "stop".into(),
+            })
+        });
+        assert!(result.is_err());
+        assert_eq!(std::fs::read(&target).unwrap(), b"old");
+        let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+        assert_eq!(names.len(), 1, "temporary file left behind");
+    }
+
+    #[test]
+    fn successful_write_replaces_file_and_relative_paths_work() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out.txt");
+        std::fs::write(&target, b"old").unwrap();
+        write_atomically(&target, |w| {
+            w.write_all(b"new").map_err(|e| IoError::io(&target, e))
+        })
+        .unwrap();
+        assert_eq!(std::fs::read(&target).unwrap(), b"new");
+    }
+}

@@ -1,0 +1,72 @@
+//! A pinhole [`Camera`] with the parts of a real camera model it cannot express: skew and lens
+//! distortion. They are kept so nothing is silently dropped, and reported as warnings.
+
+use splat_raster::Camera;
+
+/// Lens distortion coefficients (nerfies / OpenCV convention).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Distortion {
+    /// Radial `k1, k2, k3`.
+    pub radial: [f32; 3],
+    /// Tangential `p1, p2`.
+    pub tangential: [f32; 2],
+}
+
+impl Distortion {
+    /// True when every coefficient is zero.
+    pub fn is_zero(&self) -> bool {
+        self.radial
+            .iter()
+            .chain(&self.tangential)
+            .all(|&k| k == 0.0)
+    }
+}
+
+/// A camera as read from a file: the pinhole [`Camera`] the rasterizer uses, plus skew and
+/// distortion, which rendering ignores (SPEC §1: rendering is pinhole).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraInfo {
+    /// The pinhole camera.
+    pub camera: Camera,
+    /// Skew: adds `skew · y/z` to u in the full model; ignored by the pinhole rasterizer.
+    pub skew: f32,
+    /// Lens distortion; ignored by the pinhole rasterizer.
+    pub distortion: Distortion,
+}
+
+impl CameraInfo {
+    /// A camera with no skew and no distortion.
+    pub fn pinhole(camera: Camera) -> Self {
+        Self {
+            camera,
+            skew: 0.0,
+            distortion: Distortion::default(),
+        }
+    }
+
+    /// True when skew and distortion are zero, so the pinhole camera is the whole model.
+    pub fn is_pinhole(&self) -> bool {
+        self.skew == 0.0 && self.distortion.is_zero()
+    }
+
+    /// A one-line warning when the camera has skew or distortion that pinhole rendering ignores.
+    pub fn warning(&self) -> Option<String> {
+        if self.is_pinhole() {
+            return None;
+        }
+        let mut parts = Vec::new();
+        if self.skew != 0.0 {
+            parts.push(format!("skew {}", self.skew));
+        }
+        if !self.distortion.is_zero() {
+            parts.push(format!(
+                "radial distortion {:?}, tangential distortion {:?}",
+                self.distortion.radial, self.distortion.tangential
+            ));
+        }
+        Some(format!(
+            "{} ignored: rendering uses the pinhole model",
+            parts.join(" and ")
+        ))
+    }
+}

@@ -1,0 +1,26 @@
+//! `evogs-io`: the file formats of evogs.
+//!
+//! What it is: readers and writers for 3DGS PLY files ([`ply`]), nerfies camera JSON and D-NeRF
+//! `transforms_*.json` cameras ([`camera_json`], [`dnerf`]), PNG/JPEG images as f32 RGB
+//! ([`image_io`]), and the D-NeRF dataset layout; conventions as pinned in SPEC §1–2. Every error
+//! names the file and the field or problem; every write is atomic (temporary file, then rename).
+//!
+//! What it is not: a renderer, a trainer or a data augmenter. Cameras come out as
+//! [`splat_raster::Camera`] (pinhole); skew and lens distortion are kept beside them in
+//! [`CameraInfo`] and reported, never applied.
+
+pub mod atomic;
+pub mod camera_info;
+pub mod camera_json;
+pub mod dnerf;
+pub mod error;
+pub mod image_io;
+mod json_fields;
+pub mod ply;
+
+pub use camera_info::{CameraInfo, Distortion};
+pub use camera_json::{nerfies_camera_json, read_nerfies_camera, write_nerfies_camera};
+pub use dnerf::{DnerfFrame, Split, read_dnerf_split, read_transforms};
+pub use error::IoError;
+pub use image_io::{ImageRgb, load_image, load_view, resize_image, save_png};
+pub use ply::{LoadedPly, read_ply, read_ply_bytes, write_ply, write_ply_to};

@@ -1,0 +1,202 @@
+//! D-NeRF datasets: the real lego scene (counts, sizes, camera geometry) and errors naming the
+//! file and field for broken datasets.
+
+use std::path::{Path, PathBuf};
+
+use evogs_io::dnerf::camera_from_opengl_c2w;
+use evogs_io::{IoError, Split, read_dnerf_split, read_transforms};
+use glam::Vec3;
+
+fn lego() -> PathBuf {
+    Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/data/dnerf-lego"
+    ))
+    .to_path_buf()
+}
+
+#[test]
+fn lego_splits_have_the_expected_frames() {
+    let root = lego();
+    let counts: Vec<usize> = Split::ALL
+        .iter()
+        .map(|&split| read_dnerf_split(&root, split).unwrap().len())
+        .collect();
+    assert_eq!(counts, vec![34, 20, 11]);
+    let train = read_dnerf_split(&root, Split::Train).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(root.join("transforms_train.json")).unwrap())
+            .unwrap();
+    let angle = json["camera_angle_x"].as_f64().unwrap();
+    let focal = (0.5 * 800.0 / (0.5 * angle).tan()) as f32;
+    for (frame, raw) in train.iter().zip(json["frames"].as_array().unwrap()) {
+        let c = &frame.camera;
+        assert_eq!((c.width, c.height), (800, 800));
+        assert_eq!((c.fx, c.fy, c.cx, c.cy), (focal, focal, 400.0, 400.0));
+        assert!(frame.image_path.is_file(), "{}", frame.image_path.display());
+        assert_eq!(frame.time, raw["time"].as_f64().unwrap() as f32);
+        assert!((0.0..=1.0).contains(&frame.time));
+        // The camera centre is the matrix's translation column.
+        let m = &raw["transform_matrix"];
+        let t = Vec3::new(
+            m[0][3].as_f64().unwrap() as f32,
+            m[1][3].as_f64().unwrap() as f32,
+            m[2][3].as_f64().unwrap() as f32,
+        );
+        assert!(
+            (c.center() - t).length() < 1e-5,
+            "{:?} vs {t:?}",
+            c.center()
+        );
+        // It looks at the origin, roughly: the forward axis points at it and the origin projects
+        // near the image centre.
+        let forward = c.rotation.row(2);
+        assert!(forward.dot(-t.normalize()) > 0.95, "forward {forward:?}");
+        let p = c.world_to_camera(Vec3::ZERO);
+        let (u, v) = (c.fx * p.x / p.z + c.cx, c.fy * p.y / p.z + c.cy);
+        assert!(
+            (u - 400.0).abs() < 80.0 && (v - 400.0).abs() < 80.0,
+            "origin at ({u}, {v})"
+        );
+        // OpenCV axes: world up (+z in Blender) appears towards the top of the image.
+        assert!(c.world_to_camera(Vec3::Z).y < p.y);
+        assert!((c.rotation.determinant() - 1.0).abs() < 1e-5);
+    }
+    assert_eq!(train[0].image_path.file_name().unwrap(), "r_8.png");
+}
+
+#[test]
+fn opengl_axes_flip_y_and_z() {
+    // Camera at (0, 0, 5) looking down −z with +y up (OpenGL identity orientation).
+    let c2w = [
+        [1.0, 0.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0, 5.0],
+    ];
+    let c = camera_from_opengl_c2w(&c2w, 20, 10, 30.0, 30.0);
+    assert_eq!(c.world_to_camera(Vec3::ZERO), Vec3::new(0.0, 0.0, 5.0));
+    // World +y (up) is camera −y (image up); world +x stays camera +x.
+    assert_eq!(c.world_to_camera(Vec3::Y), Vec3::new(0.0, -1.0, 5.0));
+    assert_eq!(c.world_to_camera(Vec3::X), Vec3::new(1.0, 0.0, 5.0));
+    assert_eq!((c.cx, c.cy), (10.0, 5.0));
+}
+
+fn tiny_dataset(dir: &Path, transforms: &str) -> PathBuf {
+    std::fs::create_dir_all(dir.join("train")).unwrap();
+    image::RgbImage::from_pixel(4, 2, image::Rgb([10, 20, 30]))
+        .save(dir.join("train/r_0.png"))
+        .unwrap();
+    let path = dir.join("transforms_train.json");
+    std::fs::write(&path, transforms).unwrap();
+    path
+}
+
+const FRAME: &str = r#""transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]"#;
+
+#[test]
+fn image_size_from_file_or_w_h_keys() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = tiny_dataset(
+        dir.path(),
+        &format!(
+            r#"{{"camera_angle_x": 1.0, "frames": [{{"file_path": "./train/r_0", "time": 0.5, {FRAME}}}]}}"#
+        ),
+    );
+    let frames = read_transforms(&path).unwrap();
+    assert_eq!((frames[0].camera.width, frames[0].camera.height), (4, 2));
+    assert_eq!(frames[0].camera.fx, (2.0 / 0.5f64.tan()) as f32);
+    let path = tiny_dataset(
+        dir.path(),
+        &format!(
+            r#"{{"camera_angle_x": 1.0, "w": 8, "h": 6, "frames": [{{"file_path": "train/r_0.png", "time": 0, {FRAME}}}]}}"#
+        ),
+    );
+    let frames = read_transforms(&path).unwrap();
+    assert_eq!((frames[0].camera.width, frames[0].camera.height), (8, 6));
+    // The image then does not match its camera, which loading reports.
+    let err =
+        evogs_io::load_view(&frames[0].image_path, &frames[0].camera, [0.0; 3], 1.0).unwrap_err();
+    assert!(
+        err.to_string().contains("r_0.png") && err.to_string().contains("4×2"),
+        "{err}"
+    );
+}
+
+#[test]
+fn broken_datasets_name_the_file_and_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let frame = |body: &str| format!(r#"{{"camera_angle_x": 0.7, "frames": [{body}]}}"#);
+    let cases: Vec<(&str, String)> = vec![
+        (
+            "malformed json",
+            r#"{"camera_angle_x": 0.7, "frames": [ {"#.to_string(),
+        ),
+        (
+            "missing image",
+            frame(&format!(
+                r#"{{"file_path": "./train/r_9", "time": 0.1, {FRAME}}}"#
+            )),
+        ),
+        (
+            "missing time",
+            frame(&format!(r#"{{"file_path": "./train/r_0", {FRAME}}}"#)),
+        ),
+        (
+            "time out of range",
+            frame(&format!(
+                r#"{{"file_path": "./train/r_0", "time": 1.5, {FRAME}}}"#
+            )),
+        ),
+        (
+            "bad matrix",
+            frame(
+                r#"{"file_path": "./train/r_0", "time": 0.1, "transform_matrix": [[1,0,0],[0,1,0],[0,0,1]]}"#,
+            ),
+        ),
+        (
+            "scaled matrix",
+            frame(
+                r#"{"file_path": "./train/r_0", "time": 0.1, "transform_matrix": [[2,0,0,0],[0,1,0,0],[0,0,1,0]]}"#,
+            ),
+        ),
+        (
+            "frames not an array",
+            r#"{"camera_angle_x": 0.7, "frames": {}}"#.to_string(),
+        ),
+        ("no angle", r#"{"frames": []}"#.to_string()),
+        (
+            "w without h",
+            r#"{"camera_angle_x": 0.7, "w": 800, "frames": []}"#.to_string(),
+        ),
+        (
+            "file_path a number",
+            frame(&format!(r#"{{"file_path": 3, "time": 0.1, {FRAME}}}"#)),
+        ),
+    ];
+    let mut report = String::new();
+    for (name, text) in &cases {
+        let path = tiny_dataset(dir.path(), text);
+        let err = read_dnerf_split(dir.path(), Split::Train).expect_err(name);
+        assert_eq!(err.path(), path, "{name}");
+        let message = err
+            .to_string()
+            .replace(&dir.path().display().to_string(), "<dir>");
+        assert!(!message.contains('\n'));
+        report.push_str(&format!("{name}: {message}\n"));
+    }
+    insta::assert_snapshot!("dnerf_errors", report);
+    // A corrupt image is reported under the image's own name.
+    let path = tiny_dataset(
+        dir.path(),
+        &frame(&format!(
+            r#"{{"file_path": "./train/r_0", "time": 0.1, {FRAME}}}"#
+        )),
+    );
+    std::fs::write(dir.path().join("train/r_0.png"), b"not a png").unwrap();
+    let err = read_transforms(&path).unwrap_err();
+    assert!(matches!(err, IoError::Image { .. }), "{err}");
+    assert!(err.path().ends_with("train/r_0.png"));
+    // A split whose file is absent names that file.
+    let err = read_dnerf_split(dir.path(), Split::Val).unwrap_err();
+    assert!(err.to_string().contains("transforms_val.json"), "{err}");
+}
