@@ -43,7 +43,8 @@ pub struct CullStats {
     pub low_opacity: usize,
     /// Camera-space `z <= 0.01`.
     pub behind_near_plane: usize,
-    /// `det(Σ2d) <= 0`, or the covariance overflowed `f32`.
+    /// `det(Σ2d) <= 0`, the covariance overflowed (it is computed in f64), or its conic does not
+    /// fit `f32`.
     pub degenerate_covariance: usize,
     /// The opacity-aware extent touches no pixel of the image (or the projection overflowed).
     pub off_screen: usize,

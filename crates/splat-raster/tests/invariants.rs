@@ -91,7 +91,7 @@ fn culled_gaussians_change_nothing() {
         ),
         (
             "degenerate",
-            Box::new(|b: &mut Gaussians| b.log_scales[0] = [60.0; 3]),
+            Box::new(|b: &mut Gaussians| b.log_scales[0] = [400.0; 3]),
         ),
         (
             "off_screen",

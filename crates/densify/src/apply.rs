@@ -1,0 +1,282 @@
+//! Applying a plan: one trait, [`PerGaussian`], implemented by every per-Gaussian container,
+//! and one function, [`apply_plan`], that applies a plan to a list of them and checks that they
+//! all end with the plan's row count.
+//!
+//! What each container does with a plan:
+//! - [`Gaussians`]: rows follow the [`RowPlan`] (new rows copy their parent), then the new rows'
+//!   overridden values are written, then reset rows get opacity min(opacity, reset).
+//! - [`Moments`] (one Adam group): new rows start at zero moments (as 3DGS's
+//!   `cat_tensors_to_optimizer`); reset rows' opacity moments are zeroed (`reset_opacity` →
+//!   `replace_tensor_to_optimizer`).
+//! - [`EvoState`]: evo-state's own row maintenance (buffer rows of every frame and memory copied
+//!   from the parent).
+//! - [`DensifyStats`]: zeroed after a densification step (3DGS's `densification_postfix`),
+//!   otherwise rows follow the plan.
+//! - [`Rows`]: any other array of rows, with a chosen fill for new rows.
+
+use crate::error::DensifyError;
+use crate::plan::DensifyPlan;
+use crate::stats::DensifyStats;
+use evo_state::rows::RowPlanError;
+use evo_state::{EvoState, NewRows, RowPlan};
+use splat_raster::Gaussians;
+use tiny_nn::adam::AdamGroup;
+
+/// A container of per-Gaussian rows that a plan can be applied to.
+pub trait PerGaussian {
+    /// Name used in errors.
+    fn label(&self) -> String;
+    /// Number of rows (Gaussians) held.
+    fn rows(&self) -> usize;
+    /// Applies the plan. Called only when `rows() == plan.old_len`.
+    fn apply(&mut self, plan: &DensifyPlan) -> Result<(), DensifyError>;
+}
+
+/// Applies `plan` to every array. Checks first that each has `plan.old_len` rows (nothing is
+/// changed otherwise) and afterwards that each has `plan.new_len()` rows.
+pub fn apply_plan(
+    plan: &DensifyPlan,
+    arrays: &mut [&mut dyn PerGaussian],
+) -> Result<(), DensifyError> {
+    plan.rows
+        .validate(plan.old_len)
+        .map_err(|source| DensifyError::RowPlan {
+            array: "plan".into(),
+            source,
+        })?;
+    check_plan(plan)?;
+    for a in arrays.iter() {
+        if a.rows() != plan.old_len {
+            return Err(DensifyError::Rows {
+                array: a.label(),
+                expected: plan.old_len,
+                actual: a.rows(),
+            });
+        }
+    }
+    for a in arrays.iter_mut() {
+        a.apply(plan)?;
+    }
+    for a in arrays.iter() {
+        if a.rows() != plan.new_len() {
+            return Err(DensifyError::Rows {
+                array: a.label(),
+                expected: plan.new_len(),
+                actual: a.rows(),
+            });
+        }
+    }
+    Ok(())
+}
+
+fn check_plan(plan: &DensifyPlan) -> Result<(), DensifyError> {
+    let n_new = plan.rows.parent_from_new.len();
+    let v = &plan.new_values;
+    for (field, len) in [
+        ("plan.new_values.means", v.means.len()),
+        ("plan.new_values.log_scales", v.log_scales.len()),
+        ("plan.new_values.rotations", v.rotations.len()),
+        ("plan.new_values.opacity_logits", v.opacity_logits.len()),
+        ("plan.new_values.sh_dc", v.sh_dc.len()),
+    ] {
+        if len != n_new {
+            return Err(DensifyError::Length {
+                field,
+                expected: n_new,
+                actual: len,
+            });
+        }
+    }
+    let new_len = plan.new_len();
+    if let Some(w) = plan.reset_rows.windows(2).find(|w| w[1] <= w[0]) {
+        return Err(DensifyError::Input {
+            field: "plan.reset_rows",
+            problem: format!("row {} does not increase after {}", w[1], w[0]),
+        });
+    }
+    if let Some(&r) = plan.reset_rows.last()
+        && r as usize >= new_len
+    {
+        return Err(DensifyError::Input {
+            field: "plan.reset_rows",
+            problem: format!("row {r} is out of range for {new_len} rows"),
+        });
+    }
+    Ok(())
+}
+
+fn rows_err(array: &str) -> impl FnOnce(RowPlanError) -> DensifyError + '_ {
+    move |source| DensifyError::RowPlan {
+        array: array.to_string(),
+        source,
+    }
+}
+
+fn apply_rows<T: Copy + Send + Sync>(
+    plan: &RowPlan,
+    data: &mut Vec<T>,
+    stride: usize,
+    fill: NewRows<T>,
+    label: &str,
+) -> Result<(), DensifyError> {
+    plan.apply(data, stride, fill).map_err(rows_err(label))
+}
+
+fn copy_rows<T: Copy + Send + Sync>(
+    plan: &RowPlan,
+    data: &mut Vec<T>,
+    stride: usize,
+    label: &str,
+) -> Result<(), DensifyError> {
+    apply_rows(plan, data, stride, NewRows::CopyParent, label)
+}
+
+impl PerGaussian for Gaussians {
+    fn label(&self) -> String {
+        "gaussians".into()
+    }
+
+    fn rows(&self) -> usize {
+        self.len()
+    }
+
+    fn apply(&mut self, plan: &DensifyPlan) -> Result<(), DensifyError> {
+        let r = &plan.rows;
+        let stride = self.sh_stride();
+        copy_rows(r, &mut self.means, 1, "gaussians.means")?;
+        copy_rows(r, &mut self.log_scales, 1, "gaussians.log_scales")?;
+        copy_rows(r, &mut self.rotations, 1, "gaussians.rotations")?;
+        copy_rows(r, &mut self.opacity_logits, 1, "gaussians.opacity_logits")?;
+        copy_rows(r, &mut self.sh, stride, "gaussians.sh")?;
+        let start = plan.kept_len();
+        let v = &plan.new_values;
+        self.means[start..].copy_from_slice(&v.means);
+        self.log_scales[start..].copy_from_slice(&v.log_scales);
+        self.rotations[start..].copy_from_slice(&v.rotations);
+        self.opacity_logits[start..].copy_from_slice(&v.opacity_logits);
+        for (j, dc) in v.sh_dc.iter().enumerate() {
+            let row = (start + j) * stride;
+            self.sh[row..row + 3].copy_from_slice(dc);
+        }
+        let reset = plan.reset_logit();
+        for &row in &plan.reset_rows {
+            let o = &mut self.opacity_logits[row as usize];
+            *o = o.min(reset);
+        }
+        Ok(())
+    }
+}
+
+/// The Adam moments of one parameter group whose rows are Gaussians.
+#[derive(Debug)]
+pub struct Moments<'a> {
+    pub group: &'a mut AdamGroup,
+    /// The column of a row that holds the opacity (zeroed at reset rows): `Some(0)` for a group
+    /// holding only opacities, `Some(10)` for one interleaved 59-wide parameter row, `None` for
+    /// a group without opacity.
+    pub opacity_column: Option<usize>,
+}
+
+impl PerGaussian for Moments<'_> {
+    fn label(&self) -> String {
+        format!("Adam moments `{}`", self.group.name)
+    }
+
+    fn rows(&self) -> usize {
+        self.group.m.len() / self.group.row_width.max(1)
+    }
+
+    fn apply(&mut self, plan: &DensifyPlan) -> Result<(), DensifyError> {
+        let w = self.group.row_width;
+        let label = self.label();
+        if self.group.v.len() != self.group.m.len() {
+            return Err(DensifyError::Rows {
+                array: format!("{label} (second moment)"),
+                expected: self.rows(),
+                actual: self.group.v.len() / w.max(1),
+            });
+        }
+        if let Some(c) = self.opacity_column
+            && c >= w
+        {
+            return Err(DensifyError::Input {
+                field: "opacity_column",
+                problem: format!("column {c} is outside rows of {w} in {label}"),
+            });
+        }
+        let zero = NewRows::Fill(0.0);
+        apply_rows(&plan.rows, &mut self.group.m, w, zero, &label)?;
+        apply_rows(&plan.rows, &mut self.group.v, w, zero, &label)?;
+        if let Some(c) = self.opacity_column {
+            for &row in &plan.reset_rows {
+                let e = row as usize * w + c;
+                self.group.m[e] = 0.0;
+                self.group.v[e] = 0.0;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl PerGaussian for EvoState {
+    fn label(&self) -> String {
+        "evolution state".into()
+    }
+
+    fn rows(&self) -> usize {
+        EvoState::rows(self)
+    }
+
+    fn apply(&mut self, plan: &DensifyPlan) -> Result<(), DensifyError> {
+        Ok(self.apply_rows(&plan.rows)?)
+    }
+}
+
+impl PerGaussian for DensifyStats {
+    fn label(&self) -> String {
+        "densify statistics".into()
+    }
+
+    fn rows(&self) -> usize {
+        self.len()
+    }
+
+    fn apply(&mut self, plan: &DensifyPlan) -> Result<(), DensifyError> {
+        self.check()?;
+        if plan.clears_stats {
+            self.reset(plan.new_len());
+            return Ok(());
+        }
+        let r = &plan.rows;
+        copy_rows(r, &mut self.grad_sum, 1, "stats.grad_sum")?;
+        copy_rows(r, &mut self.visible, 1, "stats.visible")?;
+        copy_rows(r, &mut self.max_radius, 1, "stats.max_radius")?;
+        copy_rows(r, &mut self.residual_sum, 1, "stats.residual_sum")?;
+        copy_rows(r, &mut self.residual_count, 1, "stats.residual_count")?;
+        copy_rows(r, &mut self.theta_sum, 1, "stats.theta_sum")?;
+        copy_rows(r, &mut self.theta_count, 1, "stats.theta_count")
+    }
+}
+
+/// Any other per-Gaussian array: rows of `stride` elements, new rows filled by `fill`.
+#[derive(Debug)]
+pub struct Rows<'a, T> {
+    pub label: &'a str,
+    pub data: &'a mut Vec<T>,
+    pub stride: usize,
+    pub fill: NewRows<T>,
+}
+
+impl<T: Copy + Send + Sync> PerGaussian for Rows<'_, T> {
+    fn label(&self) -> String {
+        self.label.to_string()
+    }
+
+    fn rows(&self) -> usize {
+        self.data.len() / self.stride.max(1)
+    }
+
+    fn apply(&mut self, plan: &DensifyPlan) -> Result<(), DensifyError> {
+        apply_rows(&plan.rows, self.data, self.stride, self.fill, self.label)
+    }
+}

@@ -1,0 +1,240 @@
+//! Configuration: the 3DGS schedule and thresholds, and the switches of every policy.
+//!
+//! Defaults follow the original 3DGS code (graphdeco-inria/gaussian-splatting, `train.py`,
+//! `arguments/__init__.py`, `scene/gaussian_model.py`): `densify_from_iter = 500`,
+//! `densify_until_iter = 15000`, `densification_interval = 100`, `opacity_reset_interval = 3000`,
+//! `densify_grad_threshold = 0.0002`, `percent_dense = 0.01`, minimum opacity 0.005, screen size
+//! 20 px, world size `0.1 · extent`, split into `N = 2` children of scale `s / (0.8 N)`.
+
+use crate::error::DensifyError;
+
+/// When statistics are accumulated, when densification runs and when opacities are reset.
+///
+/// Iterations count from 1, as in 3DGS's `train.py`. The conditions are 3DGS's exactly:
+/// - statistics accumulate while `iteration < until`;
+/// - densify-and-prune runs when `iteration < until && iteration > from && iteration % interval == 0`;
+/// - the screen-size and world-size prune applies when `iteration > opacity_reset_interval`;
+/// - opacity is reset when `iteration < until` and either `iteration % opacity_reset_interval == 0`
+///   or (white background) `iteration == from`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Schedule {
+    /// `densify_from_iter` (default 500); densification starts strictly after it.
+    pub from: u64,
+    /// `densify_until_iter` (default 15000), exclusive.
+    pub until: u64,
+    /// `densification_interval` (default 100).
+    pub interval: u64,
+    /// `opacity_reset_interval` (default 3000).
+    pub opacity_reset_interval: u64,
+    /// The scene is trained on a white background (D-NeRF synthetic): 3DGS then also resets
+    /// opacity at `iteration == from`.
+    pub white_background: bool,
+}
+
+impl Default for Schedule {
+    fn default() -> Self {
+        Self {
+            from: 500,
+            until: 15000,
+            interval: 100,
+            opacity_reset_interval: 3000,
+            white_background: false,
+        }
+    }
+}
+
+impl Schedule {
+    /// Whether statistics are accumulated at `iteration`.
+    pub fn accumulates(&self, iteration: u64) -> bool {
+        iteration < self.until
+    }
+
+    /// Whether densify-and-prune runs at `iteration`.
+    pub fn densifies(&self, iteration: u64) -> bool {
+        iteration < self.until && iteration > self.from && iteration.is_multiple_of(self.interval)
+    }
+
+    /// Whether the screen-size and world-size prune applies at `iteration` (after the first
+    /// opacity reset).
+    pub fn prunes_large(&self, iteration: u64) -> bool {
+        iteration > self.opacity_reset_interval
+    }
+
+    /// Whether opacities are reset at `iteration`.
+    pub fn resets_opacity(&self, iteration: u64) -> bool {
+        iteration < self.until
+            && iteration > 0
+            && (iteration.is_multiple_of(self.opacity_reset_interval)
+                || (self.white_background && iteration == self.from))
+    }
+
+    /// Whether anything happens at `iteration` (a plan other than the identity may result).
+    pub fn acts(&self, iteration: u64) -> bool {
+        self.densifies(iteration) || self.resets_opacity(iteration)
+    }
+}
+
+/// EvoGS's uncertainty-aware trigger: densify only where, besides the gradient criterion, the
+/// mean residual norm over the interval is below `tau_r` and the mean angular deviation is
+/// below `tau_theta`.
+///
+/// The paper fixes both across scenes but prints no values. Our defaults:
+/// - `tau_r = 0.01`: the residual `|z - d̂|` of the position part, divided by the scene extent
+///   (per step). 0.01 · extent is 3DGS's own boundary between "small" and "large" Gaussians
+///   (`percent_dense`): a prior that misplaces a Gaussian by more than the footprint of a small
+///   Gaussian is not trusted to seed new ones.
+/// - `tau_theta = π/3`: θ is 0 for consistent motion and averages π/2 for directions drawn at
+///   random; π/3 blocks Gaussians whose motion is closer to random than to consistent.
+///
+/// A Gaussian with no residual (or θ) sample in the interval (too little history) passes that
+/// test: there is no evidence of instability.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Trigger {
+    /// τ_r, relative to the scene extent.
+    pub tau_r: f32,
+    /// τ_θ, radians.
+    pub tau_theta: f32,
+}
+
+impl Default for Trigger {
+    fn default() -> Self {
+        Self {
+            tau_r: 0.01,
+            tau_theta: std::f32::consts::FRAC_PI_3,
+        }
+    }
+}
+
+/// Every threshold and every policy switch. Each policy is switchable on its own, so every
+/// combination of the ablation table can be expressed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DensifyConfig {
+    pub schedule: Schedule,
+    /// Clone small Gaussians with a large gradient (3DGS).
+    pub clone: bool,
+    /// Split large Gaussians with a large gradient (3DGS).
+    pub split: bool,
+    /// Prune transparent and (after the first reset) too large Gaussians (3DGS).
+    pub prune: bool,
+    /// Reset opacities periodically (3DGS).
+    pub opacity_reset: bool,
+    /// EvoGS's uncertainty-aware trigger, when `Some`.
+    pub trigger: Option<Trigger>,
+    /// EvoGS's deformation-aware clone/split with this α (paper: 0.5), when `Some`.
+    pub deformation_alpha: Option<f32>,
+    /// Mean NDC gradient norm at or above which a Gaussian is densified (0.0002).
+    pub grad_threshold: f32,
+    /// Max scale at or below `percent_dense · extent` clones, above splits (0.01).
+    pub percent_dense: f32,
+    /// Opacity below which a Gaussian is pruned (0.005).
+    pub min_opacity: f32,
+    /// Max screen radius (px) above which a Gaussian is pruned (20).
+    pub max_screen_radius: f32,
+    /// Max scale above `max_world_fraction · extent` is pruned (0.1).
+    pub max_world_fraction: f32,
+    /// Children per split (2); each gets scale / (0.8 · children).
+    pub split_children: usize,
+    /// Opacity reset value: opacity becomes min(opacity, this) (0.01).
+    pub reset_opacity: f32,
+    /// Seed of the split sampling (combined with the iteration).
+    pub seed: u64,
+}
+
+impl Default for DensifyConfig {
+    /// Standard 3DGS adaptive density control, EvoGS policies off.
+    fn default() -> Self {
+        Self {
+            schedule: Schedule::default(),
+            clone: true,
+            split: true,
+            prune: true,
+            opacity_reset: true,
+            trigger: None,
+            deformation_alpha: None,
+            grad_threshold: 0.0002,
+            percent_dense: 0.01,
+            min_opacity: 0.005,
+            max_screen_radius: 20.0,
+            max_world_fraction: 0.1,
+            split_children: 2,
+            reset_opacity: 0.01,
+            seed: 0,
+        }
+    }
+}
+
+impl DensifyConfig {
+    /// Standard 3DGS plus both EvoGS policies with the paper's α = 0.5 and our τ defaults.
+    pub fn evogs() -> Self {
+        Self {
+            trigger: Some(Trigger::default()),
+            deformation_alpha: Some(0.5),
+            ..Self::default()
+        }
+    }
+
+    /// Checks every field's range.
+    pub fn validate(&self) -> Result<(), DensifyError> {
+        let bad = |field: &'static str, value: String, problem: &'static str| {
+            Err(DensifyError::Config {
+                field,
+                value,
+                problem,
+            })
+        };
+        let finite_pos = [
+            ("grad_threshold", self.grad_threshold),
+            ("percent_dense", self.percent_dense),
+            ("max_screen_radius", self.max_screen_radius),
+            ("max_world_fraction", self.max_world_fraction),
+        ];
+        for (field, v) in finite_pos {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(field, v.to_string(), "must be finite and positive");
+            }
+        }
+        for (field, v) in [
+            ("min_opacity", self.min_opacity),
+            ("reset_opacity", self.reset_opacity),
+        ] {
+            if !(v > 0.0 && v < 1.0) {
+                return bad(field, v.to_string(), "must lie in (0, 1)");
+            }
+        }
+        if self.split_children == 0 {
+            return bad("split_children", "0".into(), "must be at least 1");
+        }
+        if self.schedule.interval == 0 {
+            return bad("schedule.interval", "0".into(), "must be at least 1");
+        }
+        if self.schedule.opacity_reset_interval == 0 {
+            return bad(
+                "schedule.opacity_reset_interval",
+                "0".into(),
+                "must be at least 1",
+            );
+        }
+        if let Some(t) = self.trigger {
+            if !(t.tau_r.is_finite() && t.tau_r > 0.0) {
+                return bad(
+                    "trigger.tau_r",
+                    t.tau_r.to_string(),
+                    "must be finite and positive",
+                );
+            }
+            if !(t.tau_theta > 0.0 && t.tau_theta.is_finite()) {
+                return bad(
+                    "trigger.tau_theta",
+                    t.tau_theta.to_string(),
+                    "must be finite and positive",
+                );
+            }
+        }
+        if let Some(a) = self.deformation_alpha
+            && !a.is_finite()
+        {
+            return bad("deformation_alpha", a.to_string(), "must be finite");
+        }
+        Ok(())
+    }
+}

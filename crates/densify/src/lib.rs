@@ -1,0 +1,33 @@
+//! `densify`: 3DGS adaptive density control (clone, split, prune, opacity reset) and EvoGS's
+//! uncertainty-aware trigger and deformation-aware clone/split (SPEC §6), expressed as plans.
+//!
+//! Flow per training iteration:
+//! 1. [`DensifyStats::add_view`] with the rasterizer's per-Gaussian dL/d(projected mean) and
+//!    screen radii; [`DensifyStats::add_evolution`] with [`residual_norms`] and [`thetas`] of
+//!    evo-state's step (EvoGS trigger).
+//! 2. When [`Schedule::acts`], [`make_plan`] decides, deterministically for a seed, and returns a
+//!    [`DensifyPlan`]: an evo-state [`evo_state::RowPlan`], the new rows' parameter values, and
+//!    the rows whose opacity is reset.
+//! 3. [`apply_plan`] applies it to every per-Gaussian container through one trait,
+//!    [`PerGaussian`] (Gaussians, Adam moments, evolution state, statistics, any other rows), and
+//!    checks that all end with the same length.
+//!
+//! It is not a trainer: it renders nothing, computes no gradients and steps no optimiser; it
+//! reads slices from the rasterizer and evo-state and never depends on their internals.
+
+pub mod apply;
+pub mod config;
+pub mod error;
+pub mod extent;
+pub mod math;
+pub mod plan;
+pub mod planner;
+pub mod stats;
+
+pub use apply::{Moments, PerGaussian, Rows, apply_plan};
+pub use config::{DensifyConfig, Schedule, Trigger};
+pub use error::DensifyError;
+pub use extent::scene_extent;
+pub use plan::{DensifyPlan, NewValues, PlanSummary};
+pub use planner::{Deformation, PlanInput, make_plan};
+pub use stats::{DensifyStats, residual_norms, thetas};

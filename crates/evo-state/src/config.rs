@@ -1,0 +1,323 @@
+//! Configuration: which deformation components exist, how the buffer is stored, and the
+//! ablation switches of SPEC §4.
+
+use thiserror::Error;
+
+/// One deformation component. In the deformation vector the enabled components appear in this
+/// order: position, rotation, scale, opacity, colour.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Component {
+    /// Offset of the mean (3), in scene units.
+    Position,
+    /// Offset added to the raw quaternion w, x, y, z (4).
+    Rotation,
+    /// Offset added to the log-scale (3).
+    Scale,
+    /// Offset added to the opacity logit (1).
+    Opacity,
+    /// Offset added to the SH DC colour coefficients (3).
+    Colour,
+}
+
+impl Component {
+    /// Number of values of the component.
+    pub const fn width(self) -> usize {
+        match self {
+            Component::Position | Component::Scale | Component::Colour => 3,
+            Component::Rotation => 4,
+            Component::Opacity => 1,
+        }
+    }
+
+    const ALL: [Component; 5] = [
+        Component::Position,
+        Component::Rotation,
+        Component::Scale,
+        Component::Opacity,
+        Component::Colour,
+    ];
+}
+
+/// Which components the deformation vector holds. Disabled components cost nothing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Layout {
+    pub position: bool,
+    pub rotation: bool,
+    pub scale: bool,
+    pub opacity: bool,
+    pub colour: bool,
+}
+
+impl Default for Layout {
+    /// Position, rotation and scale (D = 10), as D-3DGS deforms.
+    fn default() -> Self {
+        Self {
+            position: true,
+            rotation: true,
+            scale: true,
+            opacity: false,
+            colour: false,
+        }
+    }
+}
+
+impl Layout {
+    /// Whether `component` is enabled.
+    pub const fn has(&self, component: Component) -> bool {
+        match component {
+            Component::Position => self.position,
+            Component::Rotation => self.rotation,
+            Component::Scale => self.scale,
+            Component::Opacity => self.opacity,
+            Component::Colour => self.colour,
+        }
+    }
+
+    /// The enabled components with their ranges in the deformation vector, in order.
+    pub fn components(&self) -> Vec<(Component, std::ops::Range<usize>)> {
+        let mut start = 0;
+        let mut out = Vec::new();
+        for c in Component::ALL {
+            if self.has(c) {
+                out.push((c, start..start + c.width()));
+                start += c.width();
+            }
+        }
+        out
+    }
+
+    /// D: the sum of the enabled components' widths.
+    pub fn dim(&self) -> usize {
+        Component::ALL
+            .iter()
+            .filter(|c| self.has(**c))
+            .map(|c| c.width())
+            .sum()
+    }
+
+    /// Range of `component` in the deformation vector, if enabled.
+    pub fn range(&self, component: Component) -> Option<std::ops::Range<usize>> {
+        self.components()
+            .into_iter()
+            .find(|(c, _)| *c == component)
+            .map(|(_, r)| r)
+    }
+
+    /// Compact code (bit per component, in [`Component`] order) used when saving.
+    pub(crate) fn bits(&self) -> u8 {
+        Component::ALL
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| self.has(**c))
+            .map(|(i, _)| 1u8 << i)
+            .sum()
+    }
+
+    pub(crate) fn from_bits(bits: u8) -> Option<Self> {
+        if bits >= 1 << 5 {
+            return None;
+        }
+        let on = |i: u8| bits & (1 << i) != 0;
+        Some(Self {
+            position: on(0),
+            rotation: on(1),
+            scale: on(2),
+            opacity: on(3),
+            colour: on(4),
+        })
+    }
+}
+
+/// Element type of the buffer of corrected states.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Storage {
+    /// 4·D bytes per Gaussian per frame.
+    F32,
+    /// 2·D bytes per Gaussian per frame; values beyond ±65504 saturate and are counted.
+    F16,
+}
+
+impl Storage {
+    /// Bytes of one stored value.
+    pub const fn bytes(self) -> usize {
+        match self {
+            Storage::F32 => 4,
+            Storage::F16 => 2,
+        }
+    }
+}
+
+/// How the gain K is chosen once three history frames exist (h = 3).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Gain {
+    /// K = Ψ(inputs), the EvoGS method.
+    Learned,
+    /// K fixed at a constant in [0, 1] (0 = prior only, 0.5, 1 = observation only). The warm-up
+    /// (h <= 1: d̃ = z; h = 2: K = 0.5) is kept, "all other settings unchanged" as in the paper's
+    /// ablation.
+    Fixed(f32),
+}
+
+/// Where the history states come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HistoryMode {
+    /// The persistent buffer of corrected states (EvoGS).
+    Buffer,
+    /// Re-queried from the observation network at the history times ("without buffer"). No
+    /// buffer is kept; every frame before the query counts as available.
+    Requery,
+}
+
+/// Configuration of an [`crate::EvoState`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EvoConfig {
+    pub layout: Layout,
+    pub storage: Storage,
+    /// Residual memory momentum β (SPEC: 0.9).
+    pub beta: f32,
+    /// History frames must lie within this many frames of the one after them (SPEC: 3).
+    pub max_gap: usize,
+    /// Motion floor, relative to the scene extent (SPEC: 1e-6): below it θ = 0.
+    pub motion_floor: f32,
+    /// Scene extent (scene units); Ψ's inputs in scene units are divided by it.
+    pub extent: f32,
+    /// `false`: the baseline, d̃ = z, nothing stored, EvoGS losses zero.
+    pub evolution: bool,
+    pub gain: Gain,
+    pub history: HistoryMode,
+    /// λ1, weight of L_sup (SPEC: 0.5).
+    pub lambda_sup: f32,
+    /// λ2, weight of L_prior (SPEC: 0.5).
+    pub lambda_prior: f32,
+}
+
+impl Default for EvoConfig {
+    fn default() -> Self {
+        Self {
+            layout: Layout::default(),
+            storage: Storage::F32,
+            beta: 0.9,
+            max_gap: 3,
+            motion_floor: 1e-6,
+            extent: 1.0,
+            evolution: true,
+            gain: Gain::Learned,
+            history: HistoryMode::Buffer,
+            lambda_sup: 0.5,
+            lambda_prior: 0.5,
+        }
+    }
+}
+
+/// A configuration value out of its range.
+#[derive(Debug, Error, Clone, PartialEq)]
+#[error("evo-state config: field `{field}` = {value} {problem}")]
+pub struct ConfigError {
+    pub field: &'static str,
+    pub value: String,
+    pub problem: &'static str,
+}
+
+impl EvoConfig {
+    /// Deformation dimension D.
+    pub fn dim(&self) -> usize {
+        self.layout.dim()
+    }
+
+    /// Checks every field.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let err = |field, value: String, problem| {
+            Err(ConfigError {
+                field,
+                value,
+                problem,
+            })
+        };
+        if self.layout.dim() == 0 {
+            return err(
+                "layout",
+                format!("{:?}", self.layout),
+                "enables no component",
+            );
+        }
+        if !(0.0..1.0).contains(&self.beta) {
+            return err("beta", self.beta.to_string(), "must be in [0, 1)");
+        }
+        if self.max_gap == 0 {
+            return err("max_gap", "0".into(), "must be at least 1");
+        }
+        if !(self.motion_floor.is_finite() && self.motion_floor >= 0.0) {
+            return err(
+                "motion_floor",
+                self.motion_floor.to_string(),
+                "must be finite and >= 0",
+            );
+        }
+        if !(self.extent.is_finite() && self.extent > 0.0) {
+            return err("extent", self.extent.to_string(), "must be finite and > 0");
+        }
+        if let Gain::Fixed(k) = self.gain
+            && !(0.0..=1.0).contains(&k)
+        {
+            return err("gain", k.to_string(), "fixed gain must be in [0, 1]");
+        }
+        for (field, v) in [
+            ("lambda_sup", self.lambda_sup),
+            ("lambda_prior", self.lambda_prior),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return err(field, v.to_string(), "must be finite and >= 0");
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dim_is_the_sum_of_enabled_components() {
+        assert_eq!(Layout::default().dim(), 10);
+        let all = Layout {
+            position: true,
+            rotation: true,
+            scale: true,
+            opacity: true,
+            colour: true,
+        };
+        assert_eq!(all.dim(), 14);
+        assert_eq!(all.range(Component::Colour), Some(11..14));
+        let only_opacity = Layout {
+            opacity: true,
+            ..Layout::from_bits(0).unwrap()
+        };
+        assert_eq!(only_opacity.dim(), 1);
+        assert_eq!(only_opacity.range(Component::Position), None);
+        for bits in 0..32u8 {
+            assert_eq!(Layout::from_bits(bits).unwrap().bits(), bits);
+        }
+        assert_eq!(Layout::from_bits(32), None);
+    }
+
+    #[test]
+    fn bad_fields_are_named() {
+        let bad = EvoConfig {
+            beta: 1.0,
+            ..EvoConfig::default()
+        };
+        assert_eq!(bad.validate().unwrap_err().field, "beta");
+        let bad = EvoConfig {
+            gain: Gain::Fixed(1.5),
+            ..EvoConfig::default()
+        };
+        assert_eq!(bad.validate().unwrap_err().field, "gain");
+        let bad = EvoConfig {
+            extent: 0.0,
+            ..EvoConfig::default()
+        };
+        assert!(bad.validate().unwrap_err().to_string().contains("extent"));
+        assert!(EvoConfig::default().validate().is_ok());
+    }
+}

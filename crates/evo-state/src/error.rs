@@ -1,0 +1,76 @@
+//! Errors of the evolution state.
+
+use std::path::PathBuf;
+
+use thiserror::Error;
+
+use crate::config::ConfigError;
+use crate::frames::FramesError;
+use crate::rows::RowPlanError;
+
+/// Anything that can go wrong in a step, a row plan, or saving/loading.
+#[derive(Debug, Error)]
+pub enum EvoError {
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    #[error(transparent)]
+    Frames(#[from] FramesError),
+    #[error(transparent)]
+    RowPlan(#[from] RowPlanError),
+    /// The gain network Ψ failed (shape errors from tiny-nn).
+    #[error("gain network: {0}")]
+    Network(#[from] tiny_nn::NnError),
+    /// An input array has the wrong length.
+    #[error("{what}: expected {expected} values, got {actual}")]
+    Length {
+        what: &'static str,
+        expected: usize,
+        actual: usize,
+    },
+    /// A non-finite value in an input array, naming the Gaussian (row) and the component.
+    #[error("{what}: non-finite value {value} at Gaussian {row}, component {component}")]
+    NonFinite {
+        what: &'static str,
+        row: usize,
+        component: usize,
+        value: f32,
+    },
+    /// The query time is not finite.
+    #[error("query time {0} is not finite")]
+    NonFiniteTime(f32),
+    /// Only training steps (at a frame time) commit.
+    #[error("time {0} is not a training frame time; only training steps commit")]
+    NotAFrame(f32),
+    /// The step was computed before a row plan changed the Gaussian set.
+    #[error(
+        "step was computed for {step_rows} Gaussians (generation {step_generation}), the state now has {rows} (generation {generation})"
+    )]
+    StaleStep {
+        step_rows: usize,
+        step_generation: u64,
+        rows: usize,
+        generation: u64,
+    },
+    /// History re-query mode needs an observation source.
+    #[error("history mode Requery needs an observation source (use forward_with)")]
+    NeedsObservationSource,
+    /// The observation source failed.
+    #[error("observation source failed at time {time}: {source}")]
+    Source {
+        time: f32,
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// Reading or writing a file failed.
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// A saved state is malformed.
+    #[error("{}: field `{field}`: {problem}", path.display())]
+    Format {
+        path: PathBuf,
+        field: String,
+        problem: String,
+    },
+}

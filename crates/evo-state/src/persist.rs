@@ -1,0 +1,301 @@
+//! Saving and loading the whole state as safetensors, bit-exact. Tensors: `times` (F32 [T]),
+//! `valid` (U8 [T]), `memory` (F32 [N, D]), `psi` (F32 [P]) and, with a buffer, `buffer.KKKKK`
+//! (F32 or F16 [N, D]) per frame. The configuration and counters are string metadata; floats
+//! are written in Rust's shortest round-trip form, so they load bit-exact. The file is written
+//! to a temporary file in the same directory and renamed.
+
+use std::collections::HashMap;
+use std::io::Write;
+use std::path::Path;
+
+use half::f16;
+use safetensors::tensor::{Dtype, SafeTensors, TensorView};
+
+use crate::buffer::{Block, StateBuffer};
+use crate::config::{EvoConfig, Gain, HistoryMode, Layout, Storage};
+use crate::error::EvoError;
+use crate::frames::Frames;
+use crate::gain::GainNet;
+use crate::state::EvoState;
+
+const FORMAT: &str = "evo-state/1";
+
+fn buffer_name(k: usize) -> String {
+    format!("buffer.{k:05}")
+}
+
+fn f32_bytes(v: &[f32]) -> &[u8] {
+    bytemuck::cast_slice(v)
+}
+
+impl EvoState {
+    /// Saves the whole state to `path` (safetensors).
+    pub fn save(&self, path: &Path) -> Result<(), EvoError> {
+        let io = |source| EvoError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let c = &self.config;
+        let mut meta: HashMap<String, String> = HashMap::new();
+        let mut put = |k: &str, v: String| {
+            meta.insert(k.to_string(), v);
+        };
+        put("format", FORMAT.into());
+        put("layout_bits", c.layout.bits().to_string());
+        put(
+            "storage",
+            match c.storage {
+                Storage::F32 => "f32".into(),
+                Storage::F16 => "f16".into(),
+            },
+        );
+        put("beta", c.beta.to_string());
+        put("max_gap", c.max_gap.to_string());
+        put("motion_floor", c.motion_floor.to_string());
+        put("extent", c.extent.to_string());
+        put("evolution", c.evolution.to_string());
+        put(
+            "gain",
+            match c.gain {
+                Gain::Learned => "learned".into(),
+                Gain::Fixed(k) => format!("fixed:{k}"),
+            },
+        );
+        put(
+            "history",
+            match c.history {
+                HistoryMode::Buffer => "buffer".into(),
+                HistoryMode::Requery => "requery".into(),
+            },
+        );
+        put("lambda_sup", c.lambda_sup.to_string());
+        put("lambda_prior", c.lambda_prior.to_string());
+        put("rows", self.rows.to_string());
+        put("saturations", self.saturations.to_string());
+        put("generation", self.generation.to_string());
+        put("psi_seed", self.psi.mlp().config().seed.to_string());
+
+        let dim = self.dim();
+        let valid: Vec<u8> = self.valid.iter().map(|&v| v as u8).collect();
+        let psi = self.psi.params();
+        let view = |dtype, shape: Vec<usize>, data| {
+            TensorView::new(dtype, shape, data).map_err(|e| EvoError::Format {
+                path: path.to_path_buf(),
+                field: "tensor".into(),
+                problem: e.to_string(),
+            })
+        };
+        let mut tensors: Vec<(String, TensorView<'_>)> = vec![
+            (
+                "times".into(),
+                view(
+                    Dtype::F32,
+                    vec![self.frames.len()],
+                    f32_bytes(self.frames.times()),
+                )?,
+            ),
+            ("valid".into(), view(Dtype::U8, vec![valid.len()], &valid)?),
+            (
+                "memory".into(),
+                view(Dtype::F32, vec![self.rows, dim], f32_bytes(&self.memory))?,
+            ),
+            (
+                "psi".into(),
+                view(Dtype::F32, vec![self.psi.params().len()], f32_bytes(&psi))?,
+            ),
+        ];
+        if let Some(buffer) = &self.buffer {
+            for (k, block) in buffer.blocks.iter().enumerate() {
+                let (dtype, bytes): (Dtype, &[u8]) = match block {
+                    Block::F32(v) => (Dtype::F32, bytemuck::cast_slice(v)),
+                    Block::F16(v) => (Dtype::F16, bytemuck::cast_slice(v)),
+                };
+                tensors.push((buffer_name(k), view(dtype, vec![self.rows, dim], bytes)?));
+            }
+        }
+        let bytes = safetensors::serialize(tensors, Some(meta)).map_err(|e| EvoError::Format {
+            path: path.to_path_buf(),
+            field: "safetensors".into(),
+            problem: e.to_string(),
+        })?;
+        let dir = path
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(io)?;
+        tmp.write_all(&bytes).map_err(io)?;
+        tmp.as_file().sync_all().map_err(io)?;
+        tmp.persist(path).map_err(|e| io(e.error))?;
+        Ok(())
+    }
+
+    /// Loads a state saved by [`EvoState::save`]. Every problem names the file and the field.
+    pub fn load(path: &Path) -> Result<Self, EvoError> {
+        let bytes = std::fs::read(path).map_err(|source| EvoError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let bad = |field: &str, problem: String| EvoError::Format {
+            path: path.to_path_buf(),
+            field: field.to_string(),
+            problem,
+        };
+        let (_, header) =
+            SafeTensors::read_metadata(&bytes).map_err(|e| bad("safetensors", e.to_string()))?;
+        let tensors =
+            SafeTensors::deserialize(&bytes).map_err(|e| bad("safetensors", e.to_string()))?;
+        let empty = HashMap::new();
+        let meta = header.metadata().as_ref().unwrap_or(&empty);
+        let get = |k: &str| meta.get(k).ok_or_else(|| bad(k, "missing".into()));
+        fn parse<T: std::str::FromStr>(
+            s: &str,
+            k: &str,
+            bad: &dyn Fn(&str, String) -> EvoError,
+        ) -> Result<T, EvoError> {
+            s.parse().map_err(|_| bad(k, format!("cannot parse {s:?}")))
+        }
+        let num = |k: &str| -> Result<f32, EvoError> { parse(get(k)?, k, &bad) };
+        if get("format")? != FORMAT {
+            return Err(bad(
+                "format",
+                format!("expected {FORMAT:?}, found {:?}", get("format")?),
+            ));
+        }
+        let bits: u8 = parse(get("layout_bits")?, "layout_bits", &bad)?;
+        let layout = Layout::from_bits(bits)
+            .ok_or_else(|| bad("layout_bits", format!("{bits} is not a layout")))?;
+        let storage = match get("storage")?.as_str() {
+            "f32" => Storage::F32,
+            "f16" => Storage::F16,
+            other => return Err(bad("storage", format!("unknown storage {other:?}"))),
+        };
+        let gain = match get("gain")?.as_str() {
+            "learned" => Gain::Learned,
+            other => match other.strip_prefix("fixed:") {
+                Some(k) => Gain::Fixed(parse(k, "gain", &bad)?),
+                None => return Err(bad("gain", format!("unknown gain {other:?}"))),
+            },
+        };
+        let history = match get("history")?.as_str() {
+            "buffer" => HistoryMode::Buffer,
+            "requery" => HistoryMode::Requery,
+            other => return Err(bad("history", format!("unknown history mode {other:?}"))),
+        };
+        let config = EvoConfig {
+            layout,
+            storage,
+            beta: num("beta")?,
+            max_gap: parse(get("max_gap")?, "max_gap", &bad)?,
+            motion_floor: num("motion_floor")?,
+            extent: num("extent")?,
+            evolution: parse(get("evolution")?, "evolution", &bad)?,
+            gain,
+            history,
+            lambda_sup: num("lambda_sup")?,
+            lambda_prior: num("lambda_prior")?,
+        };
+        config.validate().map_err(|e| bad(e.field, e.to_string()))?;
+        let rows: usize = parse(get("rows")?, "rows", &bad)?;
+        let saturations: u64 = parse(get("saturations")?, "saturations", &bad)?;
+        let generation: u64 = parse(get("generation")?, "generation", &bad)?;
+        let dim = config.dim();
+
+        let tensor = |name: &str, dtype: Dtype, shape: &[usize]| -> Result<Vec<u8>, EvoError> {
+            let t = tensors.tensor(name).map_err(|e| bad(name, e.to_string()))?;
+            if t.dtype() != dtype {
+                return Err(bad(
+                    name,
+                    format!("dtype {:?}, expected {dtype:?}", t.dtype()),
+                ));
+            }
+            if t.shape() != shape {
+                return Err(bad(
+                    name,
+                    format!("shape {:?}, expected {shape:?}", t.shape()),
+                ));
+            }
+            Ok(t.data().to_vec())
+        };
+        let to_f32 = |b: Vec<u8>| -> Vec<f32> {
+            b.chunks_exact(4)
+                .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                .collect()
+        };
+        let t_shape = tensors
+            .tensor("times")
+            .map_err(|e| bad("times", e.to_string()))?
+            .shape()
+            .to_vec();
+        let [frame_count] = t_shape[..] else {
+            return Err(bad("times", format!("shape {t_shape:?}, expected [T]")));
+        };
+        let frames = Frames::new(to_f32(tensor("times", Dtype::F32, &[frame_count])?))
+            .map_err(|e| bad("times", e.to_string()))?;
+        let valid_bytes = tensor("valid", Dtype::U8, &[frame_count])?;
+        if let Some(b) = valid_bytes.iter().find(|&&b| b > 1) {
+            return Err(bad("valid", format!("flag {b} is not 0 or 1")));
+        }
+        let valid = valid_bytes.iter().map(|&b| b == 1).collect();
+        let memory = to_f32(tensor("memory", Dtype::F32, &[rows, dim])?);
+        if let Some(p) = memory.iter().position(|v| !v.is_finite()) {
+            return Err(bad(
+                "memory",
+                format!("non-finite value at Gaussian {}", p / dim.max(1)),
+            ));
+        }
+        let psi_seed: u64 = parse(get("psi_seed")?, "psi_seed", &bad)?;
+        let mut psi = GainNet::new(dim + 3, psi_seed).map_err(|e| bad("psi", e.to_string()))?;
+        let psi_params = to_f32(tensor("psi", Dtype::F32, &[psi.param_count()])?);
+        if psi_params.iter().any(|v| !v.is_finite()) {
+            return Err(bad("psi", "non-finite parameter".into()));
+        }
+        psi.set_params(&psi_params)
+            .map_err(|e| bad("psi", e.to_string()))?;
+        let buffer = if config.evolution && config.history == HistoryMode::Buffer {
+            let mut blocks = Vec::with_capacity(frame_count);
+            for k in 0..frame_count {
+                let name = buffer_name(k);
+                let block = match storage {
+                    Storage::F32 => {
+                        let v = to_f32(tensor(&name, Dtype::F32, &[rows, dim])?);
+                        if v.iter().any(|x| !x.is_finite()) {
+                            return Err(bad(&name, "non-finite state".into()));
+                        }
+                        Block::F32(v)
+                    }
+                    Storage::F16 => {
+                        let b = tensor(&name, Dtype::F16, &[rows, dim])?;
+                        let v: Vec<f16> = b
+                            .chunks_exact(2)
+                            .map(|c| f16::from_le_bytes([c[0], c[1]]))
+                            .collect();
+                        if v.iter().any(|x| !x.is_finite()) {
+                            return Err(bad(&name, "non-finite state".into()));
+                        }
+                        Block::F16(v)
+                    }
+                };
+                blocks.push(block);
+            }
+            Some(StateBuffer {
+                storage,
+                rows,
+                dim,
+                blocks,
+            })
+        } else {
+            None
+        };
+        Ok(Self {
+            config,
+            frames,
+            rows,
+            generation,
+            buffer,
+            valid,
+            memory,
+            psi,
+            saturations,
+        })
+    }
+}

@@ -1,0 +1,120 @@
+//! One query's result ([`Step`]): prior, statistics, gain and corrected state, and what the
+//! backward pass returns ([`Backward`]).
+
+use crate::frames::History;
+
+/// Motion statistics of one Gaussian (h = 3), on the position part, per frame spacing.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Stats {
+    /// |v2| = |x_k2 - x_k3| / (k2 - k3).
+    pub speed_prev: f32,
+    /// |v1| = |x_k1 - x_k2| / (k1 - k2).
+    pub speed_last: f32,
+    /// θ, the angle between v2 and v1 (0 below the motion floor).
+    pub theta: f32,
+}
+
+/// The gain of a step.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Gains {
+    /// No correction: d̃ = z (h <= 1, or evolution off).
+    Observation,
+    /// One K for every Gaussian (warm-up h = 2, or a fixed gain).
+    Uniform(f32),
+    /// K_i = Ψ(inputs_i).
+    Learned(Vec<f32>),
+}
+
+impl Gains {
+    /// K of Gaussian `i` (1 when d̃ = z).
+    pub fn at(&self, i: usize) -> f32 {
+        match self {
+            Gains::Observation => 1.0,
+            Gains::Uniform(k) => *k,
+            Gains::Learned(k) => k[i],
+        }
+    }
+}
+
+/// The result of a forward pass at time t. Read-only: committing is a separate call.
+#[derive(Debug, Clone)]
+pub struct Step {
+    pub(crate) time: f32,
+    pub(crate) frame: Option<usize>,
+    pub(crate) history: History,
+    pub(crate) rows: usize,
+    pub(crate) generation: u64,
+    pub(crate) corrected: Vec<f32>,
+    pub(crate) prior: Option<Vec<f32>>,
+    pub(crate) gains: Gains,
+    pub(crate) stats: Option<Vec<Stats>>,
+    pub(crate) psi_cache: Option<tiny_nn::MlpCache>,
+    pub(crate) memory_next: Option<Vec<f32>>,
+}
+
+impl Step {
+    /// The query time.
+    pub fn time(&self) -> f32 {
+        self.time
+    }
+
+    /// The training frame at exactly this time, if any (only those can be committed).
+    pub fn frame(&self) -> Option<usize> {
+        self.frame
+    }
+
+    /// The history used (h = `history().len`).
+    pub fn history(&self) -> History {
+        self.history
+    }
+
+    /// Number of Gaussians.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// d̃, N × D: the deformation to add to the canonical raw parameters.
+    pub fn corrected(&self) -> &[f32] {
+        &self.corrected
+    }
+
+    /// d̂, N × D (h >= 2).
+    pub fn prior(&self) -> Option<&[f32]> {
+        self.prior.as_deref()
+    }
+
+    /// The gain.
+    pub fn gains(&self) -> &Gains {
+        &self.gains
+    }
+
+    /// Motion statistics (h = 3).
+    pub fn stats(&self) -> Option<&[Stats]> {
+        self.stats.as_deref()
+    }
+
+    /// Residual memory this step would commit (h >= 2).
+    pub fn memory_next(&self) -> Option<&[f32]> {
+        self.memory_next.as_deref()
+    }
+}
+
+/// The EvoGS loss terms (unweighted).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Losses {
+    /// L_sup = mean_i |d̃_i - z_i|².
+    pub sup: f64,
+    /// L_prior = mean_i sg(opacity_i) |sg(d̂_i) - z_i|² (0 when h < 2).
+    pub prior: f64,
+}
+
+/// Gradients of `L_render + λ1 L_sup + λ2 L_prior`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Backward {
+    /// dL/dz, N × D: pass it on to the observation network Φ.
+    pub dz: Vec<f32>,
+    /// dL/dΨ-parameters, in [`crate::GainNet::params`] order (learned gain, h = 3).
+    pub dpsi: Option<Vec<f32>>,
+    /// The loss values of this step.
+    pub losses: Losses,
+}

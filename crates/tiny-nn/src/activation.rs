@@ -1,0 +1,39 @@
+//! Element-wise activations, applied in place on f32 rows, with derivatives taken from outputs.
+
+/// An element-wise activation function.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Activation {
+    /// `y = x`.
+    Identity,
+    /// `y = max(x, 0)`; derivative 1 where y > 0, else 0 (0 at the kink).
+    Relu,
+    /// `y = 1 / (1 + exp(-x))`.
+    Sigmoid,
+}
+
+impl Activation {
+    /// Applies the activation in place.
+    pub fn apply(self, xs: &mut [f32]) {
+        match self {
+            Activation::Identity => {}
+            Activation::Relu => xs.iter_mut().for_each(|x| *x = x.max(0.0)),
+            Activation::Sigmoid => xs.iter_mut().for_each(|x| *x = 1.0 / (1.0 + (-*x).exp())),
+        }
+    }
+
+    /// Multiplies `grad` in place by the derivative, given the activation's outputs `ys`.
+    pub fn backward_from_output(self, ys: &[f32], grad: &mut [f32]) {
+        match self {
+            Activation::Identity => {}
+            Activation::Relu => grad.iter_mut().zip(ys).for_each(|(g, &y)| {
+                if y <= 0.0 {
+                    *g = 0.0;
+                }
+            }),
+            Activation::Sigmoid => grad
+                .iter_mut()
+                .zip(ys)
+                .for_each(|(g, &y)| *g *= y * (1.0 - y)),
+        }
+    }
+}

@@ -1,0 +1,276 @@
+//! Adam with per-group learning rates, the 3DGS exponential schedule, and per-row moment edits.
+//!
+//! A group is one parameter buffer (a network's flat parameters, or a per-Gaussian array of
+//! `rows × row_width` values). Its first and second moments are plain `Vec<f32>` of the same
+//! length, public so another crate can permute them when rows are added or removed; the helpers
+//! [`Adam::reset_rows`] and [`Adam::remap_rows`] cover the usual cases.
+//!
+//! The update is PyTorch's `torch.optim.Adam` (no weight decay, no amsgrad):
+//! `m ← β1 m + (1-β1) g`, `v ← β2 v + (1-β2) g²`, `θ ← θ - lr · m̂ / (√v̂ + ε)` with
+//! `m̂ = m / (1-β1^t)`, `v̂ = v / (1-β2^t)`, and `t` the group's step count. Parameters in f16
+//! storage are updated in f32 and rounded back (saturating, counted): updates smaller than half an
+//! f16 ulp of a weight are lost, as with any pure-f16 storage.
+
+use crate::error::{NnError, check_len};
+use crate::precision::{F16_MAX, StoreMut};
+use half::f16;
+
+/// A learning rate as a function of the step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LrSchedule {
+    /// The same rate at every step.
+    Constant(f32),
+    /// 3DGS's `get_expon_lr_func`.
+    Exponential(ExponentialLr),
+}
+
+/// 3DGS's `get_expon_lr_func(lr_init, lr_final, lr_delay_steps, lr_delay_mult, max_steps)`:
+/// `lr(s) = delay(s) · exp((1-τ) ln lr_init + τ ln lr_final)`, `τ = clamp(s / max_steps, 0, 1)`,
+/// `delay(s) = delay_mult + (1 - delay_mult) · sin(π/2 · clamp(s / delay_steps, 0, 1))` when
+/// `delay_steps > 0`, else 1. Negative steps, or `lr_init = lr_final = 0`, give 0.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ExponentialLr {
+    /// Rate at step 0.
+    pub lr_init: f32,
+    /// Rate at `max_steps` and after.
+    pub lr_final: f32,
+    /// Length of the delay ramp (0: none).
+    pub delay_steps: u64,
+    /// Multiplier at step 0 of the ramp.
+    pub delay_mult: f32,
+    /// Steps of the log-linear decay.
+    pub max_steps: u64,
+}
+
+impl ExponentialLr {
+    /// Rate at `step`.
+    pub fn at(&self, step: i64) -> f32 {
+        if step < 0 || (self.lr_init == 0.0 && self.lr_final == 0.0) {
+            return 0.0;
+        }
+        let s = step as f64;
+        let delay = if self.delay_steps > 0 {
+            let r = (s / self.delay_steps as f64).clamp(0.0, 1.0);
+            let m = self.delay_mult as f64;
+            m + (1.0 - m) * (0.5 * std::f64::consts::PI * r).sin()
+        } else {
+            1.0
+        };
+        let t = if self.max_steps == 0 {
+            1.0
+        } else {
+            (s / self.max_steps as f64).clamp(0.0, 1.0)
+        };
+        let log_lerp =
+            ((self.lr_init as f64).ln() * (1.0 - t) + (self.lr_final as f64).ln() * t).exp();
+        (delay * log_lerp) as f32
+    }
+}
+
+impl LrSchedule {
+    /// Rate at `step`.
+    pub fn at(&self, step: i64) -> f32 {
+        match self {
+            LrSchedule::Constant(lr) => *lr,
+            LrSchedule::Exponential(e) => e.at(step),
+        }
+    }
+}
+
+/// Index of a group in an [`Adam`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct GroupId(pub usize);
+
+/// One parameter group's state.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AdamGroup {
+    /// Name (for messages and files).
+    pub name: String,
+    /// Values per row (1 for an unstructured buffer).
+    pub row_width: usize,
+    /// Learning-rate schedule, evaluated at `iteration` (see [`Adam::step`]).
+    pub schedule: LrSchedule,
+    /// Number of updates applied (the `t` of bias correction).
+    pub step: u64,
+    /// First moments, one per parameter.
+    pub m: Vec<f32>,
+    /// Second moments, one per parameter.
+    pub v: Vec<f32>,
+}
+
+/// The Adam optimiser over any number of groups.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Adam {
+    /// β1 (default 0.9).
+    pub beta1: f32,
+    /// β2 (default 0.999).
+    pub beta2: f32,
+    /// ε (default 1e-15, as 3DGS and D-3DGS use).
+    pub eps: f32,
+    groups: Vec<AdamGroup>,
+}
+
+impl Default for Adam {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Adam {
+    /// β1 = 0.9, β2 = 0.999, ε = 1e-15 and no groups.
+    pub fn new() -> Self {
+        Self {
+            beta1: 0.9,
+            beta2: 0.999,
+            eps: 1e-15,
+            groups: Vec::new(),
+        }
+    }
+
+    /// Adds a group of `len` parameters in rows of `row_width`, with zero moments.
+    pub fn add_group(
+        &mut self,
+        name: &str,
+        len: usize,
+        row_width: usize,
+        schedule: LrSchedule,
+    ) -> Result<GroupId, NnError> {
+        if row_width == 0 || !len.is_multiple_of(row_width) {
+            return Err(NnError::Config(format!(
+                "Adam group `{name}`: length {len} is not a multiple of row width {row_width}"
+            )));
+        }
+        self.groups.push(AdamGroup {
+            name: name.to_string(),
+            row_width,
+            schedule,
+            step: 0,
+            m: vec![0.0; len],
+            v: vec![0.0; len],
+        });
+        Ok(GroupId(self.groups.len() - 1))
+    }
+
+    /// The groups.
+    pub fn groups(&self) -> &[AdamGroup] {
+        &self.groups
+    }
+
+    /// One group.
+    pub fn group(&self, id: GroupId) -> &AdamGroup {
+        &self.groups[id.0]
+    }
+
+    /// One group, mutable (moments, schedule, step).
+    pub fn group_mut(&mut self, id: GroupId) -> &mut AdamGroup {
+        &mut self.groups[id.0]
+    }
+
+    /// The learning rate group `id` would use at `iteration`.
+    pub fn lr(&self, id: GroupId, iteration: i64) -> f32 {
+        self.groups[id.0].schedule.at(iteration)
+    }
+
+    /// One Adam update of group `id` with the rate of its schedule at `iteration`. Returns how
+    /// many updated f16 parameters saturated at ±65504 (0 for f32).
+    pub fn step(
+        &mut self,
+        id: GroupId,
+        iteration: i64,
+        params: StoreMut<'_>,
+        grads: &[f32],
+    ) -> Result<u64, NnError> {
+        let (b1, b2, eps) = (self.beta1, self.beta2, self.eps);
+        let g = self
+            .groups
+            .get_mut(id.0)
+            .ok_or_else(|| NnError::Config(format!("no Adam group {}", id.0)))?;
+        check_len(
+            &format!("Adam group `{}` parameters", g.name),
+            g.m.len(),
+            params.len(),
+        )?;
+        check_len(
+            &format!("Adam group `{}` gradients", g.name),
+            g.m.len(),
+            grads.len(),
+        )?;
+        g.step += 1;
+        let lr = g.schedule.at(iteration);
+        let bc1 = 1.0 - (b1 as f64).powi(g.step.min(i32::MAX as u64) as i32);
+        let bc2 = 1.0 - (b2 as f64).powi(g.step.min(i32::MAX as u64) as i32);
+        let step_size = (lr as f64 / bc1) as f32;
+        let bc2_sqrt = bc2.sqrt() as f32;
+        let update = |m: &mut f32, v: &mut f32, gr: f32| -> f32 {
+            *m = b1 * *m + (1.0 - b1) * gr;
+            *v = b2 * *v + (1.0 - b2) * gr * gr;
+            step_size * *m / (v.sqrt() / bc2_sqrt + eps)
+        };
+        let mut sat = 0;
+        match params {
+            StoreMut::F32(p) => {
+                for (((p, m), v), &gr) in p.iter_mut().zip(&mut g.m).zip(&mut g.v).zip(grads) {
+                    *p -= update(m, v, gr);
+                }
+            }
+            StoreMut::F16(p) => {
+                for (((p, m), v), &gr) in p.iter_mut().zip(&mut g.m).zip(&mut g.v).zip(grads) {
+                    let x = p.to_f32() - update(m, v, gr);
+                    if x.abs() > F16_MAX {
+                        sat += 1;
+                    }
+                    *p = f16::from_f32(x.clamp(-F16_MAX, F16_MAX));
+                }
+            }
+        }
+        Ok(sat)
+    }
+
+    /// Zeroes both moments of the given rows of group `id` (3DGS does this for the opacity of
+    /// every Gaussian at an opacity reset).
+    pub fn reset_rows(&mut self, id: GroupId, rows: &[usize]) -> Result<(), NnError> {
+        let g = &mut self.groups[id.0];
+        let n_rows = g.m.len() / g.row_width;
+        for &r in rows {
+            if r >= n_rows {
+                return Err(NnError::Config(format!(
+                    "Adam group `{}`: row {r} out of range ({n_rows} rows)",
+                    g.name
+                )));
+            }
+            let s = r * g.row_width..(r + 1) * g.row_width;
+            g.m[s.clone()].fill(0.0);
+            g.v[s].fill(0.0);
+        }
+        Ok(())
+    }
+
+    /// Rebuilds the moments of group `id` for a new row set: new row `i` takes the moments of old
+    /// row `old_from_new[i]`, or zeros for `None` (a row with no history).
+    pub fn remap_rows(
+        &mut self,
+        id: GroupId,
+        old_from_new: &[Option<usize>],
+    ) -> Result<(), NnError> {
+        let g = &mut self.groups[id.0];
+        let w = g.row_width;
+        let n_old = g.m.len() / w;
+        let mut m = vec![0f32; old_from_new.len() * w];
+        let mut v = vec![0f32; old_from_new.len() * w];
+        for (new, old) in old_from_new.iter().enumerate() {
+            if let Some(old) = *old {
+                if old >= n_old {
+                    return Err(NnError::Config(format!(
+                        "Adam group `{}`: source row {old} out of range ({n_old} rows)",
+                        g.name
+                    )));
+                }
+                m[new * w..(new + 1) * w].copy_from_slice(&g.m[old * w..(old + 1) * w]);
+                v[new * w..(new + 1) * w].copy_from_slice(&g.v[old * w..(old + 1) * w]);
+            }
+        }
+        g.m = m;
+        g.v = v;
+        Ok(())
+    }
+}

@@ -1,0 +1,653 @@
+//! Batched multi-layer perceptron: forward with a cache, backward to inputs and parameters.
+//!
+//! Layout: rows are samples; every matrix is row-major N × width. Layer `l` computes
+//! `y = act(x · W + b)` with `W` stored row-major as `in × out`. Parameters of all layers live in
+//! one flat buffer, per layer `W` then `b`, so one optimiser group covers a network.
+//!
+//! With a skip after hidden layer `s` (D-3DGS: `skip_after = Some(4)` with 8 hidden layers), the
+//! next layer's input is the concatenation `[x, h_s]` (network input first, as D-3DGS's
+//! `torch.cat([x_emb, h])`).
+//!
+//! Rows are processed in blocks of [`ROW_BLOCK`] in parallel (rayon); each block runs the whole
+//! network with single-threaded `gemm` calls on f32 scratch, so the matrix work is fused with the
+//! bias, the activation and the conversion to storage precision.
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+use crate::activation::Activation;
+use crate::error::{NnError, check_len};
+use crate::linalg::{matmul, matmul_a_bt, matmul_at_b};
+use crate::precision::{Precision, Store, StoreMut, StoreRef};
+use gemm::Parallelism;
+
+/// Rows per parallel block.
+pub const ROW_BLOCK: usize = 256;
+
+/// Shape and settings of an [`Mlp`]. Build with [`MlpConfig::new`] and the chained setters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MlpConfig {
+    /// Input width.
+    pub input: usize,
+    /// Width of every hidden layer.
+    pub width: usize,
+    /// Number of hidden layers (each Linear + `hidden_activation`); 0 gives one linear layer.
+    pub hidden_layers: usize,
+    /// Output width.
+    pub output: usize,
+    /// Activation after every hidden layer.
+    pub hidden_activation: Activation,
+    /// Activation after the output layer.
+    pub output_activation: Activation,
+    /// Re-concatenate the input after this hidden layer (0-based).
+    pub skip_after: Option<usize>,
+    /// Start the output layer's weights and bias at zero.
+    pub zero_output: bool,
+    /// Storage precision of parameters and activations.
+    pub precision: Precision,
+    /// Seed of the deterministic initialisation.
+    pub seed: u64,
+}
+
+impl MlpConfig {
+    /// `input → [width; hidden_layers] → output`, ReLU hidden, identity output, no skip,
+    /// PyTorch-default initialisation, f32, seed 0.
+    pub fn new(input: usize, width: usize, hidden_layers: usize, output: usize) -> Self {
+        Self {
+            input,
+            width,
+            hidden_layers,
+            output,
+            hidden_activation: Activation::Relu,
+            output_activation: Activation::Identity,
+            skip_after: None,
+            zero_output: false,
+            precision: Precision::F32,
+            seed: 0,
+        }
+    }
+    /// Sets the hidden activation.
+    pub fn hidden_activation(mut self, a: Activation) -> Self {
+        self.hidden_activation = a;
+        self
+    }
+    /// Sets the output activation.
+    pub fn output_activation(mut self, a: Activation) -> Self {
+        self.output_activation = a;
+        self
+    }
+    /// Re-concatenates the input after hidden layer `layer` (0-based).
+    pub fn skip_after(mut self, layer: usize) -> Self {
+        self.skip_after = Some(layer);
+        self
+    }
+    /// Starts the output layer at zero.
+    pub fn zero_output(mut self, zero: bool) -> Self {
+        self.zero_output = zero;
+        self
+    }
+    /// Sets the storage precision.
+    pub fn precision(mut self, p: Precision) -> Self {
+        self.precision = p;
+        self
+    }
+    /// Sets the initialisation seed.
+    pub fn seed(mut self, seed: u64) -> Self {
+        self.seed = seed;
+        self
+    }
+    /// Builds the network.
+    pub fn build(self) -> Result<Mlp, NnError> {
+        Mlp::new(self)
+    }
+}
+
+/// One linear layer's place in the flat parameter buffer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LayerShape {
+    /// Input width (includes the skip input where there is one).
+    pub input: usize,
+    /// Output width.
+    pub output: usize,
+    /// Offset of `W` (row-major `input × output`) in the parameter buffer.
+    pub weight_offset: usize,
+    /// Offset of `b` (`output` values) in the parameter buffer.
+    pub bias_offset: usize,
+    /// True when this layer's input is `[x, h]` (the skip).
+    pub skip_input: bool,
+}
+
+/// A batched MLP. See the module docs for the layout.
+#[derive(Clone, Debug)]
+pub struct Mlp {
+    config: MlpConfig,
+    layers: Vec<LayerShape>,
+    params: Store,
+}
+
+/// What [`Mlp::forward`] keeps for [`Mlp::backward`]: the input and every layer's output, in the
+/// network's storage precision.
+#[derive(Clone, Debug)]
+pub struct MlpCache {
+    rows: usize,
+    input: Store,
+    acts: Vec<Store>,
+    saturated: u64,
+}
+
+impl MlpCache {
+    /// Number of rows of the forward pass.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+    /// Values that saturated at ±65504 when stored in f16 during the forward pass (always 0 for
+    /// f32 storage).
+    pub fn saturations(&self) -> u64 {
+        self.saturated
+    }
+}
+
+/// Gradients from [`Mlp::backward`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct MlpGrads {
+    /// dL/dθ, laid out as the parameter buffer (f32).
+    pub params: Vec<f32>,
+    /// dL/dx, N × input (present when asked for).
+    pub input: Option<Vec<f32>>,
+}
+
+impl Mlp {
+    /// Builds and initialises a network: every layer `W, b ~ U(-1/√in, 1/√in)` (PyTorch's
+    /// `nn.Linear` default) from a ChaCha8 stream seeded by `config.seed`; the output layer is
+    /// zero when `config.zero_output`.
+    pub fn new(config: MlpConfig) -> Result<Self, NnError> {
+        if config.input == 0 || config.output == 0 {
+            return Err(NnError::Config(
+                "MLP input and output widths must be > 0".into(),
+            ));
+        }
+        if config.hidden_layers > 0 && config.width == 0 {
+            return Err(NnError::Config("MLP hidden width must be > 0".into()));
+        }
+        if let Some(s) = config.skip_after
+            && s >= config.hidden_layers
+        {
+            return Err(NnError::Config(format!(
+                "skip_after = {s} but the MLP has {} hidden layers",
+                config.hidden_layers
+            )));
+        }
+        let mut layers = Vec::with_capacity(config.hidden_layers + 1);
+        let mut offset = 0;
+        for l in 0..=config.hidden_layers {
+            let skip_input = l > 0 && config.skip_after == Some(l - 1);
+            let input = match (l, skip_input) {
+                (0, _) => config.input,
+                (_, true) => config.width + config.input,
+                _ => config.width,
+            };
+            let output = if l == config.hidden_layers {
+                config.output
+            } else {
+                config.width
+            };
+            layers.push(LayerShape {
+                input,
+                output,
+                weight_offset: offset,
+                bias_offset: offset + input * output,
+                skip_input,
+            });
+            offset += input * output + output;
+        }
+        let mut values = vec![0f32; offset];
+        let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
+        for (l, shape) in layers.iter().enumerate() {
+            if l == config.hidden_layers && config.zero_output {
+                continue;
+            }
+            let bound = 1.0 / (shape.input as f32).sqrt();
+            let end = shape.bias_offset + shape.output;
+            for v in &mut values[shape.weight_offset..end] {
+                *v = rng.random_range(-bound..bound);
+            }
+        }
+        let (params, _) = Store::from_f32(config.precision, &values);
+        Ok(Self {
+            config,
+            layers,
+            params,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &MlpConfig {
+        &self.config
+    }
+    /// Input width.
+    pub fn input_width(&self) -> usize {
+        self.config.input
+    }
+    /// Output width.
+    pub fn output_width(&self) -> usize {
+        self.config.output
+    }
+    /// Storage precision.
+    pub fn precision(&self) -> Precision {
+        self.config.precision
+    }
+    /// The linear layers in order.
+    pub fn layers(&self) -> &[LayerShape] {
+        &self.layers
+    }
+    /// Number of parameters.
+    pub fn param_count(&self) -> usize {
+        self.params.len()
+    }
+    /// The flat parameter buffer (read-only).
+    pub fn params(&self) -> StoreRef<'_> {
+        self.params.as_ref()
+    }
+    /// The flat parameter buffer, for an optimiser step.
+    pub fn params_mut(&mut self) -> StoreMut<'_> {
+        self.params.as_mut()
+    }
+    /// Replaces every parameter from f32 values (rounded, saturating, for f16); returns the
+    /// number of saturated values.
+    pub fn set_params(&mut self, values: &[f32]) -> Result<u64, NnError> {
+        check_len("MLP parameters", self.params.len(), values.len())?;
+        Ok(self.params.as_mut().write_from(values))
+    }
+    /// Multiply-adds of one forward pass over one row (×2 for FLOPs).
+    pub fn macs_per_row(&self) -> usize {
+        self.layers.iter().map(|l| l.input * l.output).sum()
+    }
+    /// Forward pass over `rows` rows of `x` (row-major rows × input). Returns the outputs
+    /// (rows × output, rounded to f16 values in f16 storage) and the cache for backward.
+    pub fn forward(&self, x: &[f32], rows: usize) -> Result<(Vec<f32>, MlpCache), NnError> {
+        check_len("MLP input", rows * self.config.input, x.len())?;
+        let ni = self.config.input;
+        Ok(self.forward_with(rows, |r0, nr, buf| {
+            buf.copy_from_slice(&x[r0 * ni..(r0 + nr) * ni]);
+        }))
+    }
+
+    /// Forward pass whose input rows are produced block by block: `fill(r0, nr, buf)` writes rows
+    /// `r0..r0 + nr` (row-major, `nr × input`) into `buf`. Lets an encoder feed the network
+    /// without materialising its whole output. Blocks run in parallel.
+    pub fn forward_with<F>(&self, rows: usize, fill: F) -> (Vec<f32>, MlpCache)
+    where
+        F: Fn(usize, usize, &mut [f32]) + Sync,
+    {
+        let p = self.config.precision;
+        let ni = self.config.input;
+        let weights = self.params.to_f32_vec();
+        let mut input = Store::zeros(p, rows * ni);
+        let mut acts: Vec<Store> = self
+            .layers
+            .iter()
+            .map(|l| Store::zeros(p, rows * l.output))
+            .collect();
+        let n_blocks = rows.div_ceil(ROW_BLOCK);
+        let mut blocks: Vec<Vec<StoreMut<'_>>> = (0..n_blocks).map(|_| Vec::new()).collect();
+        for (b, part) in input.chunks_mut(ROW_BLOCK * ni).into_iter().enumerate() {
+            blocks[b].push(part);
+        }
+        for (act, layer) in acts.iter_mut().zip(&self.layers) {
+            for (b, part) in act
+                .chunks_mut(ROW_BLOCK * layer.output)
+                .into_iter()
+                .enumerate()
+            {
+                blocks[b].push(part);
+            }
+        }
+        let saturated: u64 = blocks
+            .into_par_iter()
+            .enumerate()
+            .map(|(b, parts)| {
+                let r0 = b * ROW_BLOCK;
+                let nr = ROW_BLOCK.min(rows - r0);
+                let mut x = vec![0f32; nr * ni];
+                fill(r0, nr, &mut x);
+                self.forward_block(&weights, x, nr, parts)
+            })
+            .sum();
+        let out = acts.last().map(Store::to_f32_vec).unwrap_or_default();
+        (
+            out,
+            MlpCache {
+                rows,
+                input,
+                acts,
+                saturated,
+            },
+        )
+    }
+
+    /// Runs every layer on one block of `nr` rows; `parts[0]` is the input's storage, then one
+    /// per layer. Returns the saturation count.
+    fn forward_block(
+        &self,
+        w: &[f32],
+        mut x: Vec<f32>,
+        nr: usize,
+        mut parts: Vec<StoreMut<'_>>,
+    ) -> u64 {
+        let ni = self.config.input;
+        let mut sat = store_rounded(&mut parts[0], &mut x);
+        let mut cur = Vec::new();
+        let mut next = Vec::new();
+        let last = self.layers.len() - 1;
+        for (l, layer) in self.layers.iter().enumerate() {
+            let input: &[f32] = if l == 0 {
+                &x
+            } else if layer.skip_input {
+                cur = concat_rows(&x, ni, &cur, layer.input - ni, nr);
+                &cur
+            } else {
+                &cur
+            };
+            next.resize(nr * layer.output, 0.0);
+            matmul(
+                &mut next,
+                input,
+                &w[layer.weight_offset..layer.bias_offset],
+                (nr, layer.input, layer.output),
+                false,
+                Parallelism::None,
+            );
+            let bias = &w[layer.bias_offset..layer.bias_offset + layer.output];
+            for row in next.chunks_exact_mut(layer.output) {
+                row.iter_mut().zip(bias).for_each(|(y, b)| *y += b);
+            }
+            let act = if l == last {
+                self.config.output_activation
+            } else {
+                self.config.hidden_activation
+            };
+            act.apply(&mut next);
+            sat += store_rounded(&mut parts[l + 1], &mut next);
+            std::mem::swap(&mut cur, &mut next);
+        }
+        sat
+    }
+
+    /// Checks that `cache` and `d_out` fit this network.
+    fn check_backward(&self, cache: &MlpCache, d_out: &[f32]) -> Result<(), NnError> {
+        check_len(
+            "MLP output gradient",
+            cache.rows * self.config.output,
+            d_out.len(),
+        )?;
+        if cache.acts.len() != self.layers.len()
+            || cache.input.len() != cache.rows * self.config.input
+            || cache.input.precision() != self.config.precision
+            || cache
+                .acts
+                .iter()
+                .zip(&self.layers)
+                .any(|(a, l)| a.len() != cache.rows * l.output)
+        {
+            return Err(NnError::Config(
+                "MLP cache does not belong to this network".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Backward pass: `d_out` is dL/dy (rows × output). Returns dL/dθ and, when
+    /// `want_input_grad`, dL/dx. Gradients are f32 whatever the storage precision.
+    pub fn backward(
+        &self,
+        cache: &MlpCache,
+        d_out: &[f32],
+        want_input_grad: bool,
+    ) -> Result<MlpGrads, NnError> {
+        self.check_backward(cache, d_out)?;
+        let rows = cache.rows;
+        let ni = self.config.input;
+        let weights = self.params.to_f32_vec();
+        let mut d_input = want_input_grad.then(|| vec![0f32; rows * ni]);
+        let n_blocks = rows.div_ceil(ROW_BLOCK);
+        let dx_blocks: Vec<Option<&mut [f32]>> = match d_input.as_mut() {
+            Some(v) => v.chunks_mut(ROW_BLOCK * ni).map(Some).collect(),
+            None => (0..n_blocks).map(|_| None).collect(),
+        };
+        let params = self.backward_blocks(
+            &weights,
+            cache,
+            d_out,
+            dx_blocks,
+            want_input_grad,
+            || (),
+            |_, _, dst, dx| {
+                if let (Some(dst), Some(dx)) = (dst, dx) {
+                    dst.copy_from_slice(dx);
+                }
+            },
+            |_, _| (),
+        );
+        Ok(MlpGrads {
+            params: params.0,
+            input: d_input,
+        })
+    }
+
+    /// Backward pass that hands each block's input gradient to `consume(acc, r0, dx)` (dx is
+    /// `nr × input`, row-major) instead of materialising it; `acc` is a per-task accumulator made
+    /// by `init` and merged by `merge`. Returns dL/dθ and the merged accumulator. Lets an encoder
+    /// take its gradient block by block.
+    pub fn backward_with<A, I, C, M>(
+        &self,
+        cache: &MlpCache,
+        d_out: &[f32],
+        init: I,
+        consume: C,
+        merge: M,
+    ) -> Result<(Vec<f32>, A), NnError>
+    where
+        A: Send,
+        I: Fn() -> A + Sync + Send,
+        C: Fn(&mut A, usize, &[f32]) + Sync + Send,
+        M: Fn(A, A) -> A + Sync + Send,
+    {
+        self.check_backward(cache, d_out)?;
+        let weights = self.params.to_f32_vec();
+        let n_blocks = cache.rows.div_ceil(ROW_BLOCK);
+        let blocks: Vec<Option<&mut [f32]>> = (0..n_blocks).map(|_| None).collect();
+        Ok(self.backward_blocks(
+            &weights,
+            cache,
+            d_out,
+            blocks,
+            true,
+            init,
+            |acc, r0, _, dx| {
+                if let Some(dx) = dx {
+                    consume(acc, r0, dx);
+                }
+            },
+            merge,
+        ))
+    }
+
+    /// The parallel driver of both backward entry points: `sink(acc, r0, dst, dx)` receives each
+    /// block's destination (if any) and input gradient (computed when `want_dx`).
+    #[allow(clippy::too_many_arguments)]
+    fn backward_blocks<A, I, S, M>(
+        &self,
+        weights: &[f32],
+        cache: &MlpCache,
+        d_out: &[f32],
+        dsts: Vec<Option<&mut [f32]>>,
+        want_dx: bool,
+        init: I,
+        sink: S,
+        merge: M,
+    ) -> (Vec<f32>, A)
+    where
+        A: Send,
+        I: Fn() -> A + Sync + Send,
+        S: Fn(&mut A, usize, Option<&mut [f32]>, Option<&[f32]>) + Sync + Send,
+        M: Fn(A, A) -> A + Sync + Send,
+    {
+        let rows = cache.rows;
+        let n_blocks = dsts.len();
+        let min_len = n_blocks.div_ceil(2 * rayon::current_num_threads()).max(1);
+        let n_params = self.params.len();
+        dsts.into_par_iter()
+            .enumerate()
+            .with_min_len(min_len)
+            .fold(
+                || (vec![0f32; n_params], init()),
+                |(mut grads, mut acc), (b, dst)| {
+                    let r0 = b * ROW_BLOCK;
+                    let nr = ROW_BLOCK.min(rows - r0);
+                    let dx =
+                        self.backward_block(weights, cache, d_out, r0, nr, &mut grads, want_dx);
+                    sink(&mut acc, r0, dst, dx.as_deref());
+                    (grads, acc)
+                },
+            )
+            .reduce(
+                || (vec![0f32; n_params], init()),
+                |(mut ga, aa), (gb, ab)| {
+                    ga.iter_mut().zip(&gb).for_each(|(x, y)| *x += y);
+                    (ga, merge(aa, ab))
+                },
+            )
+    }
+
+    /// Backward over one block; accumulates dL/dθ into `grads` and returns dL/dx of the block
+    /// when `want_dx`.
+    #[allow(clippy::too_many_arguments)]
+    fn backward_block(
+        &self,
+        w: &[f32],
+        cache: &MlpCache,
+        d_out: &[f32],
+        r0: usize,
+        nr: usize,
+        grads: &mut [f32],
+        want_dx: bool,
+    ) -> Option<Vec<f32>> {
+        let ni = self.config.input;
+        let last = self.layers.len() - 1;
+        let mut x = vec![0f32; nr * ni];
+        cache
+            .input
+            .as_ref()
+            .slice(r0 * ni, nr * ni)
+            .read_into(&mut x);
+        let mut g = d_out[r0 * self.config.output..(r0 + nr) * self.config.output].to_vec();
+        let mut y = Vec::new();
+        let mut a = Vec::new();
+        let mut da = Vec::new();
+        let mut dx_acc = want_dx.then(|| vec![0f32; nr * ni]);
+        for l in (0..self.layers.len()).rev() {
+            let layer = self.layers[l];
+            y.resize(nr * layer.output, 0.0);
+            cache.acts[l]
+                .as_ref()
+                .slice(r0 * layer.output, nr * layer.output)
+                .read_into(&mut y);
+            let act = if l == last {
+                self.config.output_activation
+            } else {
+                self.config.hidden_activation
+            };
+            act.backward_from_output(&y, &mut g);
+            // Layer input a.
+            let input: &[f32] = if l == 0 {
+                &x
+            } else {
+                let prev = self.layers[l - 1].output;
+                a.resize(nr * prev, 0.0);
+                cache.acts[l - 1]
+                    .as_ref()
+                    .slice(r0 * prev, nr * prev)
+                    .read_into(&mut a);
+                if layer.skip_input {
+                    a = concat_rows(&x, ni, &a, prev, nr);
+                }
+                &a
+            };
+            matmul_at_b(
+                &mut grads[layer.weight_offset..layer.bias_offset],
+                input,
+                &g,
+                (layer.input, nr, layer.output),
+                true,
+                Parallelism::None,
+            );
+            let db = &mut grads[layer.bias_offset..layer.bias_offset + layer.output];
+            for row in g.chunks_exact(layer.output) {
+                db.iter_mut().zip(row).for_each(|(d, v)| *d += v);
+            }
+            if l == 0 && dx_acc.is_none() {
+                break;
+            }
+            da.resize(nr * layer.input, 0.0);
+            matmul_a_bt(
+                &mut da,
+                &g,
+                &w[layer.weight_offset..layer.bias_offset],
+                (nr, layer.output, layer.input),
+                false,
+                Parallelism::None,
+            );
+            if l == 0 {
+                if let Some(acc) = dx_acc.as_mut() {
+                    acc.iter_mut().zip(&da).for_each(|(s, v)| *s += v);
+                }
+            } else if layer.skip_input {
+                let prev = layer.input - ni;
+                g.resize(nr * prev, 0.0);
+                for r in 0..nr {
+                    let src = &da[r * layer.input..(r + 1) * layer.input];
+                    if let Some(acc) = dx_acc.as_mut() {
+                        acc[r * ni..(r + 1) * ni]
+                            .iter_mut()
+                            .zip(&src[..ni])
+                            .for_each(|(s, v)| *s += v);
+                    }
+                    g[r * prev..(r + 1) * prev].copy_from_slice(&src[ni..]);
+                }
+            } else {
+                std::mem::swap(&mut g, &mut da);
+            }
+        }
+        dx_acc
+    }
+}
+
+/// Writes `vals` into `store` and, for f16, rounds `vals` to the stored values so the next layer
+/// sees exactly what backward will read. Returns the saturation count.
+fn store_rounded(store: &mut StoreMut<'_>, vals: &mut [f32]) -> u64 {
+    let sat = store.write_from(vals);
+    if let StoreMut::F16(_) = store {
+        store.as_ref().read_into(vals);
+    }
+    sat
+}
+
+/// Row-wise concatenation `[a, b]` of `nr` rows of widths `wa` and `wb`.
+fn concat_rows(a: &[f32], wa: usize, b: &[f32], wb: usize, nr: usize) -> Vec<f32> {
+    let mut out = Vec::with_capacity(nr * (wa + wb));
+    for r in 0..nr {
+        out.extend_from_slice(&a[r * wa..(r + 1) * wa]);
+        out.extend_from_slice(&b[r * wb..(r + 1) * wb]);
+    }
+    out
+}
+
+impl crate::weights::Parameters for Mlp {
+    fn named_params(&self) -> Vec<(String, StoreRef<'_>)> {
+        vec![("params".to_string(), self.params.as_ref())]
+    }
+    fn named_params_mut(&mut self) -> Vec<(String, StoreMut<'_>)> {
+        vec![("params".to_string(), self.params.as_mut())]
+    }
+}

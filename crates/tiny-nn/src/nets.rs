@@ -1,0 +1,408 @@
+//! Composite networks: the EvoGS observation network Φ and the D-3DGS deformation MLP.
+
+use crate::encoding::bspline::{BSplineConfig, BSplineTime};
+use crate::encoding::sinusoidal::Sinusoidal;
+use crate::encoding::triplane::{TriPlane, TriPlaneConfig, add_into};
+use crate::error::{NnError, check_len};
+use crate::mlp::{Mlp, MlpCache, MlpConfig};
+use crate::precision::{Precision, StoreMut, StoreRef};
+use crate::weights::Parameters;
+
+/// Settings of the EvoGS observation network Φ: `[tri-plane(x), B-spline(t)] → MLP → D`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObservationConfig {
+    /// Spatial encoder.
+    pub triplane: TriPlaneConfig,
+    /// Temporal encoder.
+    pub bspline: BSplineConfig,
+    /// Decoder hidden width.
+    pub width: usize,
+    /// Decoder hidden layers.
+    pub hidden_layers: usize,
+    /// Output width D.
+    pub output: usize,
+    /// Storage precision of all three parts (overrides the encoders' own settings).
+    pub precision: Precision,
+    /// Seed (the parts use seed, seed + 1, seed + 2).
+    pub seed: u64,
+}
+
+/// The observation network Φ. Its decoder's output layer starts at zero, so Φ starts at 0.
+#[derive(Clone, Debug)]
+pub struct ObservationNet {
+    /// Spatial encoder.
+    pub triplane: TriPlane,
+    /// Temporal encoder.
+    pub bspline: BSplineTime,
+    /// Decoder.
+    pub mlp: Mlp,
+}
+
+/// Cache of [`ObservationNet::forward`].
+#[derive(Clone, Debug)]
+pub struct ObservationCache {
+    positions: Vec<f32>,
+    times: Vec<f32>,
+    mlp: MlpCache,
+}
+
+impl ObservationCache {
+    /// f16 saturations of the decoder's forward pass.
+    pub fn saturations(&self) -> u64 {
+        self.mlp.saturations()
+    }
+}
+
+/// Gradients of [`ObservationNet::backward`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObservationGrads {
+    /// dL/d(tri-plane parameters).
+    pub triplane: Vec<f32>,
+    /// dL/d(B-spline control vectors).
+    pub bspline: Vec<f32>,
+    /// dL/d(decoder parameters).
+    pub mlp: Vec<f32>,
+    /// dL/d(positions) (when asked for).
+    pub positions: Option<Vec<f32>>,
+}
+
+impl ObservationNet {
+    /// Builds Φ.
+    pub fn new(config: ObservationConfig) -> Result<Self, NnError> {
+        let triplane = config
+            .triplane
+            .clone()
+            .precision(config.precision)
+            .seed(config.seed)
+            .build()?;
+        let bspline = config
+            .bspline
+            .clone()
+            .precision(config.precision)
+            .seed(config.seed + 1)
+            .build()?;
+        let input = triplane.output_width() + bspline.output_width();
+        let mlp = MlpConfig::new(input, config.width, config.hidden_layers, config.output)
+            .zero_output(true)
+            .precision(config.precision)
+            .seed(config.seed + 2)
+            .build()?;
+        Ok(Self {
+            triplane,
+            bspline,
+            mlp,
+        })
+    }
+
+    /// Multiply-adds of the decoder per row.
+    pub fn macs_per_row(&self) -> usize {
+        self.mlp.macs_per_row()
+    }
+
+    /// Evaluates Φ at `rows` positions (rows × 3) and times (rows). The encoders write straight
+    /// into the decoder's input blocks (no intermediate feature matrix).
+    pub fn forward(
+        &self,
+        positions: &[f32],
+        times: &[f32],
+        rows: usize,
+    ) -> Result<(Vec<f32>, ObservationCache), NnError> {
+        check_len("observation times", rows, times.len())?;
+        self.triplane.check_positions(positions, rows)?;
+        BSplineTime::check_times(times)?;
+        let planes = self.triplane.planes_f32();
+        let ctrl = self.bspline.controls_f32();
+        let (wx, wt) = (self.triplane.output_width(), self.bspline.output_width());
+        let c = self.triplane.config().channels;
+        let (out, mlp) = self.mlp.forward_with(rows, |r0, nr, buf| {
+            let mut feat = vec![0f32; 3 * c];
+            for (i, row) in buf.chunks_exact_mut(wx + wt).enumerate().take(nr) {
+                let r = r0 + i;
+                let (fx, ft) = row.split_at_mut(wx);
+                self.triplane
+                    .encode_row(&planes, &positions[r * 3..r * 3 + 3], fx, &mut feat);
+                self.bspline.encode_row(&ctrl, times[r], ft);
+            }
+        });
+        Ok((
+            out,
+            ObservationCache {
+                positions: positions.to_vec(),
+                times: times.to_vec(),
+                mlp,
+            },
+        ))
+    }
+
+    /// Backward from dL/d(output) (rows × D). The encoders take their gradients block by block
+    /// from the decoder's input gradient.
+    pub fn backward(
+        &self,
+        cache: &ObservationCache,
+        d_out: &[f32],
+        want_position_grad: bool,
+    ) -> Result<ObservationGrads, NnError> {
+        let rows = cache.mlp.rows();
+        let planes = self.triplane.planes_f32();
+        let ctrl = self.bspline.controls_f32();
+        let (wx, wt) = (self.triplane.output_width(), self.bspline.output_width());
+        let c = self.triplane.config().channels;
+        let (np, nb) = (self.triplane.param_count(), self.bspline.param_count());
+        type Acc = (Vec<f32>, Vec<f32>, Vec<(usize, Vec<f32>)>);
+        let (mlp, (tp, bs, pos_blocks)) = self.mlp.backward_with(
+            &cache.mlp,
+            d_out,
+            || -> Acc { (vec![0f32; np], vec![0f32; nb], Vec::new()) },
+            |acc: &mut Acc, r0, dx| {
+                let nr = dx.len() / (wx + wt);
+                let mut feat = vec![0f32; 3 * c];
+                let mut dfeat = vec![0f32; 3 * c];
+                let mut dp = if want_position_grad {
+                    vec![0f32; nr * 3]
+                } else {
+                    Vec::new()
+                };
+                for (i, g) in dx.chunks_exact(wx + wt).enumerate() {
+                    let r = r0 + i;
+                    let gp = self.triplane.backward_row(
+                        &planes,
+                        &cache.positions[r * 3..r * 3 + 3],
+                        &g[..wx],
+                        &mut acc.0,
+                        &mut feat,
+                        &mut dfeat,
+                    );
+                    self.bspline
+                        .backward_row(&ctrl, cache.times[r], &g[wx..], &mut acc.1);
+                    if want_position_grad {
+                        dp[i * 3..i * 3 + 3].copy_from_slice(&gp);
+                    }
+                }
+                if want_position_grad {
+                    acc.2.push((r0, dp));
+                }
+            },
+            |a: Acc, b: Acc| {
+                let mut list = a.2;
+                list.extend(b.2);
+                (add_into(a.0, b.0), add_into(a.1, b.1), list)
+            },
+        )?;
+        let positions = want_position_grad.then(|| {
+            let mut out = vec![0f32; rows * 3];
+            for (r0, block) in pos_blocks {
+                out[r0 * 3..r0 * 3 + block.len()].copy_from_slice(&block);
+            }
+            out
+        });
+        Ok(ObservationGrads {
+            triplane: tp,
+            bspline: bs,
+            mlp,
+            positions,
+        })
+    }
+}
+
+fn prefixed<T>(prefix: &'static str, v: Vec<(String, T)>) -> impl Iterator<Item = (String, T)> {
+    v.into_iter()
+        .map(move |(n, s)| (format!("{prefix}.{n}"), s))
+}
+
+impl Parameters for ObservationNet {
+    fn named_params(&self) -> Vec<(String, StoreRef<'_>)> {
+        prefixed("triplane", self.triplane.named_params())
+            .chain(prefixed("bspline", self.bspline.named_params()))
+            .chain(prefixed("mlp", self.mlp.named_params()))
+            .collect()
+    }
+    fn named_params_mut(&mut self) -> Vec<(String, StoreMut<'_>)> {
+        let Self {
+            triplane,
+            bspline,
+            mlp,
+        } = self;
+        prefixed("triplane", triplane.named_params_mut())
+            .chain(prefixed("bspline", bspline.named_params_mut()))
+            .chain(prefixed("mlp", mlp.named_params_mut()))
+            .collect()
+    }
+}
+
+/// Settings of the D-3DGS deformation network.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DeformConfig {
+    /// Hidden width (256 in D-3DGS).
+    pub width: usize,
+    /// Hidden layers (8 in D-3DGS).
+    pub depth: usize,
+    /// Re-concatenate the encoded input after this hidden layer (4 in D-3DGS).
+    pub skip_after: Option<usize>,
+    /// Frequencies of the xyz encoding (10).
+    pub xyz_freqs: usize,
+    /// Frequencies of the time encoding (6 for synthetic scenes, 10 for real ones).
+    pub t_freqs: usize,
+    /// Storage precision.
+    pub precision: Precision,
+    /// Seed.
+    pub seed: u64,
+}
+
+impl DeformConfig {
+    /// D-3DGS's reference setting: width 256, depth 8, skip after layer 4, L = 10 and 6.
+    pub fn d3dgs() -> Self {
+        Self {
+            width: 256,
+            depth: 8,
+            skip_after: Some(4),
+            xyz_freqs: 10,
+            t_freqs: 6,
+            precision: Precision::F32,
+            seed: 0,
+        }
+    }
+}
+
+/// D-3DGS's deformation network: `[γ(x), γ(t)] → 8 × (Linear, ReLU) with the skip → heads`.
+/// The three heads (position 3, rotation 4, scale 3) are one linear layer of 10 outputs here,
+/// which is the same function: output columns 0..3, 3..7 and 7..10.
+#[derive(Clone, Debug)]
+pub struct DeformNet {
+    xyz: Sinusoidal,
+    t: Sinusoidal,
+    /// The MLP with its heads.
+    pub mlp: Mlp,
+}
+
+/// Cache of [`DeformNet::forward`].
+#[derive(Clone, Debug)]
+pub struct DeformCache {
+    positions: Vec<f32>,
+    mlp: MlpCache,
+}
+
+/// Gradients of [`DeformNet::backward`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct DeformGrads {
+    /// dL/d(MLP parameters).
+    pub mlp: Vec<f32>,
+    /// dL/d(positions) (when asked for).
+    pub positions: Option<Vec<f32>>,
+}
+
+impl DeformNet {
+    /// Output width: position 3 + rotation 4 + scale 3.
+    pub const OUTPUT: usize = 10;
+
+    /// Builds the network.
+    pub fn new(config: DeformConfig) -> Result<Self, NnError> {
+        let xyz = Sinusoidal::new(3, config.xyz_freqs)?;
+        let t = Sinusoidal::new(1, config.t_freqs)?;
+        let mut mc = MlpConfig::new(
+            xyz.output_width() + t.output_width(),
+            config.width,
+            config.depth,
+            Self::OUTPUT,
+        )
+        .precision(config.precision)
+        .seed(config.seed);
+        if let Some(s) = config.skip_after {
+            mc = mc.skip_after(s);
+        }
+        Ok(Self {
+            xyz,
+            t,
+            mlp: mc.build()?,
+        })
+    }
+
+    /// Multiply-adds per row.
+    pub fn macs_per_row(&self) -> usize {
+        self.mlp.macs_per_row()
+    }
+
+    /// Evaluates at `rows` positions (rows × 3) and times (rows).
+    pub fn forward(
+        &self,
+        positions: &[f32],
+        times: &[f32],
+        rows: usize,
+    ) -> Result<(Vec<f32>, DeformCache), NnError> {
+        check_len("deformation positions", rows * 3, positions.len())?;
+        check_len("deformation times", rows, times.len())?;
+        let (wx, wt) = (self.xyz.output_width(), self.t.output_width());
+        let (out, mlp) = self.mlp.forward_with(rows, |r0, _, buf| {
+            for (i, row) in buf.chunks_exact_mut(wx + wt).enumerate() {
+                let r = r0 + i;
+                let (ex, et) = row.split_at_mut(wx);
+                self.xyz.encode_row(&positions[r * 3..r * 3 + 3], ex);
+                self.t.encode_row(&times[r..r + 1], et);
+            }
+        });
+        Ok((
+            out,
+            DeformCache {
+                positions: positions.to_vec(),
+                mlp,
+            },
+        ))
+    }
+
+    /// Backward from dL/d(output) (rows × 10).
+    pub fn backward(
+        &self,
+        cache: &DeformCache,
+        d_out: &[f32],
+        want_position_grad: bool,
+    ) -> Result<DeformGrads, NnError> {
+        if !want_position_grad {
+            let g = self.mlp.backward(&cache.mlp, d_out, false)?;
+            return Ok(DeformGrads {
+                mlp: g.params,
+                positions: None,
+            });
+        }
+        let rows = cache.mlp.rows();
+        let (wx, wt) = (self.xyz.output_width(), self.t.output_width());
+        type Acc = Vec<(usize, Vec<f32>)>;
+        let (mlp, blocks) = self.mlp.backward_with(
+            &cache.mlp,
+            d_out,
+            Acc::new,
+            |acc: &mut Acc, r0, dx| {
+                let nr = dx.len() / (wx + wt);
+                let mut dp = vec![0f32; nr * 3];
+                for (i, g) in dx.chunks_exact(wx + wt).enumerate() {
+                    let r = r0 + i;
+                    self.xyz.backward_row(
+                        &cache.positions[r * 3..r * 3 + 3],
+                        &g[..wx],
+                        &mut dp[i * 3..i * 3 + 3],
+                    );
+                }
+                acc.push((r0, dp));
+            },
+            |mut a: Acc, b: Acc| {
+                a.extend(b);
+                a
+            },
+        )?;
+        let mut positions = vec![0f32; rows * 3];
+        for (r0, block) in blocks {
+            positions[r0 * 3..r0 * 3 + block.len()].copy_from_slice(&block);
+        }
+        Ok(DeformGrads {
+            mlp,
+            positions: Some(positions),
+        })
+    }
+}
+
+impl Parameters for DeformNet {
+    fn named_params(&self) -> Vec<(String, StoreRef<'_>)> {
+        prefixed("mlp", self.mlp.named_params()).collect()
+    }
+    fn named_params_mut(&mut self) -> Vec<(String, StoreMut<'_>)> {
+        prefixed("mlp", self.mlp.named_params_mut()).collect()
+    }
+}

@@ -1,0 +1,232 @@
+//! Storage precision (f32 or f16) and the buffers that hold parameters and activations.
+//!
+//! Arithmetic is always f32: values are read into f32 scratch, computed, and written back. Writing
+//! into f16 storage saturates at ±65504 ([`F16_MAX`]) instead of overflowing to infinity, and the
+//! number of saturated values is returned so that networks can count them. NaN stays NaN.
+
+use half::f16;
+use half::slice::HalfFloatSliceExt;
+
+/// Largest finite f16 value.
+pub const F16_MAX: f32 = 65504.0;
+
+/// Storage precision of one network (parameters and cached activations).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Precision {
+    /// IEEE binary32 storage.
+    F32,
+    /// IEEE binary16 storage (`half::f16`), f32 arithmetic.
+    F16,
+}
+
+/// An owned buffer in one precision.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Store {
+    /// f32 values.
+    F32(Vec<f32>),
+    /// f16 values.
+    F16(Vec<f16>),
+}
+
+/// A borrowed read-only view of a [`Store`].
+#[derive(Clone, Copy, Debug)]
+pub enum StoreRef<'a> {
+    /// f32 values.
+    F32(&'a [f32]),
+    /// f16 values.
+    F16(&'a [f16]),
+}
+
+/// A borrowed mutable view of a [`Store`].
+#[derive(Debug)]
+pub enum StoreMut<'a> {
+    /// f32 values.
+    F32(&'a mut [f32]),
+    /// f16 values.
+    F16(&'a mut [f16]),
+}
+
+/// Clamps every finite-or-infinite value of `xs` into [-F16_MAX, F16_MAX] and returns how many
+/// were clamped. NaN is left as it is (and not counted).
+pub fn saturate_for_f16(xs: &mut [f32]) -> u64 {
+    let mut n = 0u64;
+    for x in xs.iter_mut() {
+        if x.abs() > F16_MAX {
+            *x = F16_MAX.copysign(*x);
+            n += 1;
+        }
+    }
+    n
+}
+
+/// Rounds `x` to the nearest f16 value (saturating) and back to f32.
+pub fn round_to_f16(x: f32) -> f32 {
+    f16::from_f32(x.clamp(-F16_MAX, F16_MAX)).to_f32()
+}
+
+impl Store {
+    /// `len` zeros in precision `p`.
+    pub fn zeros(p: Precision, len: usize) -> Self {
+        match p {
+            Precision::F32 => Store::F32(vec![0.0; len]),
+            Precision::F16 => Store::F16(vec![f16::ZERO; len]),
+        }
+    }
+
+    /// Builds a store from f32 values (rounded, saturating, for f16). Returns the store and the
+    /// number of saturated values.
+    pub fn from_f32(p: Precision, xs: &[f32]) -> (Self, u64) {
+        let mut s = Store::zeros(p, xs.len());
+        let sat = s.as_mut().write_from(xs);
+        (s, sat)
+    }
+
+    /// Precision of this store.
+    pub fn precision(&self) -> Precision {
+        match self {
+            Store::F32(_) => Precision::F32,
+            Store::F16(_) => Precision::F16,
+        }
+    }
+
+    /// Number of values.
+    pub fn len(&self) -> usize {
+        self.as_ref().len()
+    }
+
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Read-only view.
+    pub fn as_ref(&self) -> StoreRef<'_> {
+        match self {
+            Store::F32(v) => StoreRef::F32(v),
+            Store::F16(v) => StoreRef::F16(v),
+        }
+    }
+
+    /// Mutable view.
+    pub fn as_mut(&mut self) -> StoreMut<'_> {
+        match self {
+            Store::F32(v) => StoreMut::F32(v),
+            Store::F16(v) => StoreMut::F16(v),
+        }
+    }
+
+    /// All values as f32.
+    pub fn to_f32_vec(&self) -> Vec<f32> {
+        let mut out = vec![0.0; self.len()];
+        self.as_ref().read_into(&mut out);
+        out
+    }
+
+    /// Splits into consecutive mutable chunks of `chunk` values (the last may be shorter).
+    pub fn chunks_mut(&mut self, chunk: usize) -> Vec<StoreMut<'_>> {
+        match self {
+            Store::F32(v) => v.chunks_mut(chunk.max(1)).map(StoreMut::F32).collect(),
+            Store::F16(v) => v.chunks_mut(chunk.max(1)).map(StoreMut::F16).collect(),
+        }
+    }
+}
+
+impl<'a> StoreRef<'a> {
+    /// Number of values.
+    pub fn len(&self) -> usize {
+        match self {
+            StoreRef::F32(v) => v.len(),
+            StoreRef::F16(v) => v.len(),
+        }
+    }
+
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Sub-range `start..start + len`.
+    pub fn slice(&self, start: usize, len: usize) -> StoreRef<'a> {
+        match *self {
+            StoreRef::F32(v) => StoreRef::F32(&v[start..start + len]),
+            StoreRef::F16(v) => StoreRef::F16(&v[start..start + len]),
+        }
+    }
+
+    /// Converts into `out` (same length).
+    pub fn read_into(&self, out: &mut [f32]) {
+        match self {
+            StoreRef::F32(v) => out.copy_from_slice(v),
+            StoreRef::F16(v) => v.convert_to_f32_slice(out),
+        }
+    }
+
+    /// All values as f32.
+    pub fn to_vec_f32(&self) -> Vec<f32> {
+        let mut out = vec![0.0; self.len()];
+        self.read_into(&mut out);
+        out
+    }
+
+    /// One value as f32.
+    pub fn get(&self, i: usize) -> f32 {
+        match self {
+            StoreRef::F32(v) => v[i],
+            StoreRef::F16(v) => v[i].to_f32(),
+        }
+    }
+}
+
+impl StoreMut<'_> {
+    /// Number of values.
+    pub fn len(&self) -> usize {
+        match self {
+            StoreMut::F32(v) => v.len(),
+            StoreMut::F16(v) => v.len(),
+        }
+    }
+
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Read-only view.
+    pub fn as_ref(&self) -> StoreRef<'_> {
+        match self {
+            StoreMut::F32(v) => StoreRef::F32(v),
+            StoreMut::F16(v) => StoreRef::F16(v),
+        }
+    }
+
+    /// Writes `src` (same length), saturating for f16; returns the number of saturated values.
+    pub fn write_from(&mut self, src: &[f32]) -> u64 {
+        match self {
+            StoreMut::F32(v) => {
+                v.copy_from_slice(src);
+                0
+            }
+            StoreMut::F16(v) => {
+                const BLOCK: usize = 1024;
+                let mut tmp = [0f32; BLOCK];
+                let mut sat = 0;
+                for (dst, s) in v.chunks_mut(BLOCK).zip(src.chunks(BLOCK)) {
+                    let t = &mut tmp[..s.len()];
+                    t.copy_from_slice(s);
+                    sat += saturate_for_f16(t);
+                    dst.convert_from_f32_slice(t);
+                }
+                sat
+            }
+        }
+    }
+
+    /// Writes `src` into the sub-range starting at `start`; returns the saturation count.
+    pub fn write_at(&mut self, start: usize, src: &[f32]) -> u64 {
+        let len = src.len();
+        match self {
+            StoreMut::F32(v) => StoreMut::F32(&mut v[start..start + len]).write_from(src),
+            StoreMut::F16(v) => StoreMut::F16(&mut v[start..start + len]).write_from(src),
+        }
+    }
+}
