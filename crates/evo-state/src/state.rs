@@ -180,15 +180,14 @@ impl EvoState {
     }
 
     fn check_finite(what: &'static str, data: &[f32], stride: usize) -> Result<(), EvoError> {
-        match data.par_iter().position_first(|v| !v.is_finite()) {
-            None => Ok(()),
-            Some(p) => Err(EvoError::NonFinite {
-                what,
-                row: p / stride,
-                component: p % stride,
-                value: data[p],
-            }),
-        }
+        // A branch-free (vectorised) scan per chunk; only a chunk with a bad value is searched.
+        const SCAN: usize = 1 << 14;
+        let bad_chunk = data
+            .par_chunks(SCAN)
+            .position_first(|c| !c.iter().fold(true, |ok, v| ok & v.is_finite()));
+        let Some(c) = bad_chunk else { return Ok(()) };
+        let p = c * SCAN + data[c * SCAN..].iter().position(|v| !v.is_finite()).unwrap_or(0);
+        Err(EvoError::NonFinite { what, row: p / stride, component: p % stride, value: data[p] })
     }
 
     /// Forward pass for a query at time `t` with observations `z` (N × D). Read-only: use it
