@@ -186,8 +186,17 @@ impl EvoState {
             .par_chunks(SCAN)
             .position_first(|c| !c.iter().fold(true, |ok, v| ok & v.is_finite()));
         let Some(c) = bad_chunk else { return Ok(()) };
-        let p = c * SCAN + data[c * SCAN..].iter().position(|v| !v.is_finite()).unwrap_or(0);
-        Err(EvoError::NonFinite { what, row: p / stride, component: p % stride, value: data[p] })
+        let p = c * SCAN
+            + data[c * SCAN..]
+                .iter()
+                .position(|v| !v.is_finite())
+                .unwrap_or(0);
+        Err(EvoError::NonFinite {
+            what,
+            row: p / stride,
+            component: p % stride,
+            value: data[p],
+        })
     }
 
     /// Forward pass for a query at time `t` with observations `z` (N × D). Read-only: use it

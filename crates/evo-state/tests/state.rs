@@ -239,3 +239,33 @@ fn evolution_off_is_the_baseline() {
     assert_eq!(step.corrected(), &z[..]);
     assert_eq!(step.history().len, 0);
 }
+
+/// The buffer holds exactly 4·D (f32) or 2·D (f16) bytes per Gaussian per frame, as the
+/// configuration predicts, and nothing without a buffer.
+#[test]
+fn buffer_memory_matches_the_configuration() {
+    for config in [
+        EvoConfig::default(),
+        EvoConfig {
+            storage: Storage::F16,
+            ..EvoConfig::default()
+        },
+        EvoConfig {
+            history: HistoryMode::Requery,
+            ..EvoConfig::default()
+        },
+        EvoConfig {
+            evolution: false,
+            ..EvoConfig::default()
+        },
+    ] {
+        let st = state(config, uniform_frames(7), 11);
+        assert_eq!(st.buffer_bytes(), config.buffer_bytes(11, 7));
+        if st.buffer().is_some() {
+            assert_eq!(
+                st.buffer_bytes(),
+                11 * 7 * st.dim() * config.storage.bytes()
+            );
+        }
+    }
+}
