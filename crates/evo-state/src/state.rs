@@ -414,20 +414,13 @@ impl EvoState {
         let l2 = self.config.lambda_prior as f64;
         let learned = matches!(step.gains, Gains::Learned(_));
         let mut dz = vec![0.0f32; n * dim];
-        let mut dk = vec![0.0f32; if learned { n } else { 0 }];
-        let dk_chunks: Vec<&mut [f32]> = if learned {
-            dk.chunks_mut(CHUNK).collect()
-        } else {
-            Vec::new()
-        };
-        let mut dk_iter = dk_chunks.into_iter();
-        let chunk_count = n.div_ceil(CHUNK);
-        let dk_slots: Vec<Option<&mut [f32]>> = (0..chunk_count).map(|_| dk_iter.next()).collect();
+        // dL/dK per Gaussian (used only with the learned gain).
+        let mut dk = vec![0.0f32; n];
         let partial: Vec<(f64, f64)> = dz
             .par_chunks_mut(CHUNK * dim)
-            .zip(dk_slots.into_par_iter())
+            .zip(dk.par_chunks_mut(CHUNK))
             .enumerate()
-            .map(|(c, (dz, mut dk))| {
+            .map(|(c, (dz, dk))| {
                 let (mut sup, mut pri) = (0.0f64, 0.0f64);
                 for r in 0..dz.len() / dim {
                     let i = c * CHUNK + r;
@@ -445,9 +438,7 @@ impl EvoState {
                             fin(g * k - l1 * 2.0 * inv_n * res + l2 * 2.0 * inv_n * op * (zv - pv));
                         dki += g * (zv - pv);
                     }
-                    if let Some(dk) = dk.as_deref_mut() {
-                        dk[r] = fin(dki);
-                    }
+                    dk[r] = fin(dki);
                 }
                 (sup, pri)
             })
