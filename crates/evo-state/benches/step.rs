@@ -47,6 +47,22 @@ fn bench(c: &mut Criterion) {
                 black_box(grads.dpsi);
             })
         });
+        // The same step with a kept Step/Backward whose buffers are reused (a training loop).
+        let mut step = evo_state::Step::empty();
+        let mut grads = evo_state::Backward {
+            dz: Vec::new(),
+            dpsi: None,
+            losses: Default::default(),
+        };
+        group.bench_function(format!("train_step_reused_{name}"), |b| {
+            b.iter(|| {
+                st.forward_into(t, black_box(&z), None, &mut step).unwrap();
+                st.backward_into(&step, &z, &dl_dd, &opacity, &mut grads)
+                    .unwrap();
+                st.commit(&step).unwrap();
+                black_box(&grads.dpsi);
+            })
+        });
         group.bench_function(format!("forward_{name}"), |b| {
             b.iter(|| black_box(st.forward(t, black_box(&z)).unwrap()))
         });

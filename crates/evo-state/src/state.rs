@@ -203,7 +203,9 @@ impl EvoState {
     /// for training steps (then [`EvoState::commit`]) and for evaluation at any time.
     /// History mode `Requery` needs [`EvoState::forward_with`].
     pub fn forward(&self, t: f32, z: &[f32]) -> Result<Step, EvoError> {
-        self.forward_impl(t, z, None)
+        let mut step = Step::empty();
+        self.forward_into(t, z, None, &mut step)?;
+        Ok(step)
     }
 
     /// Forward pass with an observation source for history mode `Requery` (ignored with the
@@ -214,15 +216,32 @@ impl EvoState {
         z: &[f32],
         source: &mut dyn ObservationSource,
     ) -> Result<Step, EvoError> {
-        self.forward_impl(t, z, Some(source))
+        let mut step = Step::empty();
+        self.forward_into(t, z, Some(source), &mut step)?;
+        Ok(step)
     }
 
-    fn forward_impl(
+    /// The forward pass into an existing [`Step`], reusing its buffers (a training loop that
+    /// keeps one step avoids reallocating, and page-faulting, tens of MB per step). On error
+    /// the step is left empty and cannot be committed.
+    pub fn forward_into(
         &self,
         t: f32,
         z: &[f32],
         source: Option<&mut dyn ObservationSource>,
-    ) -> Result<Step, EvoError> {
+        step: &mut Step,
+    ) -> Result<(), EvoError> {
+        // Until this pass succeeds, the step belongs to no frame and no generation.
+        step.frame = None;
+        step.generation = u64::MAX;
+        step.rows = 0;
+        let mut corrected = std::mem::take(&mut step.corrected);
+        let mut prior = step.prior.take().unwrap_or_default();
+        let mut memory_next = step.memory_next.take().unwrap_or_default();
+        let mut stats = step.stats.take().unwrap_or_default();
+        let mut psi_cache = step.psi_cache.take().unwrap_or_default();
+        let mut inputs = std::mem::take(&mut step.scratch);
+        step.gains = Gains::Observation;
         let dim = self.dim();
         let n = self.rows;
         if !t.is_finite() {
@@ -239,22 +258,19 @@ impl EvoState {
                 len: 0,
             }
         };
-        let mut step = Step {
-            time: t,
-            frame,
-            history,
-            rows: n,
-            generation: self.generation,
-            corrected: Vec::new(),
-            prior: None,
-            gains: Gains::Observation,
-            stats: None,
-            psi_cache: None,
-            memory_next: None,
+        let finish = |step: &mut Step| {
+            step.time = t;
+            step.frame = frame;
+            step.history = history;
+            step.rows = n;
+            step.generation = self.generation;
         };
         if history.len <= 1 {
-            step.corrected = z.to_vec();
-            return Ok(step);
+            corrected.clear();
+            corrected.extend_from_slice(z);
+            step.corrected = corrected;
+            finish(step);
+            return Ok(());
         }
 
         // History blocks: from the buffer, or re-queried.
@@ -295,12 +311,13 @@ impl EvoState {
         };
 
         let width = dim + 3;
-        let mut prior = vec![0.0f32; n * dim];
-        let mut memory_next = vec![0.0f32; n * dim];
+        // Every element of these is written below; resizing only sets the length.
+        prior.resize(n * dim, 0.0);
+        memory_next.resize(n * dim, 0.0);
         let full = history.len == 3;
         let stats_rows = if full { n } else { 0 };
-        let mut stats = vec![Stats::default(); stats_rows];
-        let mut inputs = vec![0.0f32; stats_rows * width];
+        stats.resize(stats_rows, Stats::default());
+        inputs.resize(stats_rows * width, 0.0);
         if full {
             prior
                 .par_chunks_mut(CHUNK * dim)
@@ -341,18 +358,17 @@ impl EvoState {
                 });
         }
 
-        let mut psi_cache = None;
+        let mut used_psi = false;
         let gains = match (history.len, self.config.gain) {
             (2, _) => Gains::Uniform(WARMUP_GAIN),
             (_, Gain::Fixed(k)) => Gains::Uniform(k),
             (_, Gain::Learned) => {
-                let (k, cache) = self.psi.forward(&inputs, n)?;
-                psi_cache = Some(cache);
-                Gains::Learned(k)
+                used_psi = true;
+                Gains::Learned(self.psi.forward_reusing(&inputs, n, &mut psi_cache)?)
             }
         };
 
-        let mut corrected = vec![0.0f32; n * dim];
+        corrected.resize(n * dim, 0.0);
         corrected
             .par_chunks_mut(CHUNK * dim)
             .zip(prior.par_chunks(CHUNK * dim))
@@ -375,12 +391,12 @@ impl EvoState {
         step.corrected = corrected;
         step.prior = Some(prior);
         step.memory_next = Some(memory_next);
-        if full {
-            step.stats = Some(stats);
-        }
-        step.psi_cache = psi_cache;
+        step.stats = full.then_some(stats);
+        step.psi_cache = used_psi.then_some(psi_cache);
+        step.scratch = inputs;
         step.gains = gains;
-        Ok(step)
+        finish(step);
+        Ok(())
     }
 
     /// Backward pass: from dL_render/dd̃ (`dl_dd`, N × D) and the (stop-gradient) opacities
@@ -393,6 +409,24 @@ impl EvoState {
         dl_dd: &[f32],
         opacity: &[f32],
     ) -> Result<Backward, EvoError> {
+        let mut out = Backward {
+            dz: Vec::new(),
+            dpsi: None,
+            losses: Losses::default(),
+        };
+        self.backward_into(step, z, dl_dd, opacity, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`EvoState::backward`] into an existing [`Backward`], reusing its dz buffer.
+    pub fn backward_into(
+        &self,
+        step: &Step,
+        z: &[f32],
+        dl_dd: &[f32],
+        opacity: &[f32],
+        out: &mut Backward,
+    ) -> Result<(), EvoError> {
         let dim = self.dim();
         let n = step.rows;
         Self::check_len("observation z", z, n * dim)?;
@@ -403,17 +437,19 @@ impl EvoState {
         Self::check_finite("opacity", opacity, 1)?;
         let Some(prior) = step.prior.as_deref() else {
             // d̃ = z: no EvoGS loss, identity Jacobian.
-            return Ok(Backward {
-                dz: dl_dd.to_vec(),
-                dpsi: None,
-                losses: Losses::default(),
-            });
+            out.dz.clear();
+            out.dz.extend_from_slice(dl_dd);
+            out.dpsi = None;
+            out.losses = Losses::default();
+            return Ok(());
         };
         let inv_n = 1.0 / n.max(1) as f64;
         let l1 = self.config.lambda_sup as f64;
         let l2 = self.config.lambda_prior as f64;
         let learned = matches!(step.gains, Gains::Learned(_));
-        let mut dz = vec![0.0f32; n * dim];
+        let mut dz = std::mem::take(&mut out.dz);
+        // Every element is written below.
+        dz.resize(n * dim, 0.0);
         // dL/dK per Gaussian (used only with the learned gain).
         let mut dk = vec![0.0f32; n];
         let partial: Vec<(f64, f64)> = dz
@@ -454,7 +490,8 @@ impl EvoState {
             (true, Some(cache)) => Some(self.psi.backward(cache, &dk)?),
             _ => None,
         };
-        Ok(Backward { dz, dpsi, losses })
+        *out = Backward { dz, dpsi, losses };
+        Ok(())
     }
 
     /// Commits a training step at a frame time: writes d̃ to the frame's buffer block, marks
