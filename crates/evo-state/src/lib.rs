@@ -36,6 +36,9 @@
 //!     state.commit(&step)?; // training steps only: writes B[k], sets valid[k], updates m
 //! }
 //!
+//! // A training loop can keep one Step and one Backward and reuse their buffers with
+//! // `forward_into` / `backward_into` (same results, no per-step allocation).
+//!
 //! // Evaluation at any time (between or beyond frames) never writes.
 //! let step = state.forward(0.4, &vec![0.0; n * d])?;
 //! assert_eq!(step.history().frames(), &[3, 2, 1]);
