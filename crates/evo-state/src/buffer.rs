@@ -1,4 +1,4 @@
-//! The buffer of corrected states B[k][i] ∈ R^D, one contiguous N × D block per frame, stored in
+//! The buffer of corrected states `B[k][i] ∈ R^D`, one contiguous N × D block per frame, stored in
 //! f32 or f16. Exactly `Storage::bytes() · D` bytes per Gaussian per frame.
 
 use half::f16;
