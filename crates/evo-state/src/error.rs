@@ -17,6 +17,9 @@ pub enum EvoError {
     Frames(#[from] FramesError),
     #[error(transparent)]
     RowPlan(#[from] RowPlanError),
+    /// The gain network Ψ failed (shape errors from tiny-nn).
+    #[error("gain network: {0}")]
+    Network(#[from] tiny_nn::NnError),
     /// An input array has the wrong length.
     #[error("{what}: expected {expected} values, got {actual}")]
     Length {

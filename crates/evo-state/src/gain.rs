@@ -1,217 +1,99 @@
-//! The gain network Ψ = Linear(D+3, 32) ReLU Linear(32, 32) ReLU Linear(32, 1) sigmoid, over N
-//! rows. Parameters are one flat `Vec<f32>` (w0, b0, w1, b1, w2, b2; weights row-major
-//! out × in) so an optimiser and the safetensors file see them as plain arrays.
-//!
-//! The backward pass recomputes the (tiny) hidden activations per row instead of caching
-//! N × 64 floats.
+//! The gain network Ψ = Linear(D+3, 32) ReLU Linear(32, 32) ReLU Linear(32, 1) sigmoid over N
+//! rows: a [`tiny_nn::Mlp`] in f32 storage with PyTorch's default initialisation, plus the
+//! exact power-of-two rescaling that keeps its parameter gradients finite for any finite dL/dK.
 
-use rand::{RngExt, SeedableRng};
-use rayon::prelude::*;
+use tiny_nn::{Activation, Mlp, MlpCache, MlpConfig, Precision};
+
+use crate::error::EvoError;
 
 /// Hidden width of Ψ.
 pub const HIDDEN: usize = 32;
-/// Rows per parallel task.
-const CHUNK: usize = 2048;
 
 /// Ψ with its parameters.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct GainNet {
-    inputs: usize,
-    params: Vec<f32>,
+    mlp: Mlp,
 }
 
-/// Offsets of the parameter tensors in the flat vector.
-struct Offsets {
-    w0: usize,
-    b0: usize,
-    w1: usize,
-    b1: usize,
-    w2: usize,
-    b2: usize,
-    end: usize,
+impl PartialEq for GainNet {
+    /// Same shape and bit-identical parameters.
+    fn eq(&self, other: &Self) -> bool {
+        let bits = |n: &GainNet| n.params().iter().map(|p| p.to_bits()).collect::<Vec<_>>();
+        self.mlp.config() == other.mlp.config() && bits(self) == bits(other)
+    }
 }
 
 impl GainNet {
-    fn offsets(inputs: usize) -> Offsets {
-        let w0 = 0;
-        let b0 = w0 + HIDDEN * inputs;
-        let w1 = b0 + HIDDEN;
-        let b1 = w1 + HIDDEN * HIDDEN;
-        let w2 = b1 + HIDDEN;
-        let b2 = w2 + HIDDEN;
-        Offsets {
-            w0,
-            b0,
-            w1,
-            b1,
-            w2,
-            b2,
-            end: b2 + 1,
-        }
-    }
-
-    /// Number of parameters for `inputs` inputs.
-    pub fn param_count(inputs: usize) -> usize {
-        Self::offsets(inputs).end
-    }
-
-    /// Ψ with PyTorch's default initialisation (uniform ±1/√fan_in for weights and biases),
-    /// deterministic from `seed`.
-    pub fn new(inputs: usize, seed: u64) -> Self {
-        let o = Self::offsets(inputs);
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-        let mut params = vec![0.0f32; o.end];
-        let mut fill = |range: std::ops::Range<usize>, fan_in: usize| {
-            let bound = 1.0 / (fan_in as f32).sqrt();
-            for p in &mut params[range] {
-                *p = rng.random_range(-bound..bound);
-            }
-        };
-        fill(o.w0..o.w1, inputs);
-        fill(o.w1..o.w2, HIDDEN);
-        fill(o.w2..o.end, HIDDEN);
-        Self { inputs, params }
-    }
-
-    /// Ψ from saved parameters.
-    pub fn from_params(inputs: usize, params: Vec<f32>) -> Option<Self> {
-        (params.len() == Self::param_count(inputs)).then_some(Self { inputs, params })
+    /// Ψ for `inputs` inputs (D + 3), initialised deterministically from `seed`.
+    pub fn new(inputs: usize, seed: u64) -> Result<Self, EvoError> {
+        let mlp = MlpConfig::new(inputs, HIDDEN, 2, 1)
+            .output_activation(Activation::Sigmoid)
+            .precision(Precision::F32)
+            .seed(seed)
+            .build()?;
+        Ok(Self { mlp })
     }
 
     /// Input width (D + 3).
     pub fn inputs(&self) -> usize {
-        self.inputs
+        self.mlp.input_width()
     }
 
-    /// The flat parameters.
-    pub fn params(&self) -> &[f32] {
-        &self.params
+    /// Number of parameters.
+    pub fn param_count(&self) -> usize {
+        self.mlp.param_count()
     }
 
-    /// The flat parameters, for an optimiser step.
-    pub fn params_mut(&mut self) -> &mut [f32] {
-        &mut self.params
+    /// The flat parameters (tiny-nn's layout: per layer W (in × out) then b).
+    pub fn params(&self) -> Vec<f32> {
+        self.mlp.params().to_vec_f32()
     }
 
-    /// Hidden activations and output logit of one row.
-    #[inline]
-    fn row_forward(&self, x: &[f32], h1: &mut [f32; HIDDEN], h2: &mut [f32; HIDDEN]) -> f32 {
-        let o = Self::offsets(self.inputs);
-        let p = &self.params;
-        for (j, h) in h1.iter_mut().enumerate() {
-            let w = &p[o.w0 + j * self.inputs..o.w0 + (j + 1) * self.inputs];
-            let s: f32 = w.iter().zip(x).map(|(a, b)| a * b).sum();
-            *h = (s + p[o.b0 + j]).max(0.0);
-        }
-        for (j, h) in h2.iter_mut().enumerate() {
-            let w = &p[o.w1 + j * HIDDEN..o.w1 + (j + 1) * HIDDEN];
-            let s: f32 = w.iter().zip(h1.iter()).map(|(a, b)| a * b).sum();
-            *h = (s + p[o.b1 + j]).max(0.0);
-        }
-        let w = &p[o.w2..o.w2 + HIDDEN];
-        let s: f32 = w.iter().zip(h2.iter()).map(|(a, b)| a * b).sum();
-        s + p[o.b2]
+    /// Replaces every parameter.
+    pub fn set_params(&mut self, values: &[f32]) -> Result<(), EvoError> {
+        self.mlp.set_params(values)?;
+        Ok(())
     }
 
-    /// K = Ψ(x) for each row of `x` (rows × inputs), into `k`.
-    pub fn forward(&self, x: &[f32], k: &mut [f32]) {
-        debug_assert_eq!(x.len(), k.len() * self.inputs);
-        k.par_chunks_mut(CHUNK).enumerate().for_each(|(c, k)| {
-            let (mut h1, mut h2) = ([0.0; HIDDEN], [0.0; HIDDEN]);
-            for (r, k) in k.iter_mut().enumerate() {
-                let row = c * CHUNK + r;
-                let logit = self.row_forward(
-                    &x[row * self.inputs..(row + 1) * self.inputs],
-                    &mut h1,
-                    &mut h2,
-                );
-                *k = sigmoid(logit);
-            }
-        });
+    /// The underlying network (for tiny-nn's `Adam::step` on `mlp_mut().params_mut()`).
+    pub fn mlp(&self) -> &Mlp {
+        &self.mlp
     }
 
-    /// Gradient of the loss with respect to the parameters, given the inputs `x` and the
-    /// gradient with respect to each row's output K (`dk`). Rows with `dk = 0` are skipped.
-    /// Deterministic: per-chunk partial sums are added in chunk order.
-    pub fn backward(&self, x: &[f32], dk: &[f32]) -> Vec<f32> {
-        let o = Self::offsets(self.inputs);
-        let n_in = self.inputs;
-        let p = &self.params;
-        let partials: Vec<Vec<f32>> = dk
-            .par_chunks(CHUNK)
-            .enumerate()
-            .map(|(c, dk)| {
-                let mut g = vec![0.0f32; o.end];
-                let (mut h1, mut h2) = ([0.0; HIDDEN], [0.0; HIDDEN]);
-                let (mut dh1, mut dh2) = ([0.0f32; HIDDEN], [0.0f32; HIDDEN]);
-                for (r, &dk) in dk.iter().enumerate() {
-                    if dk == 0.0 {
-                        continue;
-                    }
-                    let row = c * CHUNK + r;
-                    let xr = &x[row * n_in..(row + 1) * n_in];
-                    let logit = self.row_forward(xr, &mut h1, &mut h2);
-                    let k = sigmoid(logit);
-                    let dlogit = dk * k * (1.0 - k);
-                    // Layer 2.
-                    g[o.b2] += dlogit;
-                    for j in 0..HIDDEN {
-                        g[o.w2 + j] += dlogit * h2[j];
-                        dh2[j] = if h2[j] > 0.0 {
-                            dlogit * p[o.w2 + j]
-                        } else {
-                            0.0
-                        };
-                    }
-                    // Layer 1.
-                    dh1.fill(0.0);
-                    for j in 0..HIDDEN {
-                        let d = dh2[j];
-                        if d == 0.0 {
-                            continue;
-                        }
-                        g[o.b1 + j] += d;
-                        let gw = &mut g[o.w1 + j * HIDDEN..o.w1 + (j + 1) * HIDDEN];
-                        let w = &p[o.w1 + j * HIDDEN..o.w1 + (j + 1) * HIDDEN];
-                        for m in 0..HIDDEN {
-                            gw[m] += d * h1[m];
-                            dh1[m] += d * w[m];
-                        }
-                    }
-                    // Layer 0.
-                    for j in 0..HIDDEN {
-                        let d = if h1[j] > 0.0 { dh1[j] } else { 0.0 };
-                        if d == 0.0 {
-                            continue;
-                        }
-                        g[o.b0 + j] += d;
-                        let gw = &mut g[o.w0 + j * n_in..o.w0 + (j + 1) * n_in];
-                        for (gw, &xi) in gw.iter_mut().zip(xr) {
-                            *gw += d * xi;
-                        }
-                    }
-                }
-                g
-            })
-            .collect();
-        let mut grads = vec![0.0f32; o.end];
-        for part in partials {
-            for (g, p) in grads.iter_mut().zip(part) {
-                *g += p;
-            }
-        }
-        grads
+    /// The underlying network, mutable.
+    pub fn mlp_mut(&mut self) -> &mut Mlp {
+        &mut self.mlp
     }
-}
 
-/// Logistic function, computed without overflow for any finite input.
-#[inline]
-pub(crate) fn sigmoid(x: f32) -> f32 {
-    if x >= 0.0 {
-        1.0 / (1.0 + (-x).exp())
-    } else {
-        let e = x.exp();
-        e / (1.0 + e)
+    /// K = Ψ(x) for `rows` rows of `x` (rows × inputs), and the cache for backward.
+    pub fn forward(&self, x: &[f32], rows: usize) -> Result<(Vec<f32>, MlpCache), EvoError> {
+        Ok(self.mlp.forward(x, rows)?)
+    }
+
+    /// dL/dθ from dL/dK per row.
+    ///
+    /// dL/dK larger than 2^60 is scaled down by a power of two (exact) before tiny-nn's f32
+    /// accumulation, and the result is scaled back in f64 and saturated to the f32 range, so
+    /// finite inputs give finite gradients.
+    pub fn backward(&self, cache: &MlpCache, dk: &[f32]) -> Result<Vec<f32>, EvoError> {
+        let largest = dk.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        let exponent = if largest > 2f32.powi(60) {
+            largest.log2().ceil() as i32
+        } else {
+            0
+        };
+        let grads = if exponent == 0 {
+            self.mlp.backward(cache, dk, false)?.params
+        } else {
+            let down = (-exponent as f32).exp2();
+            let scaled: Vec<f32> = dk.iter().map(|v| v * down).collect();
+            let up = (exponent as f64).exp2();
+            let g = self.mlp.backward(cache, &scaled, false)?.params;
+            g.iter()
+                .map(|&g| (g as f64 * up).clamp(-(f32::MAX as f64), f32::MAX as f64) as f32)
+                .collect()
+        };
+        Ok(grads)
     }
 }
 
@@ -219,81 +101,66 @@ pub(crate) fn sigmoid(x: f32) -> f32 {
 mod tests {
     use super::*;
 
-    /// f64 reference of the scalar loss Σ_r c_r K_r, for finite differences.
-    fn loss64(net: &GainNet, params: &[f64], x: &[f32], c: &[f32]) -> f64 {
-        let o = GainNet::offsets(net.inputs);
-        let n_in = net.inputs;
-        let mut total = 0.0;
-        for (r, &cr) in c.iter().enumerate() {
-            let xr: Vec<f64> = x[r * n_in..(r + 1) * n_in]
-                .iter()
-                .map(|&v| v as f64)
-                .collect();
-            let h1: Vec<f64> = (0..HIDDEN)
-                .map(|j| {
-                    let s: f64 = (0..n_in).map(|m| params[o.w0 + j * n_in + m] * xr[m]).sum();
-                    (s + params[o.b0 + j]).max(0.0)
-                })
-                .collect();
-            let h2: Vec<f64> = (0..HIDDEN)
-                .map(|j| {
-                    let s: f64 = (0..HIDDEN)
-                        .map(|m| params[o.w1 + j * HIDDEN + m] * h1[m])
-                        .sum();
-                    (s + params[o.b1 + j]).max(0.0)
-                })
-                .collect();
-            let s: f64 = (0..HIDDEN).map(|m| params[o.w2 + m] * h2[m]).sum::<f64>() + params[o.b2];
-            total += cr as f64 / (1.0 + (-s).exp());
-        }
-        total
+    fn loss(net: &GainNet, x: &[f32], c: &[f32]) -> f64 {
+        let (k, _) = net.forward(x, c.len()).unwrap();
+        k.iter().zip(c).map(|(k, c)| *k as f64 * *c as f64).sum()
     }
 
+    /// Directional finite differences of Σ c_r K_r along random parameter directions.
     #[test]
-    fn parameter_gradients_match_f64_finite_differences() {
+    fn parameter_gradients_match_finite_differences() {
         let inputs = 13;
-        let mut net = GainNet::new(inputs, 3);
-        // Larger output weights so the sigmoid is not flat.
-        for p in net.params_mut() {
-            *p *= 2.0;
-        }
+        let mut net = GainNet::new(inputs, 3).unwrap();
+        let scaled: Vec<f32> = net.params().iter().map(|p| p * 2.0).collect();
+        net.set_params(&scaled).unwrap();
         let rows = 5;
         let x: Vec<f32> = (0..rows * inputs)
             .map(|e| ((e * 37 % 17) as f32 - 8.0) / 5.0)
             .collect();
         let c: Vec<f32> = (0..rows).map(|r| r as f32 - 1.5).collect();
-        let grads = net.backward(&x, &c);
-        let base: Vec<f64> = net.params().iter().map(|&p| p as f64).collect();
-        let h = 1e-6;
-        let mut checked = 0;
-        for i in 0..base.len() {
-            let mut plus = base.clone();
-            plus[i] += h;
-            let mut minus = base.clone();
-            minus[i] -= h;
-            let fd = (loss64(&net, &plus, &x, &c) - loss64(&net, &minus, &x, &c)) / (2.0 * h);
-            let err = (fd - grads[i] as f64).abs();
+        let (_, cache) = net.forward(&x, rows).unwrap();
+        let grads = net.backward(&cache, &c).unwrap();
+        let base = net.params();
+        let h = 1e-3f32;
+        for trial in 0..6u32 {
+            let u: Vec<f32> = (0..base.len())
+                .map(|i| (((i as u32 * 7919 + trial * 104729) % 2001) as f32 / 1000.0) - 1.0)
+                .collect();
+            let at = |sign: f32| {
+                let mut n = net.clone();
+                let p: Vec<f32> = base.iter().zip(&u).map(|(p, u)| p + sign * h * u).collect();
+                n.set_params(&p).unwrap();
+                loss(&n, &x, &c)
+            };
+            let fd = (at(1.0) - at(-1.0)) / (2.0 * h as f64);
+            let an: f64 = grads
+                .iter()
+                .zip(&u)
+                .map(|(g, u)| *g as f64 * *u as f64)
+                .sum();
             assert!(
-                err <= 1e-4 + 1e-3 * fd.abs(),
-                "param {i}: fd {fd} vs {}",
-                grads[i]
+                (fd - an).abs() <= 2e-3 + 5e-3 * fd.abs(),
+                "direction {trial}: fd {fd} vs {an}"
             );
-            checked += (fd.abs() > 1e-4) as usize;
         }
-        assert!(
-            checked > 100,
-            "too few non-trivial gradients checked: {checked}"
-        );
     }
 
     #[test]
-    fn forward_is_in_unit_interval_for_inputs_at_the_clamp() {
-        let net = GainNet::new(4, 1);
-        let x = [1e4, -1e4, 1e4, 0.0, 0.0, 0.0, 0.0, 0.0];
-        let mut k = [0.0; 2];
-        net.forward(&x, &mut k);
+    fn huge_output_gradients_give_finite_scaled_parameter_gradients() {
+        let net = GainNet::new(4, 1).unwrap();
+        let x = [1e4, -1e4, 1e4, 0.0, 0.5, 0.25, -0.5, 1.0];
+        let (k, cache) = net.forward(&x, 2).unwrap();
         assert!(k.iter().all(|k| (0.0..=1.0).contains(k)), "{k:?}");
-        assert_eq!(sigmoid(-1e30), 0.0);
-        assert_eq!(sigmoid(1e30), 1.0);
+        let small = net.backward(&cache, &[1.0, -2.0]).unwrap();
+        let huge = net
+            .backward(&cache, &[2f32.powi(100), -(2f32.powi(101))])
+            .unwrap();
+        assert!(huge.iter().all(|g| g.is_finite()));
+        // Exactly 2^100 times the small gradients, saturated at the f32 limit.
+        for (s, h) in small.iter().zip(&huge) {
+            let expected =
+                (*s as f64 * 2f64.powi(100)).clamp(-(f32::MAX as f64), f32::MAX as f64) as f32;
+            assert_eq!(*h, expected);
+        }
     }
 }

@@ -73,9 +73,11 @@ impl EvoState {
         put("rows", self.rows.to_string());
         put("saturations", self.saturations.to_string());
         put("generation", self.generation.to_string());
+        put("psi_seed", self.psi.mlp().config().seed.to_string());
 
         let dim = self.dim();
         let valid: Vec<u8> = self.valid.iter().map(|&v| v as u8).collect();
+        let psi = self.psi.params();
         let view = |dtype, shape: Vec<usize>, data| {
             TensorView::new(dtype, shape, data).map_err(|e| EvoError::Format {
                 path: path.to_path_buf(),
@@ -99,11 +101,7 @@ impl EvoState {
             ),
             (
                 "psi".into(),
-                view(
-                    Dtype::F32,
-                    vec![self.psi.params().len()],
-                    f32_bytes(self.psi.params()),
-                )?,
+                view(Dtype::F32, vec![self.psi.params().len()], f32_bytes(&psi))?,
             ),
         ];
         if let Some(buffer) = &self.buffer {
@@ -245,13 +243,14 @@ impl EvoState {
                 format!("non-finite value at Gaussian {}", p / dim.max(1)),
             ));
         }
-        let psi_len = GainNet::param_count(dim + 3);
-        let psi_params = to_f32(tensor("psi", Dtype::F32, &[psi_len])?);
+        let psi_seed: u64 = parse(get("psi_seed")?, "psi_seed", &bad)?;
+        let mut psi = GainNet::new(dim + 3, psi_seed).map_err(|e| bad("psi", e.to_string()))?;
+        let psi_params = to_f32(tensor("psi", Dtype::F32, &[psi.param_count()])?);
         if psi_params.iter().any(|v| !v.is_finite()) {
             return Err(bad("psi", "non-finite parameter".into()));
         }
-        let psi = GainNet::from_params(dim + 3, psi_params)
-            .ok_or_else(|| bad("psi", "wrong length".into()))?;
+        psi.set_params(&psi_params)
+            .map_err(|e| bad("psi", e.to_string()))?;
         let buffer = if config.evolution && config.history == HistoryMode::Buffer {
             let mut blocks = Vec::with_capacity(frame_count);
             for k in 0..frame_count {

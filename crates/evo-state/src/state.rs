@@ -93,7 +93,7 @@ impl EvoState {
         Ok(Self {
             valid: vec![false; frames.len()],
             memory: vec![0.0; rows * dim],
-            psi: GainNet::new(dim + 3, seed),
+            psi: GainNet::new(dim + 3, seed)?,
             config,
             frames,
             rows,
@@ -241,7 +241,7 @@ impl EvoState {
             prior: None,
             gains: Gains::Observation,
             stats: None,
-            psi_inputs: None,
+            psi_cache: None,
             memory_next: None,
         };
         if history.len <= 1 {
@@ -333,12 +333,13 @@ impl EvoState {
                 });
         }
 
+        let mut psi_cache = None;
         let gains = match (history.len, self.config.gain) {
             (2, _) => Gains::Uniform(WARMUP_GAIN),
             (_, Gain::Fixed(k)) => Gains::Uniform(k),
             (_, Gain::Learned) => {
-                let mut k = vec![0.0f32; n];
-                self.psi.forward(&inputs, &mut k);
+                let (k, cache) = self.psi.forward(&inputs, n)?;
+                psi_cache = Some(cache);
                 Gains::Learned(k)
             }
         };
@@ -368,10 +369,8 @@ impl EvoState {
         step.memory_next = Some(memory_next);
         if full {
             step.stats = Some(stats);
-            if matches!(gains, Gains::Learned(_)) {
-                step.psi_inputs = Some(inputs);
-            }
         }
+        step.psi_cache = psi_cache;
         step.gains = gains;
         Ok(step)
     }
@@ -452,8 +451,8 @@ impl EvoState {
             sup: sup * inv_n,
             prior: pri * inv_n,
         };
-        let dpsi = match (learned, step.psi_inputs.as_deref()) {
-            (true, Some(inputs)) => Some(self.psi.backward(inputs, &dk)),
+        let dpsi = match (learned, &step.psi_cache) {
+            (true, Some(cache)) => Some(self.psi.backward(cache, &dk)?),
             _ => None,
         };
         Ok(Backward { dz, dpsi, losses })

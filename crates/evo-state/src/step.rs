@@ -48,7 +48,7 @@ pub struct Step {
     pub(crate) prior: Option<Vec<f32>>,
     pub(crate) gains: Gains,
     pub(crate) stats: Option<Vec<Stats>>,
-    pub(crate) psi_inputs: Option<Vec<f32>>,
+    pub(crate) psi_cache: Option<tiny_nn::MlpCache>,
     pub(crate) memory_next: Option<Vec<f32>>,
 }
 
@@ -91,11 +91,6 @@ impl Step {
     /// Motion statistics (h = 3).
     pub fn stats(&self) -> Option<&[Stats]> {
         self.stats.as_deref()
-    }
-
-    /// Ψ's inputs, N × (D + 3) (learned gain, h = 3).
-    pub fn psi_inputs(&self) -> Option<&[f32]> {
-        self.psi_inputs.as_deref()
     }
 
     /// Residual memory this step would commit (h >= 2).

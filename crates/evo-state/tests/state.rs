@@ -1,0 +1,241 @@
+//! Row maintenance, persistence (bit-exact), history re-query, evolution off.
+
+mod common;
+
+use common::*;
+use evo_state::{EvoConfig, EvoError, EvoState, Gain, HistoryMode, RowPlan, Storage};
+use proptest::prelude::*;
+
+fn trained(config: EvoConfig, rows: usize, frames: usize) -> EvoState {
+    let mut st = state(config, uniform_frames(frames + 2), rows);
+    let d = st.dim();
+    for k in 0..frames {
+        let z: Vec<f32> = (0..rows * d)
+            .map(|e| ((e * 13 + k * 5) % 17) as f32 * 0.37 - 3.0 + k as f32)
+            .collect();
+        train(&mut st, k, &z);
+    }
+    st
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(32))]
+
+    /// After a plan, children carry their parent's buffer rows (every frame) and memory, kept
+    /// rows are unchanged, and every array has the new row count.
+    #[test]
+    fn children_inherit_buffer_rows_and_memory(
+        keep in proptest::collection::vec(any::<bool>(), 7),
+        parents in proptest::collection::vec(0u32..7, 0..6),
+        f16 in any::<bool>(),
+    ) {
+        let storage = if f16 { Storage::F16 } else { Storage::F32 };
+        let before = trained(EvoConfig { storage, ..EvoConfig::default() }, 7, 4);
+        let mut plan = RowPlan::prune(&keep);
+        plan.parent_from_new = parents;
+        let mut after = before.clone();
+        after.apply_rows(&plan).unwrap();
+        let d = after.dim();
+        prop_assert_eq!(after.rows(), plan.new_len());
+        prop_assert_eq!(after.memory().len(), plan.new_len() * d);
+        prop_assert_eq!(after.buffer_bytes(), plan.new_len() * d * storage.bytes() * after.frames().len());
+        let origin: Vec<u32> = plan.kept.iter().chain(&plan.parent_from_new).copied().collect();
+        for (new, &old) in origin.iter().enumerate() {
+            let (new, old) = (new, old as usize);
+            prop_assert_eq!(&after.memory()[new * d..(new + 1) * d], &before.memory()[old * d..(old + 1) * d]);
+            for k in 0..after.frames().len() {
+                prop_assert_eq!(after.buffer().unwrap().row(k, new), before.buffer().unwrap().row(k, old));
+            }
+        }
+        // The next step works on the new rows.
+        let z = vec![0.5f32; after.rows() * d];
+        let step = after.forward(after.frames().times()[4], &z).unwrap();
+        after.commit(&step).unwrap();
+    }
+}
+
+#[test]
+fn bad_plans_leave_the_state_unchanged() {
+    let mut st = trained(EvoConfig::default(), 4, 3);
+    let before = st.clone();
+    let err = st
+        .apply_rows(&RowPlan {
+            kept: vec![0, 9],
+            parent_from_new: vec![],
+        })
+        .unwrap_err();
+    assert!(err.to_string().contains("out of range"), "{err}");
+    let err = st
+        .apply_rows(&RowPlan {
+            kept: vec![],
+            parent_from_new: vec![4],
+        })
+        .unwrap_err();
+    assert!(err.to_string().contains("parent_from_new[0] = 4"), "{err}");
+    assert_eq!(st, before);
+}
+
+#[test]
+fn save_and_load_are_bit_exact() {
+    let dir = tempfile::tempdir().unwrap();
+    for (i, config) in [
+        EvoConfig::default(),
+        EvoConfig {
+            storage: Storage::F16,
+            gain: Gain::Fixed(0.3),
+            beta: 0.85,
+            ..EvoConfig::default()
+        },
+        EvoConfig {
+            history: HistoryMode::Requery,
+            motion_floor: 1.234e-7,
+            extent: 3.3,
+            ..EvoConfig::default()
+        },
+        EvoConfig {
+            evolution: false,
+            ..EvoConfig::default()
+        },
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let mut st = if config.history == HistoryMode::Requery {
+            state(config, uniform_frames(5), 6)
+        } else {
+            trained(config, 6, 4)
+        };
+        if config.storage == Storage::F16 {
+            let d = st.dim();
+            train(&mut st, 5, &vec![1e6; 6 * d]);
+            assert!(st.saturations() > 0);
+        }
+        st.apply_rows(&RowPlan {
+            kept: vec![0, 2, 3, 4, 5],
+            parent_from_new: vec![2],
+        })
+        .unwrap();
+        let path = dir.path().join(format!("state{i}.safetensors"));
+        st.save(&path).unwrap();
+        let loaded = EvoState::load(&path).unwrap();
+        assert_eq!(loaded, st, "config {i}");
+        // Bit-exact, including -0.0 and every float of Ψ.
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&loaded.psi().params()), bits(&st.psi().params()));
+        assert_eq!(bits(loaded.memory()), bits(st.memory()));
+        // Saving the loaded state and loading it again changes nothing (the metadata order in
+        // the file is not fixed, so bytes are not compared).
+        let again = dir.path().join(format!("again{i}.safetensors"));
+        loaded.save(&again).unwrap();
+        assert!(EvoState::load(&again).unwrap() == st);
+    }
+    // No temporary files left behind.
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names.len(), 8, "{names:?}");
+}
+
+#[test]
+fn load_errors_name_the_file_and_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad.safetensors");
+    let err = EvoState::load(&path).unwrap_err();
+    assert!(matches!(err, EvoError::Io { .. }) && err.to_string().contains("bad.safetensors"));
+    std::fs::write(&path, b"not a safetensors file").unwrap();
+    let err = EvoState::load(&path).unwrap_err().to_string();
+    assert!(
+        err.contains("bad.safetensors") && err.contains("safetensors"),
+        "{err}"
+    );
+    // A valid file whose memory has the wrong shape.
+    let st = trained(EvoConfig::default(), 3, 2);
+    st.save(&path).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let mut tampered = bytes.clone();
+    let at = tampered
+        .windows(10)
+        .position(|w| w == b"\"rows\":\"3\"")
+        .expect("rows in header");
+    tampered[at + 8] = b'4';
+    std::fs::write(&path, &tampered).unwrap();
+    let err = EvoState::load(&path).unwrap_err().to_string();
+    assert!(
+        err.contains("bad.safetensors") && err.contains("memory") && err.contains("shape"),
+        "{err}"
+    );
+}
+
+/// "Without buffer": the history is re-queried from the observation source, here a function
+/// of time, so the prior is exact for linear motion whatever was committed.
+#[test]
+fn history_requeried_from_the_observation_source() {
+    let config = EvoConfig {
+        layout: position_only(),
+        history: HistoryMode::Requery,
+        gain: Gain::Fixed(0.0),
+        ..EvoConfig::default()
+    };
+    let mut st = state(config, uniform_frames(5), 2);
+    assert_eq!(st.buffer_bytes(), 0);
+    let linear = |t: f32| vec![1.0 + 2.0 * t, -t, 0.5, 3.0 * t, 0.0, 1.0];
+    let mut calls = Vec::new();
+    let mut source =
+        |t: f32, out: &mut [f32]| -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+            calls.push(t);
+            out.copy_from_slice(&linear(t));
+            Ok(())
+        };
+    // Nothing committed, yet every earlier frame is available.
+    let t = st.frames().times()[3];
+    let step = st.forward_with(t, &[9.0; 6], &mut source).unwrap();
+    assert_eq!(step.history().frames(), &[2, 1, 0]);
+    for (a, b) in step.corrected().iter().zip(linear(t)) {
+        assert!((a - b).abs() < 1e-5);
+    }
+    st.commit(&step).unwrap();
+    assert_eq!(calls, vec![0.5, 0.25, 0.0]);
+    assert!(matches!(
+        st.forward(t, &[0.0; 6]),
+        Err(EvoError::NeedsObservationSource)
+    ));
+    let mut failing =
+        |_: f32, _: &mut [f32]| -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+            Err("network unavailable".into())
+        };
+    let err = st
+        .forward_with(t, &[0.0; 6], &mut failing)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("network unavailable") && err.contains("0.5"),
+        "{err}"
+    );
+    let mut nan =
+        |_: f32, out: &mut [f32]| -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+            out.fill(0.0);
+            out[4] = f32::NAN;
+            Ok(())
+        };
+    let err = st
+        .forward_with(t, &[0.0; 6], &mut nan)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("Gaussian 1"), "{err}");
+}
+
+#[test]
+fn evolution_off_is_the_baseline() {
+    let config = EvoConfig {
+        evolution: false,
+        ..EvoConfig::default()
+    };
+    let st = trained(config, 3, 5);
+    assert_eq!(st.buffer_bytes(), 0);
+    assert!(st.memory().iter().all(|&m| m == 0.0));
+    let z = vec![0.25f32; 3 * st.dim()];
+    let step = st.forward(st.frames().times()[5], &z).unwrap();
+    assert_eq!(step.corrected(), &z[..]);
+    assert_eq!(step.history().len, 0);
+}
