@@ -19,12 +19,13 @@ pub mod apply;
 pub mod config;
 pub mod error;
 pub mod extent;
+pub mod inplace;
 pub mod math;
 pub mod plan;
 pub mod planner;
 pub mod stats;
 
-pub use apply::{Moments, PerGaussian, Rows, apply_plan};
+pub use apply::{Moments, OptimiserMoments, PerGaussian, Rows, apply_plan};
 pub use config::{DensifyConfig, Schedule, Trigger};
 pub use error::DensifyError;
 pub use extent::scene_extent;
