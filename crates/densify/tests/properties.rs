@@ -2,6 +2,9 @@
 //! their data, and each new row inherits its parent's data except the documented overridden
 //! parameter values (which match the rule that produced them).
 
+// Index loops mirror the row arithmetic being checked.
+#![allow(clippy::needless_range_loop)]
+
 mod common;
 
 use common::logit;

@@ -499,3 +499,60 @@ fn bad_inputs_name_the_field_and_change_nothing() {
     assert_eq!(after, g);
     assert_eq!(rows.rows(), 3);
 }
+
+#[test]
+fn evolution_cues_come_from_evo_state_steps() {
+    use densify::{residual_norms, thetas};
+    use evo_state::{EvoConfig, EvoState, Frames, Gain};
+    let config = EvoConfig {
+        gain: Gain::Fixed(0.5),
+        extent: 2.0,
+        ..EvoConfig::default()
+    };
+    let layout = config.layout;
+    let mut evo =
+        EvoState::new(config, Frames::new(vec![0.0, 0.1, 0.2, 0.3]).unwrap(), 2, 1).unwrap();
+    let mut stats = DensifyStats::new(2);
+    // Gaussian 0 moves steadily along x; Gaussian 1 zig-zags.
+    let z_at = |k: usize| -> Vec<f32> {
+        let mut z = vec![0.0f32; 20];
+        z[0] = 0.1 * k as f32;
+        z[10] = 0.1 * k as f32;
+        z[11] = if k % 2 == 0 { 0.0 } else { 0.3 };
+        z
+    };
+    for k in 0..4 {
+        let z = z_at(k);
+        let step = evo.forward(evo.frames().times()[k], &z).unwrap();
+        let r = residual_norms(&step, &z, &layout, 2.0).unwrap();
+        let t = thetas(&step);
+        match k {
+            0 | 1 => assert!(r.is_none() && t.is_none(), "no prior before h = 2"),
+            _ => {
+                let r = r.as_ref().unwrap();
+                let prior = step.prior().unwrap();
+                for i in 0..2 {
+                    let expected = (0..3)
+                        .map(|j| (z[i * 10 + j] - prior[i * 10 + j]).powi(2))
+                        .sum::<f32>()
+                        .sqrt()
+                        / 2.0;
+                    assert!((r[i] - expected).abs() < 1e-6, "{} vs {expected}", r[i]);
+                }
+                assert_eq!(t.is_some(), k == 3, "θ only with h = 3");
+            }
+        }
+        stats.add_evolution(r.as_deref(), t.as_deref()).unwrap();
+        evo.commit(&step).unwrap();
+    }
+    assert_eq!(stats.residual_count, vec![2, 2]);
+    assert_eq!(stats.theta_count, vec![1, 1]);
+    assert!(
+        stats.mean_residual(0) < 1e-6,
+        "steady motion is predicted exactly"
+    );
+    assert!(stats.mean_residual(1) > 0.05);
+    // Not exactly 0: SPEC's θ divides by |v1||v2| + 1e-6 (here |v|² = 0.01, so θ ≈ 0.014).
+    assert!(stats.mean_theta(0) < 0.05, "{}", stats.mean_theta(0));
+    assert!(stats.mean_theta(1) > 1.0, "{}", stats.mean_theta(1));
+}
