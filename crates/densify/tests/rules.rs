@@ -518,7 +518,7 @@ fn evolution_cues_come_from_evo_state_steps() {
         let mut z = vec![0.0f32; 20];
         z[0] = 0.1 * k as f32;
         z[10] = 0.1 * k as f32;
-        z[11] = if k % 2 == 0 { 0.0 } else { 0.3 };
+        z[11] = if k.is_multiple_of(2) { 0.0 } else { 0.3 };
         z
     };
     for k in 0..4 {
