@@ -134,12 +134,6 @@ pub fn make_plan(
                     actual: d.corrected.len(),
                 });
             }
-            if let Some(i) = d.corrected.par_iter().position_any(|v| !v.is_finite()) {
-                return Err(DensifyError::Input {
-                    field: "deformation.corrected",
-                    problem: format!("non-finite value at Gaussian {}", i / off.dim.max(1)),
-                });
-            }
             Some((alpha, d.corrected, off))
         }
         _ => None,
@@ -232,6 +226,20 @@ pub fn make_plan(
             })
             .collect();
 
+        // Only the densified rows' d̃ is read: check those for non-finite values.
+        if let Some((_, d, off)) = deformation
+            && let Some(i) = (0..n).find(|&i| {
+                matches!(decisions[i].0, Densify::Clone | Densify::Split)
+                    && d[i * off.dim..(i + 1) * off.dim]
+                        .iter()
+                        .any(|v| !v.is_finite())
+            })
+        {
+            return Err(DensifyError::Input {
+                field: "deformation.corrected",
+                problem: format!("non-finite value at Gaussian {i}"),
+            });
+        }
         let count = |p: Prune, summary: &mut PlanSummary| match p {
             Prune::No => true,
             Prune::Opacity => {

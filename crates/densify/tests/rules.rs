@@ -484,6 +484,33 @@ fn bad_inputs_name_the_field_and_change_nothing() {
     .unwrap_err();
     assert!(err.to_string().contains("min_opacity"), "{err}");
 
+    // A non-finite d̃ is an error naming the Gaussian when that row is densified, and unused
+    // otherwise.
+    let mut corrected = vec![0.0f32; 20];
+    corrected[13] = f32::NAN;
+    let deformation = Some(Deformation {
+        corrected: &corrected,
+        layout: Layout::default(),
+    });
+    let with = |grads: &[f32]| {
+        make_plan(
+            &DensifyConfig::evogs(),
+            &PlanInput {
+                gaussians: g.view(),
+                stats: &stats_with_grads(grads),
+                extent: EXTENT,
+                iteration: 600,
+                deformation,
+            },
+        )
+    };
+    let err = with(&[0.0, 0.01]).unwrap_err();
+    assert!(
+        err.to_string().contains("deformation.corrected") && err.to_string().contains("Gaussian 1"),
+        "{err}"
+    );
+    assert_eq!(with(&[0.01, 0.0]).unwrap().summary.cloned, 1);
+
     // An array with the wrong row count is named, and no array is touched.
     let plan = plan_at(&standard(), &g, &stats_with_grads(&[0.01; 2]), 600);
     let mut after = g.clone();
