@@ -55,6 +55,7 @@ pub fn apply_in_place<T: Copy>(
         }
     }
     data.truncate(plan.kept.len() * stride);
+    data.reserve_exact(appended.len());
     data.extend_from_slice(&appended);
     Ok(())
 }
