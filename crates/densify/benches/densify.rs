@@ -180,6 +180,17 @@ fn bench(c: &mut Criterion) {
             BatchSize::PerIteration,
         )
     });
+    // Floor for comparison: one plain copy of as many bytes as the parameters and moments
+    // (59 floats × 3 per Gaussian), into memory already allocated.
+    let bytes_floats = N * 59 * 3;
+    let src = vec![1.0f32; bytes_floats];
+    let mut dst = vec![0.0f32; bytes_floats];
+    group.bench_function("reference: memcpy of params+moments bytes (708 MB)", |b| {
+        b.iter(|| {
+            dst.copy_from_slice(black_box(&src));
+            black_box(&dst);
+        })
+    });
     group.finish();
 }
 
