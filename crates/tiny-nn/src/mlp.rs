@@ -127,8 +127,9 @@ pub struct Mlp {
 }
 
 /// What [`Mlp::forward`] keeps for [`Mlp::backward`]: the input and every layer's output, in the
-/// network's storage precision.
-#[derive(Clone, Debug)]
+/// network's storage precision. `MlpCache::default()` is an empty cache for
+/// [`Mlp::forward_reusing`].
+#[derive(Clone, Debug, Default)]
 pub struct MlpCache {
     rows: usize,
     input: Store,
@@ -263,26 +264,50 @@ impl Mlp {
     pub fn macs_per_row(&self) -> usize {
         self.layers.iter().map(|l| l.input * l.output).sum()
     }
-
     /// Forward pass over `rows` rows of `x` (row-major rows × input). Returns the outputs
     /// (rows × output, rounded to f16 values in f16 storage) and the cache for backward.
     pub fn forward(&self, x: &[f32], rows: usize) -> Result<(Vec<f32>, MlpCache), NnError> {
         check_len("MLP input", rows * self.config.input, x.len())?;
+        let ni = self.config.input;
+        Ok(self.forward_with(rows, |r0, nr, buf| {
+            buf.copy_from_slice(&x[r0 * ni..(r0 + nr) * ni]);
+        }))
+    }
+
+    /// Forward pass whose input rows are produced block by block: `fill(r0, nr, buf)` writes rows
+    /// `r0..r0 + nr` (row-major, `nr × input`) into `buf`. Lets an encoder feed the network
+    /// without materialising its whole output. Blocks run in parallel.
+    pub fn forward_with<F>(&self, rows: usize, fill: F) -> (Vec<f32>, MlpCache)
+    where
+        F: Fn(usize, usize, &mut [f32]) + Sync,
+    {
+        let mut cache = MlpCache::default();
+        let out = self.forward_reusing(rows, fill, &mut cache);
+        (out, cache)
+    }
+
+    /// [`Mlp::forward_with`] writing into an existing cache, whose buffers are reused (a training
+    /// loop that keeps its cache avoids reallocating, and page-faulting, hundreds of MB per
+    /// step). Any cache may be passed; it is overwritten.
+    pub fn forward_reusing<F>(&self, rows: usize, fill: F, cache: &mut MlpCache) -> Vec<f32>
+    where
+        F: Fn(usize, usize, &mut [f32]) + Sync,
+    {
         let p = self.config.precision;
+        let ni = self.config.input;
         let weights = self.params.to_f32_vec();
-        let mut input = Store::zeros(p, rows * self.config.input);
-        let mut acts: Vec<Store> = self
-            .layers
-            .iter()
-            .map(|l| Store::zeros(p, rows * l.output))
-            .collect();
+        cache.rows = rows;
+        cache.input.resize_for(p, rows * ni);
+        cache
+            .acts
+            .resize_with(self.layers.len(), || Store::zeros(p, 0));
+        for (act, layer) in cache.acts.iter_mut().zip(&self.layers) {
+            act.resize_for(p, rows * layer.output);
+        }
+        let MlpCache { input, acts, .. } = cache;
         let n_blocks = rows.div_ceil(ROW_BLOCK);
         let mut blocks: Vec<Vec<StoreMut<'_>>> = (0..n_blocks).map(|_| Vec::new()).collect();
-        for (b, part) in input
-            .chunks_mut(ROW_BLOCK * self.config.input)
-            .into_iter()
-            .enumerate()
-        {
+        for (b, part) in input.chunks_mut(ROW_BLOCK * ni).into_iter().enumerate() {
             blocks[b].push(part);
         }
         for (act, layer) in acts.iter_mut().zip(&self.layers) {
@@ -297,47 +322,46 @@ impl Mlp {
         let saturated: u64 = blocks
             .into_par_iter()
             .enumerate()
-            .map(|(b, parts)| {
+            .map_init(Scratch::default, |scr, (b, parts)| {
                 let r0 = b * ROW_BLOCK;
                 let nr = ROW_BLOCK.min(rows - r0);
-                self.forward_block(
-                    &weights,
-                    &x[r0 * self.config.input..(r0 + nr) * self.config.input],
-                    nr,
-                    parts,
-                )
+                scr.x.resize(nr * ni, 0.0);
+                fill(r0, nr, &mut scr.x);
+                self.forward_block(&weights, scr, nr, parts)
             })
             .sum();
-        let out = acts.last().map(Store::to_f32_vec).unwrap_or_default();
-        Ok((
-            out,
-            MlpCache {
-                rows,
-                input,
-                acts,
-                saturated,
-            },
-        ))
+        cache.saturated = saturated;
+        cache.acts.last().map(Store::to_f32_vec).unwrap_or_default()
     }
 
     /// Runs every layer on one block of `nr` rows; `parts[0]` is the input's storage, then one
     /// per layer. Returns the saturation count.
-    fn forward_block(&self, w: &[f32], x: &[f32], nr: usize, mut parts: Vec<StoreMut<'_>>) -> u64 {
+    fn forward_block(
+        &self,
+        w: &[f32],
+        scr: &mut Scratch,
+        nr: usize,
+        mut parts: Vec<StoreMut<'_>>,
+    ) -> u64 {
         let ni = self.config.input;
-        let mut sat = 0;
-        let mut x_r = x.to_vec();
-        sat += store_rounded(&mut parts[0], &mut x_r);
-        let mut cur = x_r.clone();
-        let mut next = Vec::new();
+        let Scratch {
+            x, cur, next, cat, ..
+        } = scr;
+        let mut sat = store_rounded(&mut parts[0], x);
         let last = self.layers.len() - 1;
         for (l, layer) in self.layers.iter().enumerate() {
-            if layer.skip_input {
-                cur = concat_rows(&x_r, ni, &cur, layer.input - ni, nr);
-            }
+            let input: &[f32] = if l == 0 {
+                x
+            } else if layer.skip_input {
+                concat_rows(x, ni, cur, layer.input - ni, nr, cat);
+                cat
+            } else {
+                cur
+            };
             next.resize(nr * layer.output, 0.0);
             matmul(
-                &mut next,
-                &cur,
+                next,
+                input,
                 &w[layer.weight_offset..layer.bias_offset],
                 (nr, layer.input, layer.output),
                 false,
@@ -352,11 +376,34 @@ impl Mlp {
             } else {
                 self.config.hidden_activation
             };
-            act.apply(&mut next);
-            sat += store_rounded(&mut parts[l + 1], &mut next);
-            std::mem::swap(&mut cur, &mut next);
+            act.apply(next);
+            sat += store_rounded(&mut parts[l + 1], next);
+            std::mem::swap(cur, next);
         }
         sat
+    }
+
+    /// Checks that `cache` and `d_out` fit this network.
+    fn check_backward(&self, cache: &MlpCache, d_out: &[f32]) -> Result<(), NnError> {
+        check_len(
+            "MLP output gradient",
+            cache.rows * self.config.output,
+            d_out.len(),
+        )?;
+        if cache.acts.len() != self.layers.len()
+            || cache.input.len() != cache.rows * self.config.input
+            || cache.input.precision() != self.config.precision
+            || cache
+                .acts
+                .iter()
+                .zip(&self.layers)
+                .any(|(a, l)| a.len() != cache.rows * l.output)
+        {
+            return Err(NnError::Config(
+                "MLP cache does not belong to this network".into(),
+            ));
+        }
+        Ok(())
     }
 
     /// Backward pass: `d_out` is dL/dy (rows × output). Returns dL/dθ and, when
@@ -367,20 +414,8 @@ impl Mlp {
         d_out: &[f32],
         want_input_grad: bool,
     ) -> Result<MlpGrads, NnError> {
+        self.check_backward(cache, d_out)?;
         let rows = cache.rows;
-        check_len(
-            "MLP output gradient",
-            rows * self.config.output,
-            d_out.len(),
-        )?;
-        if cache.acts.len() != self.layers.len()
-            || cache.input.len() != rows * self.config.input
-            || cache.input.precision() != self.config.precision
-        {
-            return Err(NnError::Config(
-                "MLP cache does not belong to this network".into(),
-            ));
-        }
         let ni = self.config.input;
         let weights = self.params.to_f32_vec();
         let mut d_input = want_input_grad.then(|| vec![0f32; rows * ni]);
@@ -389,34 +424,115 @@ impl Mlp {
             Some(v) => v.chunks_mut(ROW_BLOCK * ni).map(Some).collect(),
             None => (0..n_blocks).map(|_| None).collect(),
         };
-        let min_len = n_blocks.div_ceil(2 * rayon::current_num_threads()).max(1);
-        let n_params = self.params.len();
-        let params = dx_blocks
-            .into_par_iter()
-            .enumerate()
-            .with_min_len(min_len)
-            .fold(
-                || vec![0f32; n_params],
-                |mut acc, (b, dx)| {
-                    let r0 = b * ROW_BLOCK;
-                    let nr = ROW_BLOCK.min(rows - r0);
-                    self.backward_block(&weights, cache, d_out, r0, nr, &mut acc, dx);
-                    acc
-                },
-            )
-            .reduce(
-                || vec![0f32; n_params],
-                |mut a, b| {
-                    a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
-                    a
-                },
-            );
+        let params = self.backward_blocks(
+            &weights,
+            cache,
+            d_out,
+            dx_blocks,
+            want_input_grad,
+            || (),
+            |_, _, dst, dx| {
+                if let (Some(dst), Some(dx)) = (dst, dx) {
+                    dst.copy_from_slice(dx);
+                }
+            },
+            |_, _| (),
+        );
         Ok(MlpGrads {
-            params,
+            params: params.0,
             input: d_input,
         })
     }
 
+    /// Backward pass that hands each block's input gradient to `consume(acc, r0, dx)` (dx is
+    /// `nr × input`, row-major) instead of materialising it; `acc` is a per-task accumulator made
+    /// by `init` and merged by `merge`. Returns dL/dθ and the merged accumulator. Lets an encoder
+    /// take its gradient block by block.
+    pub fn backward_with<A, I, C, M>(
+        &self,
+        cache: &MlpCache,
+        d_out: &[f32],
+        init: I,
+        consume: C,
+        merge: M,
+    ) -> Result<(Vec<f32>, A), NnError>
+    where
+        A: Send,
+        I: Fn() -> A + Sync + Send,
+        C: Fn(&mut A, usize, &[f32]) + Sync + Send,
+        M: Fn(A, A) -> A + Sync + Send,
+    {
+        self.check_backward(cache, d_out)?;
+        let weights = self.params.to_f32_vec();
+        let n_blocks = cache.rows.div_ceil(ROW_BLOCK);
+        let blocks: Vec<Option<&mut [f32]>> = (0..n_blocks).map(|_| None).collect();
+        Ok(self.backward_blocks(
+            &weights,
+            cache,
+            d_out,
+            blocks,
+            true,
+            init,
+            |acc, r0, _, dx| {
+                if let Some(dx) = dx {
+                    consume(acc, r0, dx);
+                }
+            },
+            merge,
+        ))
+    }
+
+    /// The parallel driver of both backward entry points: `sink(acc, r0, dst, dx)` receives each
+    /// block's destination (if any) and input gradient (computed when `want_dx`).
+    #[allow(clippy::too_many_arguments)]
+    fn backward_blocks<A, I, S, M>(
+        &self,
+        weights: &[f32],
+        cache: &MlpCache,
+        d_out: &[f32],
+        dsts: Vec<Option<&mut [f32]>>,
+        want_dx: bool,
+        init: I,
+        sink: S,
+        merge: M,
+    ) -> (Vec<f32>, A)
+    where
+        A: Send,
+        I: Fn() -> A + Sync + Send,
+        S: Fn(&mut A, usize, Option<&mut [f32]>, Option<&[f32]>) + Sync + Send,
+        M: Fn(A, A) -> A + Sync + Send,
+    {
+        let rows = cache.rows;
+        let n_blocks = dsts.len();
+        let min_len = n_blocks.div_ceil(2 * rayon::current_num_threads()).max(1);
+        let n_params = self.params.len();
+        dsts.into_par_iter()
+            .enumerate()
+            .with_min_len(min_len)
+            .fold(
+                || (vec![0f32; n_params], init(), Scratch::default()),
+                |(mut grads, mut acc, mut scr), (b, dst)| {
+                    let r0 = b * ROW_BLOCK;
+                    let nr = ROW_BLOCK.min(rows - r0);
+                    self.backward_block(
+                        weights, cache, d_out, r0, nr, &mut grads, want_dx, &mut scr,
+                    );
+                    sink(&mut acc, r0, dst, want_dx.then_some(&scr.dx[..]));
+                    (grads, acc, scr)
+                },
+            )
+            .map(|(g, a, _)| (g, a))
+            .reduce(
+                || (vec![0f32; n_params], init()),
+                |(mut ga, aa), (gb, ab)| {
+                    ga.iter_mut().zip(&gb).for_each(|(x, y)| *x += y);
+                    (ga, merge(aa, ab))
+                },
+            )
+    }
+
+    /// Backward over one block; accumulates dL/dθ into `grads` and, when `want_dx`, leaves
+    /// dL/dx of the block in `scr.dx`.
     #[allow(clippy::too_many_arguments)]
     fn backward_block(
         &self,
@@ -426,54 +542,61 @@ impl Mlp {
         r0: usize,
         nr: usize,
         grads: &mut [f32],
-        dx: Option<&mut [f32]>,
+        want_dx: bool,
+        scr: &mut Scratch,
     ) {
         let ni = self.config.input;
         let last = self.layers.len() - 1;
-        let mut x = vec![0f32; nr * ni];
-        cache
-            .input
-            .as_ref()
-            .slice(r0 * ni, nr * ni)
-            .read_into(&mut x);
-        let mut g = d_out[r0 * self.config.output..(r0 + nr) * self.config.output].to_vec();
-        let mut y = Vec::new();
-        let mut a = Vec::new();
-        let mut da = Vec::new();
-        let mut dx_acc = dx.is_some().then(|| vec![0f32; nr * ni]);
+        let Scratch {
+            x,
+            cur: g,
+            next: da,
+            cat: a,
+            y,
+            dx,
+        } = scr;
+        x.resize(nr * ni, 0.0);
+        cache.input.as_ref().slice(r0 * ni, nr * ni).read_into(x);
+        g.clear();
+        g.extend_from_slice(&d_out[r0 * self.config.output..(r0 + nr) * self.config.output]);
+        if want_dx {
+            dx.clear();
+            dx.resize(nr * ni, 0.0);
+        }
         for l in (0..self.layers.len()).rev() {
             let layer = self.layers[l];
             y.resize(nr * layer.output, 0.0);
             cache.acts[l]
                 .as_ref()
                 .slice(r0 * layer.output, nr * layer.output)
-                .read_into(&mut y);
+                .read_into(y);
             let act = if l == last {
                 self.config.output_activation
             } else {
                 self.config.hidden_activation
             };
-            act.backward_from_output(&y, &mut g);
-            // Layer input a.
-            if l == 0 {
-                a.clone_from(&x);
+            act.backward_from_output(y, g);
+            // Layer input: x, the previous activation, or [x, previous activation].
+            let input: &[f32] = if l == 0 {
+                x
             } else {
                 let prev = self.layers[l - 1].output;
-                let mut h = vec![0f32; nr * prev];
+                y.resize(nr * prev, 0.0);
                 cache.acts[l - 1]
                     .as_ref()
                     .slice(r0 * prev, nr * prev)
-                    .read_into(&mut h);
-                a = if layer.skip_input {
-                    concat_rows(&x, ni, &h, prev, nr)
+                    .read_into(y);
+                if layer.skip_input {
+                    concat_rows(x, ni, y, prev, nr, a);
+                    a
                 } else {
-                    h
-                };
-            }
+                    y
+                }
+            };
             matmul_at_b(
                 &mut grads[layer.weight_offset..layer.bias_offset],
-                &a,
-                &g,
+                input,
+                g,
                 (layer.input, nr, layer.output),
                 true,
                 Parallelism::None,
@@ -482,29 +605,27 @@ impl Mlp {
             for row in g.chunks_exact(layer.output) {
                 db.iter_mut().zip(row).for_each(|(d, v)| *d += v);
             }
-            if l == 0 && dx_acc.is_none() {
+            if l == 0 && !want_dx {
                 break;
             }
             da.resize(nr * layer.input, 0.0);
             matmul_a_bt(
-                &mut da,
-                &g,
+                da,
+                g,
                 &w[layer.weight_offset..layer.bias_offset],
                 (nr, layer.output, layer.input),
                 false,
                 Parallelism::None,
             );
             if l == 0 {
-                if let Some(acc) = dx_acc.as_mut() {
-                    acc.iter_mut().zip(&da).for_each(|(s, v)| *s += v);
-                }
+                dx.iter_mut().zip(da.iter()).for_each(|(s, v)| *s += v);
             } else if layer.skip_input {
                 let prev = layer.input - ni;
                 g.resize(nr * prev, 0.0);
                 for r in 0..nr {
                     let src = &da[r * layer.input..(r + 1) * layer.input];
-                    if let Some(acc) = dx_acc.as_mut() {
-                        acc[r * ni..(r + 1) * ni]
+                    if want_dx {
+                        dx[r * ni..(r + 1) * ni]
                             .iter_mut()
                             .zip(&src[..ni])
                             .for_each(|(s, v)| *s += v);
@@ -512,13 +633,21 @@ impl Mlp {
                     g[r * prev..(r + 1) * prev].copy_from_slice(&src[ni..]);
                 }
             } else {
-                std::mem::swap(&mut g, &mut da);
+                std::mem::swap(g, da);
             }
         }
-        if let (Some(out), Some(acc)) = (dx, dx_acc) {
-            out.copy_from_slice(&acc);
-        }
     }
+}
+
+/// Per-task scratch buffers, reused across the row blocks one task processes.
+#[derive(Default)]
+struct Scratch {
+    x: Vec<f32>,
+    cur: Vec<f32>,
+    next: Vec<f32>,
+    cat: Vec<f32>,
+    y: Vec<f32>,
+    dx: Vec<f32>,
 }
 
 /// Writes `vals` into `store` and, for f16, rounds `vals` to the stored values so the next layer
@@ -532,13 +661,12 @@ fn store_rounded(store: &mut StoreMut<'_>, vals: &mut [f32]) -> u64 {
 }
 
 /// Row-wise concatenation `[a, b]` of `nr` rows of widths `wa` and `wb`.
-fn concat_rows(a: &[f32], wa: usize, b: &[f32], wb: usize, nr: usize) -> Vec<f32> {
-    let mut out = Vec::with_capacity(nr * (wa + wb));
+fn concat_rows(a: &[f32], wa: usize, b: &[f32], wb: usize, nr: usize, out: &mut Vec<f32>) {
+    out.clear();
     for r in 0..nr {
         out.extend_from_slice(&a[r * wa..(r + 1) * wa]);
         out.extend_from_slice(&b[r * wb..(r + 1) * wb]);
     }
-    out
 }
 
 impl crate::weights::Parameters for Mlp {

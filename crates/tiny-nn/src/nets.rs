@@ -1,8 +1,8 @@
 //! Composite networks: the EvoGS observation network Φ and the D-3DGS deformation MLP.
 
-use crate::encoding::bspline::{BSplineCache, BSplineConfig, BSplineTime};
+use crate::encoding::bspline::{BSplineConfig, BSplineTime};
 use crate::encoding::sinusoidal::Sinusoidal;
-use crate::encoding::triplane::{TriPlane, TriPlaneCache, TriPlaneConfig};
+use crate::encoding::triplane::{TriPlane, TriPlaneConfig, add_into};
 use crate::error::{NnError, check_len};
 use crate::mlp::{Mlp, MlpCache, MlpConfig};
 use crate::precision::{Precision, StoreMut, StoreRef};
@@ -38,11 +38,11 @@ pub struct ObservationNet {
     pub mlp: Mlp,
 }
 
-/// Cache of [`ObservationNet::forward`].
-#[derive(Clone, Debug)]
+/// Cache of [`ObservationNet::forward`] (`default()` is empty, for `forward_reusing`).
+#[derive(Clone, Debug, Default)]
 pub struct ObservationCache {
-    triplane: TriPlaneCache,
-    bspline: BSplineCache,
+    positions: Vec<f32>,
+    times: Vec<f32>,
     mlp: MlpCache,
 }
 
@@ -99,34 +99,57 @@ impl ObservationNet {
         self.mlp.macs_per_row()
     }
 
-    /// Evaluates Φ at `rows` positions (rows × 3) and times (rows).
+    /// Evaluates Φ at `rows` positions (rows × 3) and times (rows). The encoders write straight
+    /// into the decoder's input blocks (no intermediate feature matrix).
     pub fn forward(
         &self,
         positions: &[f32],
         times: &[f32],
         rows: usize,
     ) -> Result<(Vec<f32>, ObservationCache), NnError> {
-        check_len("observation times", rows, times.len())?;
-        let (fx, tc) = self.triplane.forward(positions, rows)?;
-        let (ft, bc) = self.bspline.forward(times)?;
-        let (wx, wt) = (self.triplane.output_width(), self.bspline.output_width());
-        let mut input = Vec::with_capacity(rows * (wx + wt));
-        for r in 0..rows {
-            input.extend_from_slice(&fx[r * wx..(r + 1) * wx]);
-            input.extend_from_slice(&ft[r * wt..(r + 1) * wt]);
-        }
-        let (out, mc) = self.mlp.forward(&input, rows)?;
-        Ok((
-            out,
-            ObservationCache {
-                triplane: tc,
-                bspline: bc,
-                mlp: mc,
-            },
-        ))
+        let mut cache = ObservationCache::default();
+        let out = self.forward_reusing(positions, times, rows, &mut cache)?;
+        Ok((out, cache))
     }
 
-    /// Backward from dL/d(output) (rows × D).
+    /// [`ObservationNet::forward`] into an existing cache whose buffers are reused.
+    pub fn forward_reusing(
+        &self,
+        positions: &[f32],
+        times: &[f32],
+        rows: usize,
+        cache: &mut ObservationCache,
+    ) -> Result<Vec<f32>, NnError> {
+        check_len("observation times", rows, times.len())?;
+        self.triplane.check_positions(positions, rows)?;
+        BSplineTime::check_times(times)?;
+        let planes = self.triplane.planes_f32();
+        let ctrl = self.bspline.controls_f32();
+        let (wx, wt) = (self.triplane.output_width(), self.bspline.output_width());
+        let c = self.triplane.config().channels;
+        let out = self.mlp.forward_reusing(
+            rows,
+            |r0, _, buf| {
+                let mut feat = vec![0f32; 3 * c];
+                for (i, row) in buf.chunks_exact_mut(wx + wt).enumerate() {
+                    let r = r0 + i;
+                    let (fx, ft) = row.split_at_mut(wx);
+                    self.triplane
+                        .encode_row(&planes, &positions[r * 3..r * 3 + 3], fx, &mut feat);
+                    self.bspline.encode_row(&ctrl, times[r], ft);
+                }
+            },
+            &mut cache.mlp,
+        );
+        cache.positions.clear();
+        cache.positions.extend_from_slice(positions);
+        cache.times.clear();
+        cache.times.extend_from_slice(times);
+        Ok(out)
+    }
+
+    /// Backward from dL/d(output) (rows × D). The encoders take their gradients block by block
+    /// from the decoder's input gradient.
     pub fn backward(
         &self,
         cache: &ObservationCache,
@@ -134,24 +157,63 @@ impl ObservationNet {
         want_position_grad: bool,
     ) -> Result<ObservationGrads, NnError> {
         let rows = cache.mlp.rows();
-        let g = self.mlp.backward(&cache.mlp, d_out, true)?;
-        let d_in = g.input.unwrap_or_default();
+        let planes = self.triplane.planes_f32();
+        let ctrl = self.bspline.controls_f32();
         let (wx, wt) = (self.triplane.output_width(), self.bspline.output_width());
-        let mut dx = Vec::with_capacity(rows * wx);
-        let mut dt = Vec::with_capacity(rows * wt);
-        for row in d_in.chunks_exact(wx + wt) {
-            dx.extend_from_slice(&row[..wx]);
-            dt.extend_from_slice(&row[wx..]);
-        }
-        let tg = self
-            .triplane
-            .backward(&cache.triplane, &dx, want_position_grad)?;
-        let bg = self.bspline.backward(&cache.bspline, &dt, false)?;
+        let c = self.triplane.config().channels;
+        let (np, nb) = (self.triplane.param_count(), self.bspline.param_count());
+        type Acc = (Vec<f32>, Vec<f32>, Vec<(usize, Vec<f32>)>);
+        let (mlp, (tp, bs, pos_blocks)) = self.mlp.backward_with(
+            &cache.mlp,
+            d_out,
+            || -> Acc { (vec![0f32; np], vec![0f32; nb], Vec::new()) },
+            |acc: &mut Acc, r0, dx| {
+                let nr = dx.len() / (wx + wt);
+                let mut feat = vec![0f32; 3 * c];
+                let mut dfeat = vec![0f32; 3 * c];
+                let mut dp = if want_position_grad {
+                    vec![0f32; nr * 3]
+                } else {
+                    Vec::new()
+                };
+                for (i, g) in dx.chunks_exact(wx + wt).enumerate() {
+                    let r = r0 + i;
+                    let gp = self.triplane.backward_row(
+                        &planes,
+                        &cache.positions[r * 3..r * 3 + 3],
+                        &g[..wx],
+                        &mut acc.0,
+                        &mut feat,
+                        &mut dfeat,
+                    );
+                    self.bspline
+                        .backward_row(&ctrl, cache.times[r], &g[wx..], &mut acc.1);
+                    if want_position_grad {
+                        dp[i * 3..i * 3 + 3].copy_from_slice(&gp);
+                    }
+                }
+                if want_position_grad {
+                    acc.2.push((r0, dp));
+                }
+            },
+            |a: Acc, b: Acc| {
+                let mut list = a.2;
+                list.extend(b.2);
+                (add_into(a.0, b.0), add_into(a.1, b.1), list)
+            },
+        )?;
+        let positions = want_position_grad.then(|| {
+            let mut out = vec![0f32; rows * 3];
+            for (r0, block) in pos_blocks {
+                out[r0 * 3..r0 * 3 + block.len()].copy_from_slice(&block);
+            }
+            out
+        });
         Ok(ObservationGrads {
-            triplane: tg.params,
-            bspline: bg.params,
-            mlp: g.params,
-            positions: tg.positions,
+            triplane: tp,
+            bspline: bs,
+            mlp,
+            positions,
         })
     }
 }
@@ -226,8 +288,8 @@ pub struct DeformNet {
     pub mlp: Mlp,
 }
 
-/// Cache of [`DeformNet::forward`].
-#[derive(Clone, Debug)]
+/// Cache of [`DeformNet::forward`] (`default()` is empty, for `forward_reusing`).
+#[derive(Clone, Debug, Default)]
 pub struct DeformCache {
     positions: Vec<f32>,
     mlp: MlpCache,
@@ -280,23 +342,37 @@ impl DeformNet {
         times: &[f32],
         rows: usize,
     ) -> Result<(Vec<f32>, DeformCache), NnError> {
+        let mut cache = DeformCache::default();
+        let out = self.forward_reusing(positions, times, rows, &mut cache)?;
+        Ok((out, cache))
+    }
+
+    /// [`DeformNet::forward`] into an existing cache whose buffers are reused.
+    pub fn forward_reusing(
+        &self,
+        positions: &[f32],
+        times: &[f32],
+        rows: usize,
+        cache: &mut DeformCache,
+    ) -> Result<Vec<f32>, NnError> {
+        check_len("deformation positions", rows * 3, positions.len())?;
         check_len("deformation times", rows, times.len())?;
-        let ex = self.xyz.forward(positions, rows)?;
-        let et = self.t.forward(times, rows)?;
         let (wx, wt) = (self.xyz.output_width(), self.t.output_width());
-        let mut input = Vec::with_capacity(rows * (wx + wt));
-        for r in 0..rows {
-            input.extend_from_slice(&ex[r * wx..(r + 1) * wx]);
-            input.extend_from_slice(&et[r * wt..(r + 1) * wt]);
-        }
-        let (out, mlp) = self.mlp.forward(&input, rows)?;
-        Ok((
-            out,
-            DeformCache {
-                positions: positions.to_vec(),
-                mlp,
+        let out = self.mlp.forward_reusing(
+            rows,
+            |r0, _, buf| {
+                for (i, row) in buf.chunks_exact_mut(wx + wt).enumerate() {
+                    let r = r0 + i;
+                    let (ex, et) = row.split_at_mut(wx);
+                    self.xyz.encode_row(&positions[r * 3..r * 3 + 3], ex);
+                    self.t.encode_row(&times[r..r + 1], et);
+                }
             },
-        ))
+            &mut cache.mlp,
+        );
+        cache.positions.clear();
+        cache.positions.extend_from_slice(positions);
+        Ok(out)
     }
 
     /// Backward from dL/d(output) (rows × 10).
@@ -306,22 +382,45 @@ impl DeformNet {
         d_out: &[f32],
         want_position_grad: bool,
     ) -> Result<DeformGrads, NnError> {
+        if !want_position_grad {
+            let g = self.mlp.backward(&cache.mlp, d_out, false)?;
+            return Ok(DeformGrads {
+                mlp: g.params,
+                positions: None,
+            });
+        }
         let rows = cache.mlp.rows();
-        let g = self.mlp.backward(&cache.mlp, d_out, want_position_grad)?;
-        let positions = match g.input {
-            Some(d_in) => {
-                let (wx, wt) = (self.xyz.output_width(), self.t.output_width());
-                let mut dex = Vec::with_capacity(rows * wx);
-                for row in d_in.chunks_exact(wx + wt) {
-                    dex.extend_from_slice(&row[..wx]);
+        let (wx, wt) = (self.xyz.output_width(), self.t.output_width());
+        type Acc = Vec<(usize, Vec<f32>)>;
+        let (mlp, blocks) = self.mlp.backward_with(
+            &cache.mlp,
+            d_out,
+            Acc::new,
+            |acc: &mut Acc, r0, dx| {
+                let nr = dx.len() / (wx + wt);
+                let mut dp = vec![0f32; nr * 3];
+                for (i, g) in dx.chunks_exact(wx + wt).enumerate() {
+                    let r = r0 + i;
+                    self.xyz.backward_row(
+                        &cache.positions[r * 3..r * 3 + 3],
+                        &g[..wx],
+                        &mut dp[i * 3..i * 3 + 3],
+                    );
                 }
-                Some(self.xyz.backward(&cache.positions, &dex, rows)?)
-            }
-            None => None,
-        };
+                acc.push((r0, dp));
+            },
+            |mut a: Acc, b: Acc| {
+                a.extend(b);
+                a
+            },
+        )?;
+        let mut positions = vec![0f32; rows * 3];
+        for (r0, block) in blocks {
+            positions[r0 * 3..r0 * 3 + block.len()].copy_from_slice(&block);
+        }
         Ok(DeformGrads {
-            mlp: g.params,
-            positions,
+            mlp,
+            positions: Some(positions),
         })
     }
 }

@@ -198,3 +198,57 @@ fn weights_errors_name_the_file_and_the_tensor() {
         .to_string();
     assert!(e.contains("missing"), "{e}");
 }
+
+#[test]
+fn fused_paths_match_the_separate_modules_over_many_blocks() {
+    let mut net = phi(Precision::F32);
+    let n = net.mlp.param_count();
+    net.mlp.set_params(&vals(n, 80, 0.5)).unwrap();
+    let rows = 700; // three MLP blocks of 256, the last partial
+    let (p, t) = inputs(rows);
+    let d = vals(rows * 4, 81, 1.0);
+    let (y, cache) = net.forward(&p, &t, rows).unwrap();
+    let g = net.backward(&cache, &d, true).unwrap();
+    // Separate: encoders, concatenation, MLP.
+    let (fx, tc) = net.triplane.forward(&p, rows).unwrap();
+    let (ft, bc) = net.bspline.forward(&t).unwrap();
+    let (wx, wt) = (net.triplane.output_width(), net.bspline.output_width());
+    let input: Vec<f32> = (0..rows)
+        .flat_map(|r| {
+            fx[r * wx..(r + 1) * wx]
+                .iter()
+                .chain(&ft[r * wt..(r + 1) * wt])
+                .copied()
+        })
+        .collect();
+    let (y2, mc) = net.mlp.forward(&input, rows).unwrap();
+    assert_eq!(y, y2);
+    let gm = net.mlp.backward(&mc, &d, true).unwrap();
+    let gi = gm.input.unwrap();
+    let dx: Vec<f32> = gi.chunks(wx + wt).flat_map(|r| r[..wx].to_vec()).collect();
+    let dt: Vec<f32> = gi.chunks(wx + wt).flat_map(|r| r[wx..].to_vec()).collect();
+    let gt = net.triplane.backward(&tc, &dx, true).unwrap();
+    let gb = net.bspline.backward(&bc, &dt, false).unwrap();
+    let close = |a: &[f32], b: &[f32]| {
+        a.len() == b.len()
+            && a.iter()
+                .zip(b)
+                .all(|(x, y)| (x - y).abs() <= 1e-5 * (1.0 + y.abs()))
+    };
+    assert!(close(&g.mlp, &gm.params));
+    assert!(close(&g.triplane, &gt.params));
+    assert!(close(&g.bspline, &gb.params));
+    assert_eq!(g.positions.unwrap(), gt.positions.unwrap());
+
+    let dn = small_deform(Precision::F32);
+    let (y, cache) = dn.forward(&p, &t, rows).unwrap();
+    let d10 = vals(rows * 10, 82, 1.0);
+    let g = dn.backward(&cache, &d10, true).unwrap();
+    for r in [0usize, 255, 256, 699] {
+        let (y1, c1) = dn.forward(&p[r * 3..r * 3 + 3], &t[r..r + 1], 1).unwrap();
+        assert_eq!(&y[r * 10..r * 10 + 10], &y1[..]);
+        let g1 = dn.backward(&c1, &d10[r * 10..r * 10 + 10], true).unwrap();
+        let gp = g.positions.as_ref().unwrap();
+        assert!(close(&gp[r * 3..r * 3 + 3], &g1.positions.unwrap()));
+    }
+}

@@ -166,26 +166,66 @@ impl BSplineTime {
         (k, s - k as f32, if inside { segs } else { 0.0 })
     }
 
+    /// The control vectors as f32.
+    pub(crate) fn controls_f32(&self) -> Vec<f32> {
+        self.params.to_f32_vec()
+    }
+
+    /// Checks that every time is finite.
+    pub(crate) fn check_times(times: &[f32]) -> Result<(), NnError> {
+        match times.iter().position(|t| !t.is_finite()) {
+            Some(i) => Err(NnError::Config(format!(
+                "B-spline times: row {i} is not finite"
+            ))),
+            None => Ok(()),
+        }
+    }
+
+    /// Encodes one time into `out` (E values).
+    pub(crate) fn encode_row(&self, ctrl: &[f32], t: f32, out: &mut [f32]) {
+        let e = self.config.width;
+        let (k, u, _) = self.segment(t);
+        let b = basis(u);
+        out.fill(0.0);
+        for (j, bj) in b.iter().enumerate() {
+            let c = &ctrl[(k + j) * e..(k + j + 1) * e];
+            out.iter_mut().zip(c).for_each(|(o, c)| *o += bj * c);
+        }
+    }
+
+    /// Backward of one row: adds dL/d(controls) into `acc`, returns dL/dt.
+    pub(crate) fn backward_row(&self, ctrl: &[f32], t: f32, go: &[f32], acc: &mut [f32]) -> f32 {
+        let e = self.config.width;
+        let (k, u, ds) = self.segment(t);
+        let (b, db) = (basis(u), basis_derivative(u));
+        let mut gt = 0f32;
+        for j in 0..4 {
+            let off = (k + j) * e;
+            let mut dot = 0f32;
+            for ((a, &g), &c) in acc[off..off + e]
+                .iter_mut()
+                .zip(go)
+                .zip(&ctrl[off..off + e])
+            {
+                *a += b[j] * g;
+                dot += g * c;
+            }
+            gt += db[j] * dot;
+        }
+        gt * ds
+    }
+
     /// Encodes one time per row. Errors on non-finite times.
     pub fn forward(&self, times: &[f32]) -> Result<(Vec<f32>, BSplineCache), NnError> {
-        if let Some(i) = times.iter().position(|t| !t.is_finite()) {
-            return Err(NnError::Config(format!(
-                "B-spline times: row {i} is not finite"
-            )));
-        }
+        Self::check_times(times)?;
         let e = self.config.width;
-        let p = self.params.to_f32_vec();
+        let p = self.controls_f32();
         let mut out = vec![0f32; times.len() * e];
         out.par_chunks_mut(ENC_ROWS * e)
             .zip(times.par_chunks(ENC_ROWS))
             .for_each(|(o, ts)| {
                 for (orow, &t) in o.chunks_exact_mut(e).zip(ts) {
-                    let (k, u, _) = self.segment(t);
-                    let b = basis(u);
-                    for (j, bj) in b.iter().enumerate() {
-                        let ctrl = &p[(k + j) * e..(k + j + 1) * e];
-                        orow.iter_mut().zip(ctrl).for_each(|(o, c)| *o += bj * c);
-                    }
+                    self.encode_row(&p, t, orow);
                 }
             });
         Ok((
@@ -206,7 +246,7 @@ impl BSplineTime {
         let e = self.config.width;
         let rows = cache.times.len();
         check_len("B-spline output gradient", rows * e, d_out.len())?;
-        let p = self.params.to_f32_vec();
+        let p = self.controls_f32();
         let n_params = p.len();
         let mut d_t = want_time_grad.then(|| vec![0f32; rows]);
         let n_blocks = rows.div_ceil(ENC_ROWS);
@@ -214,42 +254,27 @@ impl BSplineTime {
             Some(v) => v.chunks_mut(ENC_ROWS).map(Some).collect(),
             None => (0..n_blocks).map(|_| None).collect(),
         };
+        let min_len = n_blocks.div_ceil(2 * rayon::current_num_threads()).max(1);
         let params = blocks
             .into_par_iter()
             .enumerate()
+            .with_min_len(min_len)
             .fold(
                 || vec![0f32; n_params],
                 |mut acc, (blk, mut dt)| {
                     let r0 = blk * ENC_ROWS;
                     for i in 0..ENC_ROWS.min(rows - r0) {
                         let row = r0 + i;
-                        let (k, u, ds) = self.segment(cache.times[row]);
-                        let (b, db) = (basis(u), basis_derivative(u));
-                        let go = &d_out[row * e..(row + 1) * e];
-                        let mut gt = 0f32;
-                        for j in 0..4 {
-                            let off = (k + j) * e;
-                            let mut dot = 0f32;
-                            for (x, (&g, &c)) in go.iter().zip(&p[off..off + e]).enumerate() {
-                                acc[off + x] += b[j] * g;
-                                dot += g * c;
-                            }
-                            gt += db[j] * dot;
-                        }
+                        let g = &d_out[row * e..(row + 1) * e];
+                        let gt = self.backward_row(&p, cache.times[row], g, &mut acc);
                         if let Some(dt) = dt.as_mut() {
-                            dt[i] = gt * ds;
+                            dt[i] = gt;
                         }
                     }
                     acc
                 },
             )
-            .reduce(
-                || vec![0f32; n_params],
-                |mut a, b| {
-                    a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
-                    a
-                },
-            );
+            .reduce(|| vec![0f32; n_params], super::triplane::add_into);
         Ok(BSplineGrads { params, times: d_t })
     }
 }

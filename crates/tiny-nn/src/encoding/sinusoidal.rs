@@ -42,6 +42,35 @@ impl Sinusoidal {
         self.input * (1 + 2 * self.freqs)
     }
 
+    /// Encodes one row `x` (input width) into `out` (output width).
+    pub fn encode_row(&self, x: &[f32], out: &mut [f32]) {
+        let d = self.input;
+        out[..d].copy_from_slice(x);
+        for f in 0..self.freqs {
+            let scale = (1u64 << f) as f32;
+            let base = d * (1 + 2 * f);
+            for (i, &v) in x.iter().enumerate() {
+                let (s, c) = (v * scale).sin_cos();
+                out[base + i] = s;
+                out[base + d + i] = c;
+            }
+        }
+    }
+
+    /// Writes dL/dx of one row into `gx` from the row's output gradient `go`.
+    pub fn backward_row(&self, x: &[f32], go: &[f32], gx: &mut [f32]) {
+        let d = self.input;
+        gx.copy_from_slice(&go[..d]);
+        for f in 0..self.freqs {
+            let scale = (1u64 << f) as f32;
+            let base = d * (1 + 2 * f);
+            for (i, &v) in x.iter().enumerate() {
+                let (s, c) = (v * scale).sin_cos();
+                gx[i] += scale * (c * go[base + i] - s * go[base + d + i]);
+            }
+        }
+    }
+
     /// Encodes `rows` rows of `x`.
     pub fn forward(&self, x: &[f32], rows: usize) -> Result<Vec<f32>, NnError> {
         let (d, w) = (self.input, self.output_width());
@@ -51,16 +80,7 @@ impl Sinusoidal {
             .zip(x.par_chunks(ENC_ROWS * d))
             .for_each(|(o, xs)| {
                 for (orow, xrow) in o.chunks_exact_mut(w).zip(xs.chunks_exact(d)) {
-                    orow[..d].copy_from_slice(xrow);
-                    for f in 0..self.freqs {
-                        let scale = (1u64 << f) as f32;
-                        let base = d * (1 + 2 * f);
-                        for (i, &v) in xrow.iter().enumerate() {
-                            let (s, c) = (v * scale).sin_cos();
-                            orow[base + i] = s;
-                            orow[base + d + i] = c;
-                        }
-                    }
+                    self.encode_row(xrow, orow);
                 }
             });
         Ok(out)
@@ -81,15 +101,7 @@ impl Sinusoidal {
                     .zip(xs.chunks_exact(d))
                     .zip(go.chunks_exact(w))
                 {
-                    grow.copy_from_slice(&orow[..d]);
-                    for f in 0..self.freqs {
-                        let scale = (1u64 << f) as f32;
-                        let base = d * (1 + 2 * f);
-                        for (i, &v) in xrow.iter().enumerate() {
-                            let (s, c) = (v * scale).sin_cos();
-                            grow[i] += scale * (c * orow[base + i] - s * orow[base + d + i]);
-                        }
-                    }
+                    self.backward_row(xrow, orow, grow);
                 }
             });
         Ok(dx)

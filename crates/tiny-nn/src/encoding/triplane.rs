@@ -254,7 +254,7 @@ impl TriPlane {
     }
 
     /// Checks shapes and finiteness of positions.
-    fn check_positions(&self, positions: &[f32], rows: usize) -> Result<(), NnError> {
+    pub(crate) fn check_positions(&self, positions: &[f32], rows: usize) -> Result<(), NnError> {
         check_len("tri-plane positions", rows * 3, positions.len())?;
         if let Some(i) = positions.iter().position(|v| !v.is_finite()) {
             return Err(NnError::Config(format!(
@@ -265,6 +265,92 @@ impl TriPlane {
         Ok(())
     }
 
+    /// The planes as f32 (a copy; f16 storage is widened once per pass).
+    pub(crate) fn planes_f32(&self) -> Vec<f32> {
+        self.params.to_f32_vec()
+    }
+
+    /// Encodes one position `p` (3 values) into `out` (output width); `feat` is scratch of `3C`.
+    pub(crate) fn encode_row(&self, planes: &[f32], p: &[f32], out: &mut [f32], feat: &mut [f32]) {
+        let c = self.config.channels;
+        let (q, _) = self.normalise(p);
+        for (r, &res) in self.config.resolutions.iter().enumerate() {
+            for (k, &(a, b)) in PLANE_AXES.iter().enumerate() {
+                let lk = Self::lookup(res, c, q[a], q[b]);
+                let off = self.offsets[3 * r + k];
+                sample(planes, off, &lk, &mut feat[k * c..(k + 1) * c]);
+            }
+            match self.config.combine {
+                PlaneCombine::Concat => out[r * 3 * c..(r + 1) * 3 * c].copy_from_slice(feat),
+                PlaneCombine::Product => {
+                    let (f0, rest) = feat.split_at(c);
+                    let (f1, f2) = rest.split_at(c);
+                    for (ch, o) in out[r * c..(r + 1) * c].iter_mut().enumerate() {
+                        *o = f0[ch] * f1[ch] * f2[ch];
+                    }
+                }
+            }
+        }
+    }
+
+    /// Backward of one row: adds dL/d(planes) into `acc` and returns dL/d(position). `go` is the
+    /// row's output gradient; `feat` and `dfeat` are scratch of `3C`.
+    pub(crate) fn backward_row(
+        &self,
+        planes: &[f32],
+        p: &[f32],
+        go: &[f32],
+        acc: &mut [f32],
+        feat: &mut [f32],
+        dfeat: &mut [f32],
+    ) -> [f32; 3] {
+        let c = self.config.channels;
+        let (q, dq) = self.normalise(p);
+        let mut gq = [0f32; 3];
+        for (r, &res) in self.config.resolutions.iter().enumerate() {
+            let lks: [Lookup; 3] = std::array::from_fn(|k| {
+                let (a, b) = PLANE_AXES[k];
+                Self::lookup(res, c, q[a], q[b])
+            });
+            match self.config.combine {
+                PlaneCombine::Concat => {
+                    dfeat.copy_from_slice(&go[r * 3 * c..(r + 1) * 3 * c]);
+                }
+                PlaneCombine::Product => {
+                    for (k, lk) in lks.iter().enumerate() {
+                        let off = self.offsets[3 * r + k];
+                        sample(planes, off, lk, &mut feat[k * c..(k + 1) * c]);
+                    }
+                    for ch in 0..c {
+                        let g = go[r * c + ch];
+                        let (f0, f1, f2) = (feat[ch], feat[c + ch], feat[2 * c + ch]);
+                        dfeat[ch] = g * f1 * f2;
+                        dfeat[c + ch] = g * f0 * f2;
+                        dfeat[2 * c + ch] = g * f0 * f1;
+                    }
+                }
+            }
+            for (k, lk) in lks.iter().enumerate() {
+                let off = self.offsets[3 * r + k];
+                let df = &dfeat[k * c..(k + 1) * c];
+                let (a, b) = PLANE_AXES[k];
+                for corner in 0..4 {
+                    let base = off + lk.idx[corner];
+                    let wt = lk.w[corner];
+                    let texel = &planes[base..base + c];
+                    let mut dot = 0f32;
+                    for ((ac, &d), &t) in acc[base..base + c].iter_mut().zip(df).zip(texel) {
+                        *ac += wt * d;
+                        dot += t * d;
+                    }
+                    gq[a] += lk.dwa[corner] * dot;
+                    gq[b] += lk.dwb[corner] * dot;
+                }
+            }
+        }
+        [gq[0] * dq[0], gq[1] * dq[1], gq[2] * dq[2]]
+    }
+
     /// Encodes `rows` positions (rows × 3). Errors on non-finite positions.
     pub fn forward(
         &self,
@@ -273,32 +359,14 @@ impl TriPlane {
     ) -> Result<(Vec<f32>, TriPlaneCache), NnError> {
         self.check_positions(positions, rows)?;
         let w = self.output_width();
-        let c = self.config.channels;
-        let planes = self.params.as_ref();
+        let planes = self.planes_f32();
         let mut out = vec![0f32; rows * w];
         out.par_chunks_mut(ENC_ROWS * w)
             .zip(positions.par_chunks(ENC_ROWS * 3))
             .for_each(|(o, ps)| {
-                let mut feat = vec![0f32; 3 * c];
+                let mut feat = vec![0f32; 3 * self.config.channels];
                 for (orow, p) in o.chunks_exact_mut(w).zip(ps.chunks_exact(3)) {
-                    let (q, _) = self.normalise(p);
-                    for (r, &res) in self.config.resolutions.iter().enumerate() {
-                        for (k, &(a, b)) in PLANE_AXES.iter().enumerate() {
-                            let lk = Self::lookup(res, c, q[a], q[b]);
-                            let off = self.offsets[3 * r + k];
-                            sample(planes, off, &lk, &mut feat[k * c..(k + 1) * c]);
-                        }
-                        match self.config.combine {
-                            PlaneCombine::Concat => {
-                                orow[r * 3 * c..(r + 1) * 3 * c].copy_from_slice(&feat)
-                            }
-                            PlaneCombine::Product => {
-                                for ch in 0..c {
-                                    orow[r * c + ch] = feat[ch] * feat[c + ch] * feat[2 * c + ch];
-                                }
-                            }
-                        }
-                    }
+                    self.encode_row(&planes, p, orow, &mut feat);
                 }
             });
         Ok((
@@ -321,7 +389,7 @@ impl TriPlane {
         let w = self.output_width();
         check_len("tri-plane output gradient", rows * w, d_out.len())?;
         let c = self.config.channels;
-        let planes = self.params.as_ref();
+        let planes = self.planes_f32();
         let n_params = self.params.len();
         let mut d_pos = want_position_grad.then(|| vec![0f32; rows * 3]);
         let n_blocks = rows.div_ceil(ENC_ROWS);
@@ -343,67 +411,22 @@ impl TriPlane {
                     let mut dfeat = vec![0f32; 3 * c];
                     for i in 0..nr {
                         let row = r0 + i;
-                        let p = &cache.positions[row * 3..row * 3 + 3];
-                        let go = &d_out[row * w..(row + 1) * w];
-                        let (q, dq) = self.normalise(p);
-                        let mut gq = [0f32; 3];
-                        for (r, &res) in self.config.resolutions.iter().enumerate() {
-                            let lks: [Lookup; 3] = std::array::from_fn(|k| {
-                                let (a, b) = PLANE_AXES[k];
-                                Self::lookup(res, c, q[a], q[b])
-                            });
-                            match self.config.combine {
-                                PlaneCombine::Concat => {
-                                    dfeat.copy_from_slice(&go[r * 3 * c..(r + 1) * 3 * c]);
-                                }
-                                PlaneCombine::Product => {
-                                    for (k, lk) in lks.iter().enumerate() {
-                                        let off = self.offsets[3 * r + k];
-                                        sample(planes, off, lk, &mut feat[k * c..(k + 1) * c]);
-                                    }
-                                    for ch in 0..c {
-                                        let g = go[r * c + ch];
-                                        let (f0, f1, f2) =
-                                            (feat[ch], feat[c + ch], feat[2 * c + ch]);
-                                        dfeat[ch] = g * f1 * f2;
-                                        dfeat[c + ch] = g * f0 * f2;
-                                        dfeat[2 * c + ch] = g * f0 * f1;
-                                    }
-                                }
-                            }
-                            for (k, lk) in lks.iter().enumerate() {
-                                let off = self.offsets[3 * r + k];
-                                let df = &dfeat[k * c..(k + 1) * c];
-                                let (a, b) = PLANE_AXES[k];
-                                for corner in 0..4 {
-                                    let base = off + lk.idx[corner];
-                                    let wt = lk.w[corner];
-                                    let mut dot = 0f32;
-                                    for ch in 0..c {
-                                        acc[base + ch] += wt * df[ch];
-                                        dot += planes.get(base + ch) * df[ch];
-                                    }
-                                    gq[a] += lk.dwa[corner] * dot;
-                                    gq[b] += lk.dwb[corner] * dot;
-                                }
-                            }
-                        }
+                        let g = self.backward_row(
+                            &planes,
+                            &cache.positions[row * 3..row * 3 + 3],
+                            &d_out[row * w..(row + 1) * w],
+                            &mut acc,
+                            &mut feat,
+                            &mut dfeat,
+                        );
                         if let Some(dp) = dp.as_mut() {
-                            for a in 0..3 {
-                                dp[i * 3 + a] = gq[a] * dq[a];
-                            }
+                            dp[i * 3..i * 3 + 3].copy_from_slice(&g);
                         }
                     }
                     acc
                 },
             )
-            .reduce(
-                || vec![0f32; n_params],
-                |mut a, b| {
-                    a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
-                    a
-                },
-            );
+            .reduce(|| vec![0f32; n_params], add_into);
         Ok(TriPlaneGrads {
             params,
             positions: d_pos,
@@ -411,24 +434,21 @@ impl TriPlane {
     }
 }
 
+/// `a += b`, returning `a` (a reduction step).
+pub(crate) fn add_into(mut a: Vec<f32>, b: Vec<f32>) -> Vec<f32> {
+    a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+    a
+}
+
 /// Bilinear sample of `c = out.len()` channels.
-fn sample(planes: StoreRef<'_>, off: usize, lk: &Lookup, out: &mut [f32]) {
+fn sample(planes: &[f32], off: usize, lk: &Lookup, out: &mut [f32]) {
     out.fill(0.0);
     let c = out.len();
     for corner in 0..4 {
         let base = off + lk.idx[corner];
         let wt = lk.w[corner];
-        match planes {
-            StoreRef::F32(v) => {
-                for (o, &p) in out.iter_mut().zip(&v[base..base + c]) {
-                    *o += wt * p;
-                }
-            }
-            StoreRef::F16(v) => {
-                for (o, p) in out.iter_mut().zip(&v[base..base + c]) {
-                    *o += wt * p.to_f32();
-                }
-            }
+        for (o, &p) in out.iter_mut().zip(&planes[base..base + c]) {
+            *o += wt * p;
         }
     }
 }
