@@ -262,6 +262,14 @@ impl PerGaussian for OptimiserMoments<'_> {
     }
 
     fn apply(&mut self, plan: &DensifyPlan) -> Result<(), DensifyError> {
+        for (k, &(id, _)) in self.groups.iter().enumerate() {
+            if self.groups[..k].iter().any(|&(other, _)| other == id) {
+                return Err(DensifyError::Input {
+                    field: "optimiser moments groups",
+                    problem: format!("group {} is listed twice", id.0),
+                });
+            }
+        }
         for &(id, opacity_column) in self.groups {
             let mut one = Moments {
                 group: self.adam.group_mut(id),

@@ -241,6 +241,29 @@ fn opacity_reset_caps_opacity_and_zeroes_only_opacity_moments() {
         adam_packed.group(packed).v,
         vec![2.0, 2.0, 2.0, 0.0, 2.0, 2.0, 2.0, 0.0]
     );
+    // The whole optimiser as one container; a group listed twice is refused before any change.
+    let mut adam = Adam::new();
+    let a = adam
+        .add_group("means", 2 * 3, 3, LrSchedule::Constant(0.1))
+        .unwrap();
+    let b = adam
+        .add_group("opacity", 2, 1, LrSchedule::Constant(0.1))
+        .unwrap();
+    adam.group_mut(b).m.fill(3.0);
+    let twice = [(a, None), (a, None)];
+    let mut moments = densify::OptimiserMoments {
+        adam: &mut adam,
+        groups: &twice,
+    };
+    let err = apply_plan(&plan, &mut [&mut moments]).unwrap_err();
+    assert!(err.to_string().contains("listed twice"), "{err}");
+    let groups = [(a, None), (b, Some(0))];
+    let mut moments = densify::OptimiserMoments {
+        adam: &mut adam,
+        groups: &groups,
+    };
+    apply_plan(&plan, &mut [&mut moments]).unwrap();
+    assert_eq!(adam.group(b).m, vec![0.0, 0.0]);
     // Switched off, nothing is reset.
     let off = DensifyConfig {
         opacity_reset: false,
