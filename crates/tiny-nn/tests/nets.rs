@@ -204,7 +204,7 @@ fn fused_paths_match_the_separate_modules_over_many_blocks() {
     let mut net = phi(Precision::F32);
     let n = net.mlp.param_count();
     net.mlp.set_params(&vals(n, 80, 0.5)).unwrap();
-    let rows = 700; // three MLP blocks of 256, the last partial
+    let rows = 2100; // 9 forward blocks of 256 and 3 backward blocks of 1024, the last partial
     let (p, t) = inputs(rows);
     let d = vals(rows * 4, 81, 1.0);
     let (y, cache) = net.forward(&p, &t, rows).unwrap();
@@ -244,7 +244,7 @@ fn fused_paths_match_the_separate_modules_over_many_blocks() {
     let (y, cache) = dn.forward(&p, &t, rows).unwrap();
     let d10 = vals(rows * 10, 82, 1.0);
     let g = dn.backward(&cache, &d10, true).unwrap();
-    for r in [0usize, 255, 256, 699] {
+    for r in [0usize, 255, 256, 1023, 1024, 2099] {
         let (y1, c1) = dn.forward(&p[r * 3..r * 3 + 3], &t[r..r + 1], 1).unwrap();
         assert_eq!(&y[r * 10..r * 10 + 10], &y1[..]);
         let g1 = dn.backward(&c1, &d10[r * 10..r * 10 + 10], true).unwrap();
