@@ -252,3 +252,26 @@ fn fused_paths_match_the_separate_modules_over_many_blocks() {
         assert!(close(&gp[r * 3..r * 3 + 3], &g1.positions.unwrap()));
     }
 }
+
+#[test]
+fn observation_net_f16_saturates_huge_features_without_inf() {
+    let mut net = phi(Precision::F16);
+    let n = net.triplane.param_count();
+    net.triplane.set_params(&vec![1000.0; n]).unwrap(); // product of three planes: 1e9
+    let m = net.mlp.param_count();
+    net.mlp.set_params(&vals(m, 90, 0.5)).unwrap();
+    let rows = 10;
+    let (p, t) = inputs(rows);
+    let (y, cache) = net.forward(&p, &t, rows).unwrap();
+    assert!(y.iter().all(|v| v.is_finite()), "{y:?}");
+    // 2 channels × 2 resolutions of product features per row saturate in the stored input.
+    assert!(
+        cache.saturations() >= (rows * 4) as u64,
+        "{}",
+        cache.saturations()
+    );
+    let g = net
+        .backward(&cache, &vals(rows * 4, 91, 1.0), true)
+        .unwrap();
+    assert!(g.mlp.iter().chain(&g.triplane).all(|v| v.is_finite()));
+}
