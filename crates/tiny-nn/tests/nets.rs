@@ -134,6 +134,16 @@ fn deform_net_gradients_match_finite_differences() {
         5e-3,
         |pp| dot(&net.forward(pp, &t, rows).unwrap().0, &c),
     );
+    let e = net
+        .forward(&[0.0, f32::NAN, 0.0], &[0.5], 1)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("positions") && e.contains("row 0"), "{e}");
+    let e = net
+        .forward(&[0.0; 6], &[0.5, f32::INFINITY], 2)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("times") && e.contains("row 1"), "{e}");
     let reference = DeformNet::new(DeformConfig::d3dgs()).unwrap();
     assert_eq!(reference.mlp.input_width(), 63 + 13);
     assert_eq!(reference.mlp.layers()[5].input, 256 + 76);
