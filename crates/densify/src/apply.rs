@@ -15,7 +15,6 @@
 //! - [`Rows`]: any other array of rows, with a chosen fill for new rows.
 
 use crate::error::DensifyError;
-use crate::inplace::apply_in_place;
 use crate::plan::DensifyPlan;
 use crate::stats::DensifyStats;
 use evo_state::rows::RowPlanError;
@@ -120,7 +119,7 @@ fn apply_rows<T: Copy + Send + Sync>(
     fill: NewRows<T>,
     label: &str,
 ) -> Result<(), DensifyError> {
-    apply_in_place(plan, data, stride, fill).map_err(rows_err(label))
+    plan.apply(data, stride, fill).map_err(rows_err(label))
 }
 
 fn copy_rows<T: Copy + Send + Sync>(

@@ -33,7 +33,6 @@ pub mod apply;
 pub mod config;
 pub mod error;
 pub mod extent;
-pub mod inplace;
 pub mod math;
 pub mod plan;
 pub mod planner;
