@@ -8,3 +8,4 @@
 //! are `splat-raster`, `tiny-nn`, `evogs-io` and `evogs-cli`.
 
 pub mod metrics;
+pub mod synth;
