@@ -1,5 +1,7 @@
 //! Photometric loss + gradient and SSIM at 400×400 (the size of a D-NeRF image at half resolution).
 
+use bench_support::{CpuTime, clock_prefix};
+use criterion::measurement::{Measurement, WallTime};
 use criterion::{Criterion, criterion_group, criterion_main};
 use evogs_train::metrics::{ImageSize, photometric_loss, ssim};
 use std::hint::black_box;
@@ -25,16 +27,23 @@ fn images(size: ImageSize) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
     (rendered, gt)
 }
 
-fn bench(c: &mut Criterion) {
+fn bench<M: Measurement + 'static>(c: &mut Criterion<M>) {
     let size = ImageSize::new(400, 400);
     let (rendered, gt) = images(size);
-    c.bench_function("loss_and_gradient_400x400", |b| {
+    let mut group = c.benchmark_group(format!("{}metrics_400x400", clock_prefix::<M>()));
+    group.bench_function("loss_and_gradient", |b| {
         b.iter(|| photometric_loss(size, black_box(&rendered), black_box(&gt)).unwrap())
     });
-    c.bench_function("ssim_400x400", |b| {
+    group.bench_function("ssim", |b| {
         b.iter(|| ssim(size, black_box(&rendered), black_box(&gt)).unwrap())
     });
+    group.finish();
 }
 
-criterion_group!(benches, bench);
-criterion_main!(benches);
+criterion_group!(benches, bench::<WallTime>);
+criterion_group! {
+    name = cpu_benches;
+    config = Criterion::default().with_measurement(CpuTime::wall_equivalent());
+    targets = bench::<CpuTime>
+}
+criterion_main!(benches, cpu_benches);
