@@ -8,7 +8,7 @@ use std::path::Path;
 use evogs_io::{Split, load_image, read_dnerf_split};
 use evogs_train::synth::{
     GROUND_TRUTH_FILE, Part, Preset, SceneSpec, SceneSummary, SyntheticScene, embedded_scene,
-    generate, write_dnerf,
+    generate, read_ground_truth, write_dnerf,
 };
 use glam::{Quat, Vec3};
 
@@ -267,6 +267,45 @@ fn ground_truth_file_holds_the_trajectories() {
     assert_eq!(f32s("rotations").0, vec![t, n, 4]);
     assert_eq!(f32s("sh_dc").0, vec![t, n, 3]);
     assert_eq!(st.tensor("parts").unwrap().shape(), [n]);
+    // The reader gives back exactly what was generated.
+    let (read, parts) = read_ground_truth(&dir.path().join(GROUND_TRUTH_FILE)).unwrap();
+    assert_eq!(read, scene.trajectories);
+    assert_eq!(parts, scene.parts);
+    // Truncated and mis-shaped files are errors naming the file and the tensor.
+    let cut = dir.path().join("cut.safetensors");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let err = read_ground_truth(&cut).unwrap_err().to_string();
+    assert!(
+        err.contains("cut.safetensors") && err.contains("tensor `header`"),
+        "{err}"
+    );
+    let bad = dir.path().join("bad.safetensors");
+    let two = vec![0u8; t * n * 2 * 4];
+    let parts_bytes = vec![0u8; n];
+    let times_bytes: Vec<u8> = (0..t).flat_map(|k| (k as f32).to_le_bytes()).collect();
+    let views = vec![
+        (
+            "times",
+            safetensors::tensor::TensorView::new(safetensors::Dtype::F32, vec![t], &times_bytes)
+                .unwrap(),
+        ),
+        (
+            "means",
+            safetensors::tensor::TensorView::new(safetensors::Dtype::F32, vec![t, n, 2], &two)
+                .unwrap(),
+        ),
+        (
+            "parts",
+            safetensors::tensor::TensorView::new(safetensors::Dtype::U8, vec![n], &parts_bytes)
+                .unwrap(),
+        ),
+    ];
+    std::fs::write(&bad, safetensors::tensor::serialize(views, None).unwrap()).unwrap();
+    let err = read_ground_truth(&bad).unwrap_err().to_string();
+    assert!(
+        err.contains("bad.safetensors: tensor `means`: shape"),
+        "{err}"
+    );
     // Trajectories agree with the motion model at their times.
     let g = scene.gaussians_at(scene.trajectories.times[2]);
     assert_eq!(g.means, scene.trajectories.means[2]);

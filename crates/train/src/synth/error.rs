@@ -28,6 +28,16 @@ pub enum SynthError {
     /// A file could not be written.
     #[error(transparent)]
     Io(#[from] evogs_io::IoError),
+    /// A ground-truth file is malformed.
+    #[error("{path}: tensor `{field}`: {problem}")]
+    Decode {
+        /// The file.
+        path: PathBuf,
+        /// The tensor (or `header`).
+        field: String,
+        /// What is wrong.
+        problem: String,
+    },
     /// A file's content could not be encoded.
     #[error("{path}: {problem}")]
     Encode {

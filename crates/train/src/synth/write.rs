@@ -11,7 +11,7 @@
 //! `ground_truth.safetensors` holds `times` `[T]`, `means` `[T, N, 3]`, and only when the scene
 //! has them `rotations` `[T, N, 4]` (raw quaternion w, x, y, z) and `sh_dc` `[T, N, 3]`; `parts`
 //! `[N]` (u8: 0 body, 1 satellite, 2 occluder). `T` counts the distinct frame times of all
-//! splits, sorted. Loading a PNG over a background `b` gives `color + b·(1 − α)`, the render over
+//! splits, sorted; [`read_ground_truth`](super::read_ground_truth) reads it back. Loading a PNG over a background `b` gives `color + b·(1 − α)`, the render over
 //! `b` (to 8-bit precision). Every file is written atomically.
 
 use std::collections::HashMap;
