@@ -346,3 +346,44 @@ fn small_mixed_scene_summary_snapshot() {
     let scene = generate(&small(Preset::Mixed), 11).unwrap();
     insta::assert_snapshot!("small_mixed_summary", SceneSummary::of(&scene).to_string());
 }
+
+mod varied {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 12, ..ProptestConfig::default() })]
+
+        /// Any preset, seed, frame count and size: a valid scene with sane images and times.
+        #[test]
+        fn any_small_scene_is_well_formed(
+            preset in prop::sample::select(Preset::ALL.to_vec()),
+            seed in any::<u64>(),
+            frames in 3usize..14,
+            size in 8u32..24,
+        ) {
+            let spec = SceneSpec::preset(preset)
+                .with_size(size)
+                .with_frames(frames)
+                .with_gaussian_scale(0.05);
+            let scene = generate(&spec, seed).unwrap();
+            prop_assert_eq!(scene.train.len(), frames);
+            let traj = &scene.trajectories;
+            prop_assert!(traj.times.windows(2).all(|w| w[0] < w[1]));
+            prop_assert_eq!(traj.means.len(), traj.times.len());
+            for split in Split::ALL {
+                for f in scene.split(split) {
+                    prop_assert!((0.0..=1.0).contains(&f.time));
+                    prop_assert!(traj.times.contains(&f.time));
+                    prop_assert_eq!(f.color.len(), (size * size) as usize);
+                    for (c, &a) in f.color.iter().zip(&f.alpha) {
+                        prop_assert!((0.0..=1.0).contains(&a));
+                        prop_assert!(c.iter().all(|v| v.is_finite() && *v >= 0.0 && *v <= a + 1e-4));
+                    }
+                }
+            }
+            // The object is in view in every training frame.
+            prop_assert!(scene.train.iter().all(|f| f.alpha.iter().any(|&a| a > 0.5)));
+        }
+    }
+}
