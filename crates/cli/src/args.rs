@@ -18,6 +18,8 @@ pub struct Cli {
 pub enum Command {
     /// Render Gaussians (a 3DGS PLY, or the built-in demo scene) to a PNG image.
     Render(RenderArgs),
+    /// Generate a procedural dynamic scene (D-NeRF layout) with its ground truth.
+    Synth(crate::synth_cmd::SynthArgs),
 }
 
 /// Arguments of `evogs render`.

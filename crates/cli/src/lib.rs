@@ -10,5 +10,6 @@
 pub mod args;
 pub mod demo_scene;
 pub mod render;
+pub mod synth_cmd;
 
 pub use args::{Cli, Command, RenderArgs};

@@ -6,3 +6,6 @@
 //!
 //! What it is not: a rasterizer, a network library, a file-format reader or a command line. Those
 //! are `splat-raster`, `tiny-nn`, `evogs-io` and `evogs-cli`.
+
+pub mod metrics;
+pub mod synth;
