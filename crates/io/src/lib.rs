@@ -12,14 +12,23 @@
 pub mod atomic;
 pub mod camera_info;
 pub mod camera_json;
+pub mod colmap;
+pub mod dataset;
 pub mod dnerf;
 pub mod error;
 pub mod image_io;
 mod json_fields;
+pub mod nerfies;
+pub mod neu3d;
+pub mod npy;
 pub mod ply;
 
 pub use camera_info::{CameraInfo, Distortion, warning_for_all};
 pub use camera_json::{nerfies_camera_json, read_nerfies_camera, write_nerfies_camera};
+pub use dataset::{
+    Dataset, Format, Frame, LoadOptions, NerfiesSplit, Normalisation, PointCloud, detect_format,
+    load_dataset,
+};
 pub use dnerf::{DnerfFrame, Split, read_dnerf_split, read_transforms};
 pub use error::IoError;
 pub use image_io::{ImageRgb, load_image, load_view, resize_image, save_png};
