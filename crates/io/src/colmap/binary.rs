@@ -66,7 +66,7 @@ impl<'a> Cursor<'a> {
                 self.path,
                 field(),
                 format!(
-                    "count {n} needs at least {min_size} bytes each, only {left} bytes are left"
+                    "truncated: count {n} needs at least {min_size} bytes each, only {left} bytes are left"
                 ),
             ));
         }

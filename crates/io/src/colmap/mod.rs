@@ -118,8 +118,12 @@ pub fn read_colmap_dataset(dir: &Path, llff_hold: usize) -> Result<Dataset, IoEr
         }),
         normalisation: None,
     };
-    for (index, image) in images.into_iter().enumerate() {
-        let camera = model.camera_info(image)?;
+    // Model consistency first (every image's camera), then the image files.
+    let cameras = images
+        .iter()
+        .map(|image| model.camera_info(image))
+        .collect::<Result<Vec<_>, _>>()?;
+    for (index, (image, camera)) in images.into_iter().zip(cameras).enumerate() {
         let image_path = dir.join("images").join(&image.name);
         if !image_path.is_file() {
             return Err(IoError::field(
