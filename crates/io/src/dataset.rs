@@ -9,6 +9,7 @@ use glam::Vec3;
 
 use crate::camera_info::{CameraInfo, warning_for_all};
 use crate::dnerf::{Split, read_dnerf_split};
+pub use crate::neu3d::TimeDenominator;
 use crate::{IoError, colmap, nerfies, neu3d};
 
 /// The dataset layouts this crate reads.
@@ -154,6 +155,8 @@ pub struct LoadOptions {
     pub neu3d_test_cameras: Vec<usize>,
     /// Neu3D: at most this many frames per camera (4DGaussians: 300).
     pub neu3d_max_frames: usize,
+    /// Neu3D: `frame / count` (4DGaussians, the default) or `frame / (count − 1)` (D-3DGS).
+    pub neu3d_time: TimeDenominator,
 }
 
 impl Default for LoadOptions {
@@ -164,6 +167,7 @@ impl Default for LoadOptions {
             colmap_llff_hold: 8,
             neu3d_test_cameras: vec![0],
             neu3d_max_frames: 300,
+            neu3d_time: TimeDenominator::Count,
         }
     }
 }
@@ -201,9 +205,12 @@ pub fn load_dataset(dir: &Path, options: &LoadOptions) -> Result<Dataset, IoErro
         Format::Colmap => colmap::read_colmap_dataset(dir, options.colmap_llff_hold),
         Format::Dnerf => read_dnerf_dataset(dir),
         Format::Nerfies => nerfies::read_nerfies_dataset(dir, options),
-        Format::Neu3d => {
-            neu3d::read_neu3d_dataset(dir, &options.neu3d_test_cameras, options.neu3d_max_frames)
-        }
+        Format::Neu3d => neu3d::read_neu3d_dataset(
+            dir,
+            &options.neu3d_test_cameras,
+            options.neu3d_max_frames,
+            options.neu3d_time,
+        ),
     }
 }
 

@@ -26,8 +26,8 @@ pub mod ply;
 pub use camera_info::{CameraInfo, Distortion, warning_for_all};
 pub use camera_json::{nerfies_camera_json, read_nerfies_camera, write_nerfies_camera};
 pub use dataset::{
-    Dataset, Format, Frame, LoadOptions, NerfiesSplit, Normalisation, PointCloud, detect_format,
-    load_dataset,
+    Dataset, Format, Frame, LoadOptions, NerfiesSplit, Normalisation, PointCloud, TimeDenominator,
+    detect_format, load_dataset,
 };
 pub use dnerf::{DnerfFrame, Split, read_dnerf_split, read_transforms};
 pub use error::IoError;

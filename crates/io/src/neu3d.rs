@@ -9,8 +9,10 @@
 //! ```
 //!
 //! - Camera folders are the sorted directories `cam*` that hold an `images/` folder; the i-th
-//!   matches row i of `poses_bounds.npy`. Frames are the `.png`/`.jpg` files of `images/`, sorted
-//!   by name, at most `max_frames` (4DGaussians: 300) per camera.
+//!   matches row i of `poses_bounds.npy`. When there are none, the sorted subfolders of
+//!   `DIR/frames/` are used instead (Deformable-3D-Gaussians' `readCamerasFromNpy` layout,
+//!   `frames/<camera>/<image>`). Frames are the `.png`/`.jpg` files, sorted by name, at most
+//!   `max_frames` (4DGaussians: 300) per camera.
 //! - Pose: the 3×4 part is camera-to-world in LLFF axes (columns: down, right, back, centre).
 //!   OpenCV axes are right = column 1, down = column 0, forward = −column 2 (the same camera
 //!   4DGaussians builds by going through OpenGL axes).
@@ -19,9 +21,11 @@
 //!   (so frames extracted at a lower resolution get matching cameras).
 //! - Split: the cameras listed in `test_cameras` (default camera 0, `cam00`) are the test
 //!   split, the others training.
-//! - Time: `frame / count`, where count is the number of frames per camera (the largest over
-//!   cameras, after the cap) — 4DGaussians uses `idx / 300` on 300-frame videos, i.e. count,
-//!   not count − 1, so the last frame's time is below 1.
+//! - Time: `frame / count` by default, where count is the number of frames per camera (the
+//!   largest over cameras, after the cap): 4DGaussians uses `idx / 300` on 300-frame videos,
+//!   i.e. count, not count − 1, so the last frame's time is below 1, and the paper follows
+//!   4DGaussians' protocol for Neu3D. Deformable-3D-Gaussians' `readCamerasFromNpy` uses
+//!   `idx / (count − 1)` instead; [`TimeDenominator::CountMinusOne`] selects that.
 //! - No point cloud (4DGaussians initialises Neu3D from a separate COLMAP run).
 
 use std::path::{Path, PathBuf};
@@ -34,6 +38,16 @@ use crate::camera_info::CameraInfo;
 use crate::dataset::{Dataset, Format, Frame};
 use crate::json_fields::{ROTATION_TOLERANCE, rotation_error};
 use crate::npy::read_npy;
+
+/// How frame indices become times.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TimeDenominator {
+    /// `frame / count` (4DGaussians; last frame below 1).
+    #[default]
+    Count,
+    /// `frame / (count − 1)` (Deformable-3D-Gaussians; last frame at 1; a single frame is 0).
+    CountMinusOne,
+}
 
 /// One row of `poses_bounds.npy`, decoded.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -150,6 +164,7 @@ pub fn read_neu3d_dataset(
     dir: &Path,
     test_cameras: &[usize],
     max_frames: usize,
+    time_denominator: TimeDenominator,
 ) -> Result<Dataset, IoError> {
     let poses_path = dir.join("poses_bounds.npy");
     let array = read_npy(&poses_path)?;
@@ -159,7 +174,7 @@ pub fn read_neu3d_dataset(
         .enumerate()
         .map(|(i, r)| decode_pose_row(&poses_path, i, r))
         .collect::<Result<Vec<_>, _>>()?;
-    let camera_dirs: Vec<PathBuf> = list_dir(dir)?
+    let mut image_dirs: Vec<PathBuf> = list_dir(dir)?
         .into_iter()
         .filter(|p| {
             p.file_name()
@@ -167,15 +182,23 @@ pub fn read_neu3d_dataset(
                 .is_some_and(|n| n.starts_with("cam"))
                 && p.join("images").is_dir()
         })
+        .map(|p| p.join("images"))
         .collect();
-    if camera_dirs.len() != poses.len() {
+    let frames_dir = dir.join("frames");
+    if image_dirs.is_empty() && frames_dir.is_dir() {
+        image_dirs = list_dir(&frames_dir)?
+            .into_iter()
+            .filter(|p| p.is_dir())
+            .collect();
+    }
+    if image_dirs.len() != poses.len() {
         return Err(IoError::field(
             &poses_path,
             "shape",
             format!(
-                "{} camera poses but {} camera folders (cam*/images/) in {}",
+                "{} camera poses but {} camera folders (cam*/images/ or frames/*/) in {}",
                 poses.len(),
-                camera_dirs.len(),
+                image_dirs.len(),
                 dir.display()
             ),
         ));
@@ -188,16 +211,15 @@ pub fn read_neu3d_dataset(
         ));
     }
     let mut per_camera = Vec::with_capacity(poses.len());
-    for cam_dir in &camera_dirs {
-        let images_dir = cam_dir.join("images");
-        let mut images: Vec<PathBuf> = list_dir(&images_dir)?
+    for images_dir in &image_dirs {
+        let mut images: Vec<PathBuf> = list_dir(images_dir)?
             .into_iter()
             .filter(|p| is_image(p))
             .collect();
         images.truncate(max_frames);
         if images.is_empty() {
             return Err(IoError::field(
-                &images_dir,
+                images_dir,
                 "(frames)",
                 "no .png or .jpg frames",
             ));
@@ -205,6 +227,10 @@ pub fn read_neu3d_dataset(
         per_camera.push(images);
     }
     let count = per_camera.iter().map(Vec::len).max().unwrap_or(1);
+    let denominator = match time_denominator {
+        TimeDenominator::Count => count,
+        TimeDenominator::CountMinusOne => count.saturating_sub(1).max(1),
+    } as f32;
     let mut dataset = Dataset {
         format: Format::Neu3d,
         train: Vec::new(),
@@ -237,7 +263,7 @@ pub fn read_neu3d_dataset(
         };
         split.extend(images.into_iter().enumerate().map(|(k, image_path)| Frame {
             image_path,
-            time: k as f32 / count as f32,
+            time: k as f32 / denominator,
             camera: CameraInfo::pinhole(camera),
         }));
     }

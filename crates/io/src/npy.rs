@@ -329,7 +329,7 @@ mod tests {
     fn three_dimensional_fortran_order_matches_c_indexing() {
         let shape = [2usize, 3, 4];
         // Element (i, j, k) has value 100i + 10j + k; Fortran offset i + 2j + 6k.
-        let mut body = vec![0.0f64; 24];
+        let mut body = [0.0f64; 24];
         for i in 0..2 {
             for j in 0..3 {
                 for k in 0..4 {

@@ -11,8 +11,8 @@ use evogs_io::colmap::{
 };
 use evogs_io::npy::encode_npy;
 use evogs_io::{
-    CameraInfo, Dataset, Format, Frame, ImageRgb, LoadOptions, NerfiesSplit, detect_format,
-    load_dataset, load_image, save_png, write_nerfies_camera,
+    CameraInfo, Dataset, Format, Frame, ImageRgb, LoadOptions, NerfiesSplit, TimeDenominator,
+    detect_format, load_dataset, load_image, save_png, write_nerfies_camera,
 };
 use glam::{DMat3, DQuat, Vec3};
 use splat_raster::Camera;
@@ -174,9 +174,13 @@ fn write_nerfies(dir: &Path, center: Vec3, scale: f32, downscale: u32) {
     );
 }
 
-/// Neu3D: `poses_bounds.npy` in LLFF axes, `camNN/images/NNNN.png`; `scale` is the extracted
-/// frames' size relative to hwf.
+/// Neu3D: `poses_bounds.npy` in LLFF axes, `camNN/images/NNNN.png` (or D-3DGS's
+/// `frames/camNN/NNNN.png`); `frame_scale` is the extracted frames' size relative to hwf.
 fn write_neu3d(dir: &Path, frame_scale: u32) {
+    write_neu3d_in(dir, frame_scale, false);
+}
+
+fn write_neu3d_in(dir: &Path, frame_scale: u32, d3dgs_layout: bool) {
     let cams = cameras();
     let mut rows = Vec::new();
     for (c, cam) in cams.iter().enumerate() {
@@ -198,8 +202,13 @@ fn write_neu3d(dir: &Path, frame_scale: u32) {
         }
         rows.extend([0.5, 20.0]);
         for k in 0..TIMES {
+            let rel = if d3dgs_layout {
+                format!("frames/cam{c:02}/{k:04}.png")
+            } else {
+                format!("cam{c:02}/images/{k:04}.png")
+            };
             save(
-                &dir.join(format!("cam{c:02}/images/{k:04}.png")),
+                &dir.join(rel),
                 &image_for(c, k, W * frame_scale, H * frame_scale),
             );
         }
@@ -481,6 +490,32 @@ fn neu3d_frames_extracted_at_another_size_get_scaled_cameras() {
 }
 
 #[test]
+fn neu3d_d3dgs_layout_and_time_convention() {
+    let dir = tempfile::tempdir().unwrap();
+    write_neu3d_in(dir.path(), 1, true);
+    let options = LoadOptions {
+        neu3d_time: TimeDenominator::CountMinusOne,
+        ..LoadOptions::default()
+    };
+    let d = load(dir.path(), &options);
+    // time = frame / (count − 1), as D-3DGS `readCamerasFromNpy`.
+    let time = |k: usize| k as f32 / (TIMES - 1) as f32;
+    assert_eq!(
+        check_frames(&d.train, &cameras(), time),
+        all_pairs(&[1, 2], TIMES)
+    );
+    assert_eq!(
+        check_frames(&d.test, &cameras(), time),
+        all_pairs(&[0], TIMES)
+    );
+    assert!(
+        d.train
+            .iter()
+            .all(|f| f.image_path.to_string_lossy().contains("frames/cam"))
+    );
+}
+
+#[test]
 fn colmap_binary_and_text_read_the_scene() {
     for binary in [true, false] {
         let dir = tempfile::tempdir().unwrap();
@@ -557,5 +592,17 @@ fn summaries_snapshot() {
         lines.push(d.summary());
         lines.push(format!("  warning: {:?}", d.camera_warning()));
     }
+    // A COLMAP OPENCV camera: distortion kept and reported once.
+    let dir = root.path().join("colmap-opencv");
+    write_colmap(&dir, true);
+    let (mut cams, _, _) = colmap_model();
+    for cam in &mut cams {
+        cam.model = CameraModel::Opencv;
+        cam.params.extend([0.125, -0.0625, 0.001953125, 0.0]);
+    }
+    write(&dir.join("sparse/0/cameras.bin"), encode_cameras_bin(&cams));
+    let d = load(&dir, &LoadOptions::default());
+    lines.push(d.summary());
+    lines.push(format!("  warning: {:?}", d.camera_warning()));
     insta::assert_snapshot!(lines.join("\n"));
 }
