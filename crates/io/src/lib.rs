@@ -2,7 +2,10 @@
 //!
 //! What it is: readers and writers for 3DGS PLY files ([`ply`]), nerfies camera JSON and D-NeRF
 //! `transforms_*.json` cameras ([`camera_json`], [`dnerf`]), PNG/JPEG images as f32 RGB
-//! ([`image_io`]), and the D-NeRF dataset layout; conventions as pinned in SPEC §1–2. Every error
+//! ([`image_io`]), and datasets: D-NeRF, nerfies (HyperNeRF, NeRF-DS, [`nerfies`]), Neu3D
+//! ([`neu3d`]) and COLMAP ([`colmap`]) read into one [`Dataset`] type by [`load_dataset`], which
+//! detects the layout ([`detect_format`]), with `.npy` arrays read by [`npy`]; conventions as
+//! pinned in SPEC §1–2 and, where it is silent, Deformable-3D-Gaussians'. Every error
 //! names the file and the field or problem; every write is atomic (temporary file, then rename).
 //!
 //! What it is not: a renderer, a trainer or a data augmenter. Cameras come out as

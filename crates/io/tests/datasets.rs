@@ -606,3 +606,22 @@ fn summaries_snapshot() {
     lines.push(format!("  warning: {:?}", d.camera_warning()));
     insta::assert_snapshot!(lines.join("\n"));
 }
+
+#[test]
+fn real_lego_scene_is_detected_and_loaded() {
+    let lego = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/data/dnerf-lego"
+    ));
+    assert_eq!(detect_format(lego).unwrap(), Format::Dnerf);
+    let d = load(lego, &LoadOptions::default());
+    assert_eq!((d.train.len(), d.test.len(), d.val.len()), (34, 20, 11));
+    assert_eq!(
+        d.summary(),
+        "dnerf: 34 train, 20 test, 11 val frames, no point cloud"
+    );
+    assert!(
+        d.all_frames()
+            .all(|f| f.camera.is_pinhole() && f.image_path.is_file())
+    );
+}
