@@ -9,8 +9,8 @@
 //!
 //! - `.bin` is preferred when both exist. Camera models PINHOLE, SIMPLE_PINHOLE, OPENCV and
 //!   SIMPLE_RADIAL are read; distortion (k1, k2, p1, p2, or SIMPLE_RADIAL's k) is kept in
-//!   [`CameraInfo`] and reported, never applied. Any other model is an error naming the file and
-//!   the model.
+//!   [`CameraInfo`](crate::CameraInfo) and reported, never applied. Any other model is an error
+//!   naming the file and the model.
 //! - COLMAP's `qvec` (w, x, y, z) and `tvec` are world-to-camera in OpenCV axes, and its pixel
 //!   centres are at +0.5 like SPEC §1, so they convert directly.
 //! - Frames are sorted by image name; with `llff_hold > 0` every `llff_hold`-th (from the first)
