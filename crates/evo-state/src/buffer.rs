@@ -2,6 +2,7 @@
 //! f32 or f16. Exactly `Storage::bytes() · D` bytes per Gaussian per frame.
 
 use half::f16;
+use rayon::prelude::*;
 
 use crate::config::Storage;
 use crate::rows::{NewRows, RowPlan, RowPlanError};
@@ -146,12 +147,14 @@ impl StateBuffer {
     pub(crate) fn apply_rows(&mut self, plan: &RowPlan) -> Result<(), RowPlanError> {
         // Validate once before touching anything, so an error leaves the buffer unchanged.
         plan.validate(self.rows)?;
-        for block in &mut self.blocks {
-            match block {
-                Block::F32(v) => plan.apply(v, self.dim, NewRows::CopyParent)?,
-                Block::F16(v) => plan.apply(v, self.dim, NewRows::CopyParent)?,
-            }
-        }
+        // Frames are independent arrays: apply the plan to them in parallel, each in place.
+        let dim = self.dim;
+        self.blocks
+            .par_iter_mut()
+            .try_for_each(|block| match block {
+                Block::F32(v) => plan.apply(v, dim, NewRows::CopyParent),
+                Block::F16(v) => plan.apply(v, dim, NewRows::CopyParent),
+            })?;
         self.rows = plan.new_len();
         Ok(())
     }
