@@ -625,3 +625,76 @@ fn real_lego_scene_is_detected_and_loaded() {
             .all(|f| f.camera.is_pinhole() && f.image_path.is_file())
     );
 }
+
+/// The LLFF row of a camera (columns down, right, back, centre, hwf; then near, far).
+fn llff_row(cam: &Camera) -> Vec<f64> {
+    let r = cam.rotation;
+    let centre = cam.center();
+    let (right, down, forward) = (r.row(0), r.row(1), r.row(2));
+    let mut row = Vec::new();
+    for i in 0..3 {
+        row.extend(
+            [
+                down[i],
+                right[i],
+                -forward[i],
+                centre[i],
+                [cam.height as f32, cam.width as f32, cam.fx][i],
+            ]
+            .map(f64::from),
+        );
+    }
+    row.extend([0.5, 20.0]);
+    row
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(200))]
+
+    /// Any camera survives the Neu3D row and the COLMAP qvec/tvec conversions.
+    #[test]
+    fn random_cameras_survive_neu3d_and_colmap_conversions(
+        eye in proptest::array::uniform3(-10.0f32..10.0),
+        target in proptest::array::uniform3(-1.0f32..1.0),
+        fov in 0.3f32..2.5,
+        width in 2u32..4000,
+        height in 2u32..4000,
+    ) {
+        let eye = Vec3::from_array(eye);
+        let target = Vec3::from_array(target);
+        proptest::prop_assume!((eye - target).length() > 0.5);
+        proptest::prop_assume!((eye - target).normalize().cross(Vec3::Z).length() > 0.1);
+        let cam = Camera::look_at(width, height, fov, eye, target, Vec3::Z);
+
+        let pose = evogs_io::neu3d::decode_pose_row(Path::new("p.npy"), 0, &llff_row(&cam))
+            .unwrap();
+        assert_same_camera(&pose.camera, &cam, "neu3d");
+        proptest::prop_assert_eq!(pose.near_far, [0.5, 20.0]);
+
+        let q = DQuat::from_mat3(&DMat3::from_cols_array(
+            &cam.rotation.to_cols_array().map(f64::from),
+        ));
+        let model = evogs_io::colmap::ColmapModel {
+            cameras: vec![ColmapCamera {
+                id: 1,
+                model: CameraModel::SimplePinhole,
+                width,
+                height,
+                params: vec![cam.fx.into(), cam.cx.into(), cam.cy.into()],
+            }],
+            images: Vec::new(),
+            points: Vec::new(),
+            images_path: PathBuf::from("images.bin"),
+        };
+        // A quaternion that is not unit length (COLMAP writes unit ones) is normalised.
+        let image = ColmapImage {
+            id: 1,
+            qvec: [q.w * 2.0, q.x * 2.0, q.y * 2.0, q.z * 2.0],
+            tvec: cam.translation.to_array().map(f64::from),
+            camera_id: 1,
+            name: "a.png".into(),
+        };
+        let info = model.camera_info(&image).unwrap();
+        assert_same_camera(&info.camera, &cam, "colmap");
+    }
+}
