@@ -18,7 +18,8 @@
 //! - Time: `time_id` (or `warp_id` when there is no `time_id`) divided by its maximum over the
 //!   selected frames (0 for every frame when that maximum is 0).
 //! - Cameras: focal length, principal point, skew and image size scaled by 1/N (image size
-//!   rounded); positions normalised as `(C − center) · scale`, orientation unchanged.
+//!   rounded; the image file must have that size to a pixel, and its exact size is used);
+//!   positions normalised as `(C − center) · scale`, orientation unchanged.
 //! - Points: `(p − center) · scale`; `points.npy` has no colours, and D-3DGS gives them SH
 //!   values of `rand/255`, i.e. colours within 0.002 of 0.5: here exactly 0.5 grey.
 
@@ -153,6 +154,26 @@ pub fn read_nerfies_dataset(dir: &Path, options: &LoadOptions) -> Result<Dataset
                 format!("id `{id}` has no image {}", image_path.display()),
             ));
         }
+        // The image must have the camera's (rounded) size; adopt its exact size.
+        let (w, h) = image::image_dimensions(&image_path).map_err(|cause| IoError::Image {
+            path: image_path.clone(),
+            cause,
+        })?;
+        let mut camera = camera;
+        let c = &mut camera.camera;
+        if c.width.abs_diff(w) > 1 || c.height.abs_diff(h) > 1 {
+            return Err(IoError::field(
+                &camera_path,
+                "image_size",
+                format!(
+                    "scaled by 1/{downscale} it is {}×{}, but {} is {w}×{h}",
+                    c.width,
+                    c.height,
+                    image_path.display()
+                ),
+            ));
+        }
+        (c.width, c.height) = (w, h);
         let time = if max_time > 0.0 {
             (raw_time / max_time) as f32
         } else {

@@ -218,6 +218,32 @@ fn nerfies_errors_name_file_and_field() {
     let m = message(load_dataset(&root, &LoadOptions::default()));
     assert_names(&m, "dataset.json", "`ids`");
     assert!(m.contains("camera/a.json"), "{m}");
+    // A camera whose image_size does not match its image.
+    let camera = splat_raster::Camera::look_at(
+        8,
+        6,
+        1.0,
+        glam::Vec3::new(0.0, -3.0, 0.0),
+        glam::Vec3::ZERO,
+        glam::Vec3::Z,
+    );
+    for id in ["a", "b"] {
+        std::fs::create_dir_all(root.join("camera")).unwrap();
+        evogs_io::write_nerfies_camera(
+            &root.join(format!("camera/{id}.json")),
+            &evogs_io::CameraInfo::pinhole(camera),
+        )
+        .unwrap();
+        std::fs::create_dir_all(root.join("rgb/1x")).unwrap();
+        evogs_io::save_png(
+            &root.join(format!("rgb/1x/{id}.png")),
+            &evogs_io::ImageRgb::filled(8, 9, [0.5; 3]),
+        )
+        .unwrap();
+    }
+    let m = message(load_dataset(&root, &LoadOptions::default()));
+    assert_names(&m, "camera/a.json", "image_size");
+    assert!(m.contains("8×6") && m.contains("8×9"), "{m}");
     write(
         &root.join("scene.json"),
         r#"{"scale": -1.0, "center": [0, 0, 0]}"#,
