@@ -103,6 +103,20 @@ fn binary_models_round_trip_and_keep_distortion() {
 }
 
 #[test]
+fn text_models_round_trip_exactly() {
+    use evogs_io::colmap::{
+        encode_cameras_txt, encode_images_txt, encode_points3d_txt, parse_points3d_txt,
+    };
+    let p = Path::new("x.txt");
+    let cameras = parse_cameras_txt(p, &encode_cameras_txt(&sample_cameras())).unwrap();
+    assert_eq!(cameras, sample_cameras());
+    let images = parse_images_txt(p, &encode_images_txt(&sample_images())).unwrap();
+    assert_eq!(images, sample_images());
+    let points = parse_points3d_txt(p, &encode_points3d_txt(&sample_points())).unwrap();
+    assert_eq!(points, sample_points());
+}
+
+#[test]
 fn unknown_camera_models_are_named() {
     let mut bytes = encode_cameras_bin(&sample_cameras()[2..]);
     // model_id sits after num_cameras (8 bytes) and camera_id (4 bytes).
@@ -340,6 +354,32 @@ proptest! {
         if let Err(e) = result {
             let m = e.to_string();
             prop_assert!(m.starts_with("model.bin: field `"), "{}", m);
+        }
+    }
+
+    #[test]
+    fn mutated_colmap_text_never_panics(
+        which in 0usize..3,
+        edits in proptest::collection::vec((any::<usize>(), 32u8..127), 0..6),
+        cut in 0usize..60,
+    ) {
+        use evogs_io::colmap::{encode_cameras_txt, encode_images_txt, encode_points3d_txt, parse_points3d_txt};
+        let path = Path::new("model.txt");
+        let valid = match which {
+            0 => encode_cameras_txt(&sample_cameras()),
+            1 => encode_images_txt(&sample_images()),
+            _ => encode_points3d_txt(&sample_points()),
+        };
+        let bytes = mutate(valid.into_bytes(), &edits, cut);
+        let text = String::from_utf8_lossy(&bytes);
+        let result = match which {
+            0 => parse_cameras_txt(path, &text).map(|v| v.len()),
+            1 => parse_images_txt(path, &text).map(|v| v.len()),
+            _ => parse_points3d_txt(path, &text).map(|v| v.len()),
+        };
+        if let Err(e) = result {
+            let m = e.to_string();
+            prop_assert!(m.starts_with("model.txt: field `line "), "{}", m);
         }
     }
 
