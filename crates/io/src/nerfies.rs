@@ -38,6 +38,8 @@ use crate::{IoError, read_nerfies_camera};
 
 /// The split rule and downscale D-3DGS picks from a scene directory's name.
 pub fn nerfies_defaults(dir: &Path) -> (NerfiesSplit, u32) {
+    // Canonicalised so that `.` or a trailing `..` still give the folder's own name.
+    let dir = dir.canonicalize().unwrap_or_else(|_| dir.to_path_buf());
     let name = dir
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())

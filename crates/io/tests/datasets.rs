@@ -422,6 +422,12 @@ fn nerfies_normalisation_and_downscale_follow_d3dgs() {
             .iter()
             .all(|f| f.image_path.to_string_lossy().contains("rgb/4x"))
     );
+    // The name is the folder's own, however the path is spelled.
+    let dotted = dir.join("camera").join("..");
+    assert_eq!(
+        evogs_io::nerfies::nerfies_defaults(&dotted),
+        (NerfiesSplit::TrainVal, 4)
+    );
     // Points: (p − center) · scale recovers the scene's points (f32 npy storage).
     check_points(&d, 1e-5);
     // An explicit split rule: `interp` takes ids 0, 4, … for training and 2, 6, … for test
