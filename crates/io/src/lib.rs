@@ -2,7 +2,10 @@
 //!
 //! What it is: readers and writers for 3DGS PLY files ([`ply`]), nerfies camera JSON and D-NeRF
 //! `transforms_*.json` cameras ([`camera_json`], [`dnerf`]), PNG/JPEG images as f32 RGB
-//! ([`image_io`]), and the D-NeRF dataset layout; conventions as pinned in SPEC §1–2. Every error
+//! ([`image_io`]), and datasets: D-NeRF, nerfies (HyperNeRF, NeRF-DS, [`nerfies`]), Neu3D
+//! ([`neu3d`]) and COLMAP ([`colmap`]) read into one [`Dataset`] type by [`load_dataset`], which
+//! detects the layout ([`detect_format`]), with `.npy` arrays read by [`npy`]; conventions as
+//! pinned in SPEC §1–2 and, where it is silent, Deformable-3D-Gaussians'. Every error
 //! names the file and the field or problem; every write is atomic (temporary file, then rename).
 //!
 //! What it is not: a renderer, a trainer or a data augmenter. Cameras come out as
@@ -12,14 +15,23 @@
 pub mod atomic;
 pub mod camera_info;
 pub mod camera_json;
+pub mod colmap;
+pub mod dataset;
 pub mod dnerf;
 pub mod error;
 pub mod image_io;
 mod json_fields;
+pub mod nerfies;
+pub mod neu3d;
+pub mod npy;
 pub mod ply;
 
 pub use camera_info::{CameraInfo, Distortion, warning_for_all};
 pub use camera_json::{nerfies_camera_json, read_nerfies_camera, write_nerfies_camera};
+pub use dataset::{
+    Dataset, Format, Frame, LoadOptions, NerfiesSplit, Normalisation, PointCloud, TimeDenominator,
+    detect_format, load_dataset,
+};
 pub use dnerf::{DnerfFrame, Split, read_dnerf_split, read_transforms};
 pub use error::IoError;
 pub use image_io::{ImageRgb, load_image, load_view, resize_image, save_png};
