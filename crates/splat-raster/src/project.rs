@@ -99,6 +99,9 @@ pub(crate) struct Splat {
     pub rgb: [f32; 3],
     /// Camera-space depth.
     pub z: f32,
+    /// Inclusive pixel bounding box `[x_lo, y_lo, x_hi, y_hi]` of the opacity-aware extent,
+    /// clipped to the image: pixels outside it cannot reach `α >= 1/255`.
+    pub bbox: [u32; 4],
 }
 
 impl Splat {
@@ -355,6 +358,7 @@ pub(crate) fn project(
         sigma_cut,
         rgb,
         z: p.z,
+        bbox: [x_lo as u32, y_lo as u32, x_hi as u32, y_hi as u32],
     };
     let touches_any = (tiles[1]..=tiles[3])
         .any(|ty| (tiles[0]..=tiles[2]).any(|tx| splat.touches_tile(frame, tx, ty)));

@@ -35,38 +35,31 @@ pub(crate) fn bin(
         .collect();
     keys.par_sort_unstable();
     let n_tiles = tiles_x as usize * tiles_y as usize;
-    let mut counts = vec![0usize; n_tiles + 1];
+    // (tile, id) pairs in depth order, then a stable counting sort by tile.
+    let mut pairs: Vec<(u32, u32)> = Vec::new();
     for &key in &keys {
         let id = (key & 0xffff_ffff) as u32;
         let [x0, y0, x1, y1] = rects[id as usize].unwrap_or_default();
         for ty in y0..=y1 {
-            let row = ty as usize * tiles_x as usize;
             for tx in x0..=x1 {
                 if touches(id, tx, ty) {
-                    counts[row + tx as usize + 1] += 1;
+                    pairs.push((ty * tiles_x + tx, id));
                 }
             }
         }
+    }
+    let mut offsets = vec![0usize; n_tiles + 1];
+    for &(t, _) in &pairs {
+        offsets[t as usize + 1] += 1;
     }
     for t in 0..n_tiles {
-        counts[t + 1] += counts[t];
+        offsets[t + 1] += offsets[t];
     }
-    let offsets = counts;
     let mut cursor = offsets[..n_tiles].to_vec();
-    let mut ids = vec![0u32; offsets[n_tiles]];
-    for &key in &keys {
-        let id = (key & 0xffff_ffff) as u32;
-        let [x0, y0, x1, y1] = rects[id as usize].unwrap_or_default();
-        for ty in y0..=y1 {
-            let row = ty as usize * tiles_x as usize;
-            for tx in x0..=x1 {
-                if touches(id, tx, ty) {
-                    let t = row + tx as usize;
-                    ids[cursor[t]] = id;
-                    cursor[t] += 1;
-                }
-            }
-        }
+    let mut ids = vec![0u32; pairs.len()];
+    for &(t, id) in &pairs {
+        ids[cursor[t as usize]] = id;
+        cursor[t as usize] += 1;
     }
     TileLists { offsets, ids }
 }
