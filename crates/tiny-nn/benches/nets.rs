@@ -7,12 +7,53 @@
 
 use std::hint::black_box;
 
+use criterion::measurement::{Measurement, ValueFormatter, WallTime};
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use tiny_nn::linalg::{matmul, parallelism};
 use tiny_nn::{
     BSplineConfig, DeformConfig, DeformNet, ObservationConfig, ObservationNet, PlaneCombine,
     Precision, TriPlaneConfig,
 };
+
+/// CPU time of the whole process (all threads, from `/proc/self/task/*/schedstat`, ns), divided
+/// by the rayon thread count: what the wall time would be on idle cores with perfect scaling.
+/// Less disturbed than wall time when other jobs share the machine (Linux only; elsewhere 0).
+struct CpuTime;
+
+static WALL: WallTime = WallTime;
+
+fn process_cpu_ns() -> u64 {
+    let Ok(dir) = std::fs::read_dir("/proc/self/task") else {
+        return 0;
+    };
+    dir.filter_map(|e| e.ok())
+        .filter_map(|e| std::fs::read_to_string(e.path().join("schedstat")).ok())
+        .filter_map(|s| s.split_whitespace().next()?.parse::<u64>().ok())
+        .sum()
+}
+
+impl Measurement for CpuTime {
+    type Intermediate = u64;
+    type Value = f64;
+    fn start(&self) -> u64 {
+        process_cpu_ns()
+    }
+    fn end(&self, i: u64) -> f64 {
+        process_cpu_ns().saturating_sub(i) as f64 / rayon::current_num_threads() as f64
+    }
+    fn add(&self, a: &f64, b: &f64) -> f64 {
+        a + b
+    }
+    fn zero(&self) -> f64 {
+        0.0
+    }
+    fn to_f64(&self, v: &f64) -> f64 {
+        *v
+    }
+    fn formatter(&self) -> &dyn ValueFormatter {
+        WALL.formatter()
+    }
+}
 
 fn vals(n: usize, seed: u64, s: f32) -> Vec<f32> {
     let mut x = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(1);
@@ -26,9 +67,9 @@ fn vals(n: usize, seed: u64, s: f32) -> Vec<f32> {
         .collect()
 }
 
-fn phi(p: Precision) -> ObservationNet {
+fn phi(p: Precision, combine: PlaneCombine) -> ObservationNet {
     let mut net = ObservationNet::new(ObservationConfig {
-        triplane: TriPlaneConfig::new(32, &[64], PlaneCombine::Concat),
+        triplane: TriPlaneConfig::new(32, &[64], combine),
         bspline: BSplineConfig::new(16, 16),
         width: 64,
         hidden_layers: 2,
@@ -87,13 +128,15 @@ fn max_err(a: &[f32], b: &[f32]) -> (f32, f32) {
 fn report_accuracy() {
     let rows = 10_000;
     let (p, t) = inputs(rows);
-    let (a, _) = phi(Precision::F32).forward(&p, &t, rows).unwrap();
-    let (b, _) = phi(Precision::F16).forward(&p, &t, rows).unwrap();
-    let (e, s) = max_err(&a, &b);
-    eprintln!(
-        "phi: {} MAC/row in the decoder; f16 vs f32 max |diff| {e:.3e} (max |out| {s:.3e})",
-        phi(Precision::F32).macs_per_row()
-    );
+    for combine in [PlaneCombine::Product, PlaneCombine::Concat] {
+        let (a, _) = phi(Precision::F32, combine).forward(&p, &t, rows).unwrap();
+        let (b, _) = phi(Precision::F16, combine).forward(&p, &t, rows).unwrap();
+        let (e, s) = max_err(&a, &b);
+        eprintln!(
+            "phi {combine:?}: {} MAC/row in the decoder; f16 vs f32 max |diff| {e:.3e} (max |out| {s:.3e})",
+            phi(Precision::F32, combine).macs_per_row()
+        );
+    }
     let (a, _) = deform(Precision::F32).forward(&p, &t, rows).unwrap();
     let (b, _) = deform(Precision::F16).forward(&p, &t, rows).unwrap();
     let (e, s) = max_err(&a, &b);
@@ -103,13 +146,12 @@ fn report_accuracy() {
     );
 }
 
-fn gemm_peak(c: &mut Criterion) {
-    report_accuracy();
+fn gemm_peak<M: Measurement>(c: &mut Criterion<M>) {
     let n = 1024;
     let a = vals(n * n, 1, 1.0);
     let b = vals(n * n, 2, 1.0);
     let mut out = vec![0f32; n * n];
-    let mut g = c.benchmark_group("gemm_f32");
+    let mut g = c.benchmark_group(format!("{}gemm_f32", prefix::<M>()));
     g.throughput(Throughput::Elements((2 * n * n * n) as u64)); // FLOPs
     g.bench_function(BenchmarkId::new("square", n), |bch| {
         bch.iter(|| {
@@ -126,42 +168,59 @@ fn gemm_peak(c: &mut Criterion) {
     g.finish();
 }
 
-fn phi_benches(c: &mut Criterion) {
-    let mut g = c.benchmark_group("phi");
-    for rows in [10_000usize, 100_000] {
-        let (p, t) = inputs(rows);
-        let d = vals(rows * 10, 9, 1.0);
-        g.throughput(Throughput::Elements(rows as u64));
-        for prec in [Precision::F32, Precision::F16] {
-            let net = phi(prec);
-            g.bench_function(BenchmarkId::new(format!("{prec:?}/fwd"), rows), |b| {
-                b.iter(|| net.forward(black_box(&p), &t, rows).unwrap())
-            });
-            g.bench_function(BenchmarkId::new(format!("{prec:?}/fwd+bwd"), rows), |b| {
-                b.iter(|| {
-                    let (_, cache) = net.forward(black_box(&p), &t, rows).unwrap();
-                    net.backward(&cache, &d, false).unwrap()
-                })
-            });
+/// Steady state of a training loop: the cache is kept between steps (`forward_reusing`).
+fn phi_benches<M: Measurement>(c: &mut Criterion<M>) {
+    let mut g = c.benchmark_group(format!("{}phi", prefix::<M>()));
+    for (combine, sizes) in [
+        (PlaneCombine::Product, &[10_000usize, 100_000][..]),
+        (PlaneCombine::Concat, &[100_000usize][..]),
+    ] {
+        for &rows in sizes {
+            let (p, t) = inputs(rows);
+            let d = vals(rows * 10, 9, 1.0);
+            g.throughput(Throughput::Elements(rows as u64));
+            for prec in [Precision::F32, Precision::F16] {
+                let net = phi(prec, combine);
+                let (_, mut cache) = net.forward(&p, &t, rows).unwrap();
+                let name = format!("{combine:?}/{prec:?}");
+                g.bench_function(BenchmarkId::new(format!("{name}/fwd"), rows), |b| {
+                    b.iter(|| {
+                        net.forward_reusing(black_box(&p), &t, rows, &mut cache)
+                            .unwrap()
+                    })
+                });
+                g.bench_function(BenchmarkId::new(format!("{name}/fwd+bwd"), rows), |b| {
+                    b.iter(|| {
+                        net.forward_reusing(black_box(&p), &t, rows, &mut cache)
+                            .unwrap();
+                        net.backward(&cache, &d, false).unwrap()
+                    })
+                });
+            }
         }
     }
     g.finish();
 }
 
-fn d3dgs_benches(c: &mut Criterion) {
-    let mut g = c.benchmark_group("d3dgs");
+fn d3dgs_benches<M: Measurement>(c: &mut Criterion<M>) {
+    let mut g = c.benchmark_group(format!("{}d3dgs", prefix::<M>()));
     for rows in [10_000usize, 100_000] {
         let (p, t) = inputs(rows);
         let d = vals(rows * 10, 9, 1.0);
         g.throughput(Throughput::Elements(rows as u64));
         for prec in [Precision::F32, Precision::F16] {
             let net = deform(prec);
+            let (_, mut cache) = net.forward(&p, &t, rows).unwrap();
             g.bench_function(BenchmarkId::new(format!("{prec:?}/fwd"), rows), |b| {
-                b.iter(|| net.forward(black_box(&p), &t, rows).unwrap())
+                b.iter(|| {
+                    net.forward_reusing(black_box(&p), &t, rows, &mut cache)
+                        .unwrap()
+                })
             });
             g.bench_function(BenchmarkId::new(format!("{prec:?}/fwd+bwd"), rows), |b| {
                 b.iter(|| {
-                    let (_, cache) = net.forward(black_box(&p), &t, rows).unwrap();
+                    net.forward_reusing(black_box(&p), &t, rows, &mut cache)
+                        .unwrap();
                     net.backward(&cache, &d, false).unwrap()
                 })
             });
@@ -170,5 +229,23 @@ fn d3dgs_benches(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, gemm_peak, phi_benches, d3dgs_benches);
-criterion_main!(benches);
+/// Group-name prefix: "" for wall time, "cpu/" for [`CpuTime`].
+fn prefix<M: Measurement>() -> &'static str {
+    if std::any::type_name::<M>().ends_with("CpuTime") {
+        "cpu/"
+    } else {
+        ""
+    }
+}
+
+fn accuracy(_: &mut Criterion) {
+    report_accuracy();
+}
+
+criterion_group!(benches, accuracy, gemm_peak, phi_benches, d3dgs_benches);
+criterion_group! {
+    name = cpu_benches;
+    config = Criterion::default().with_measurement(CpuTime);
+    targets = gemm_peak, phi_benches, d3dgs_benches
+}
+criterion_main!(benches, cpu_benches);

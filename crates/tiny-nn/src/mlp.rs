@@ -127,8 +127,9 @@ pub struct Mlp {
 }
 
 /// What [`Mlp::forward`] keeps for [`Mlp::backward`]: the input and every layer's output, in the
-/// network's storage precision.
-#[derive(Clone, Debug)]
+/// network's storage precision. `MlpCache::default()` is an empty cache for
+/// [`Mlp::forward_reusing`].
+#[derive(Clone, Debug, Default)]
 pub struct MlpCache {
     rows: usize,
     input: Store,
@@ -280,15 +281,30 @@ impl Mlp {
     where
         F: Fn(usize, usize, &mut [f32]) + Sync,
     {
+        let mut cache = MlpCache::default();
+        let out = self.forward_reusing(rows, fill, &mut cache);
+        (out, cache)
+    }
+
+    /// [`Mlp::forward_with`] writing into an existing cache, whose buffers are reused (a training
+    /// loop that keeps its cache avoids reallocating, and page-faulting, hundreds of MB per
+    /// step). Any cache may be passed; it is overwritten.
+    pub fn forward_reusing<F>(&self, rows: usize, fill: F, cache: &mut MlpCache) -> Vec<f32>
+    where
+        F: Fn(usize, usize, &mut [f32]) + Sync,
+    {
         let p = self.config.precision;
         let ni = self.config.input;
         let weights = self.params.to_f32_vec();
-        let mut input = Store::zeros(p, rows * ni);
-        let mut acts: Vec<Store> = self
-            .layers
-            .iter()
-            .map(|l| Store::zeros(p, rows * l.output))
-            .collect();
+        cache.rows = rows;
+        cache.input.resize_for(p, rows * ni);
+        cache
+            .acts
+            .resize_with(self.layers.len(), || Store::zeros(p, 0));
+        for (act, layer) in cache.acts.iter_mut().zip(&self.layers) {
+            act.resize_for(p, rows * layer.output);
+        }
+        let MlpCache { input, acts, .. } = cache;
         let n_blocks = rows.div_ceil(ROW_BLOCK);
         let mut blocks: Vec<Vec<StoreMut<'_>>> = (0..n_blocks).map(|_| Vec::new()).collect();
         for (b, part) in input.chunks_mut(ROW_BLOCK * ni).into_iter().enumerate() {
@@ -306,24 +322,16 @@ impl Mlp {
         let saturated: u64 = blocks
             .into_par_iter()
             .enumerate()
-            .map(|(b, parts)| {
+            .map_init(Scratch::default, |scr, (b, parts)| {
                 let r0 = b * ROW_BLOCK;
                 let nr = ROW_BLOCK.min(rows - r0);
-                let mut x = vec![0f32; nr * ni];
-                fill(r0, nr, &mut x);
-                self.forward_block(&weights, x, nr, parts)
+                scr.x.resize(nr * ni, 0.0);
+                fill(r0, nr, &mut scr.x);
+                self.forward_block(&weights, scr, nr, parts)
             })
             .sum();
-        let out = acts.last().map(Store::to_f32_vec).unwrap_or_default();
-        (
-            out,
-            MlpCache {
-                rows,
-                input,
-                acts,
-                saturated,
-            },
-        )
+        cache.saturated = saturated;
+        cache.acts.last().map(Store::to_f32_vec).unwrap_or_default()
     }
 
     /// Runs every layer on one block of `nr` rows; `parts[0]` is the input's storage, then one
@@ -331,27 +339,28 @@ impl Mlp {
     fn forward_block(
         &self,
         w: &[f32],
-        mut x: Vec<f32>,
+        scr: &mut Scratch,
         nr: usize,
         mut parts: Vec<StoreMut<'_>>,
     ) -> u64 {
         let ni = self.config.input;
-        let mut sat = store_rounded(&mut parts[0], &mut x);
-        let mut cur = Vec::new();
-        let mut next = Vec::new();
+        let Scratch {
+            x, cur, next, cat, ..
+        } = scr;
+        let mut sat = store_rounded(&mut parts[0], x);
         let last = self.layers.len() - 1;
         for (l, layer) in self.layers.iter().enumerate() {
             let input: &[f32] = if l == 0 {
-                &x
+                x
             } else if layer.skip_input {
-                cur = concat_rows(&x, ni, &cur, layer.input - ni, nr);
-                &cur
+                concat_rows(x, ni, cur, layer.input - ni, nr, cat);
+                cat
             } else {
-                &cur
+                cur
             };
             next.resize(nr * layer.output, 0.0);
             matmul(
-                &mut next,
+                next,
                 input,
                 &w[layer.weight_offset..layer.bias_offset],
                 (nr, layer.input, layer.output),
@@ -367,9 +376,9 @@ impl Mlp {
             } else {
                 self.config.hidden_activation
             };
-            act.apply(&mut next);
-            sat += store_rounded(&mut parts[l + 1], &mut next);
-            std::mem::swap(&mut cur, &mut next);
+            act.apply(next);
+            sat += store_rounded(&mut parts[l + 1], next);
+            std::mem::swap(cur, next);
         }
         sat
     }
@@ -501,16 +510,18 @@ impl Mlp {
             .enumerate()
             .with_min_len(min_len)
             .fold(
-                || (vec![0f32; n_params], init()),
-                |(mut grads, mut acc), (b, dst)| {
+                || (vec![0f32; n_params], init(), Scratch::default()),
+                |(mut grads, mut acc, mut scr), (b, dst)| {
                     let r0 = b * ROW_BLOCK;
                     let nr = ROW_BLOCK.min(rows - r0);
-                    let dx =
-                        self.backward_block(weights, cache, d_out, r0, nr, &mut grads, want_dx);
-                    sink(&mut acc, r0, dst, dx.as_deref());
-                    (grads, acc)
+                    self.backward_block(
+                        weights, cache, d_out, r0, nr, &mut grads, want_dx, &mut scr,
+                    );
+                    sink(&mut acc, r0, dst, want_dx.then_some(&scr.dx[..]));
+                    (grads, acc, scr)
                 },
             )
+            .map(|(g, a, _)| (g, a))
             .reduce(
                 || (vec![0f32; n_params], init()),
                 |(mut ga, aa), (gb, ab)| {
@@ -520,8 +531,8 @@ impl Mlp {
             )
     }
 
-    /// Backward over one block; accumulates dL/dθ into `grads` and returns dL/dx of the block
-    /// when `want_dx`.
+    /// Backward over one block; accumulates dL/dθ into `grads` and, when `want_dx`, leaves
+    /// dL/dx of the block in `scr.dx`.
     #[allow(clippy::too_many_arguments)]
     fn backward_block(
         &self,
@@ -532,52 +543,60 @@ impl Mlp {
         nr: usize,
         grads: &mut [f32],
         want_dx: bool,
-    ) -> Option<Vec<f32>> {
+        scr: &mut Scratch,
+    ) {
         let ni = self.config.input;
         let last = self.layers.len() - 1;
-        let mut x = vec![0f32; nr * ni];
-        cache
-            .input
-            .as_ref()
-            .slice(r0 * ni, nr * ni)
-            .read_into(&mut x);
-        let mut g = d_out[r0 * self.config.output..(r0 + nr) * self.config.output].to_vec();
-        let mut y = Vec::new();
-        let mut a = Vec::new();
-        let mut da = Vec::new();
-        let mut dx_acc = want_dx.then(|| vec![0f32; nr * ni]);
+        let Scratch {
+            x,
+            cur: g,
+            next: da,
+            cat: a,
+            y,
+            dx,
+        } = scr;
+        x.resize(nr * ni, 0.0);
+        cache.input.as_ref().slice(r0 * ni, nr * ni).read_into(x);
+        g.clear();
+        g.extend_from_slice(&d_out[r0 * self.config.output..(r0 + nr) * self.config.output]);
+        if want_dx {
+            dx.clear();
+            dx.resize(nr * ni, 0.0);
+        }
         for l in (0..self.layers.len()).rev() {
             let layer = self.layers[l];
             y.resize(nr * layer.output, 0.0);
             cache.acts[l]
                 .as_ref()
                 .slice(r0 * layer.output, nr * layer.output)
-                .read_into(&mut y);
+                .read_into(y);
             let act = if l == last {
                 self.config.output_activation
             } else {
                 self.config.hidden_activation
             };
-            act.backward_from_output(&y, &mut g);
-            // Layer input a.
+            act.backward_from_output(y, g);
+            // Layer input: x, the previous activation, or [x, previous activation].
             let input: &[f32] = if l == 0 {
-                &x
+                x
             } else {
                 let prev = self.layers[l - 1].output;
-                a.resize(nr * prev, 0.0);
+                y.resize(nr * prev, 0.0);
                 cache.acts[l - 1]
                     .as_ref()
                     .slice(r0 * prev, nr * prev)
-                    .read_into(&mut a);
+                    .read_into(y);
                 if layer.skip_input {
-                    a = concat_rows(&x, ni, &a, prev, nr);
+                    concat_rows(x, ni, y, prev, nr, a);
+                    a
+                } else {
+                    y
                 }
-                &a
             };
             matmul_at_b(
                 &mut grads[layer.weight_offset..layer.bias_offset],
                 input,
-                &g,
+                g,
                 (layer.input, nr, layer.output),
                 true,
                 Parallelism::None,
@@ -586,29 +605,27 @@ impl Mlp {
             for row in g.chunks_exact(layer.output) {
                 db.iter_mut().zip(row).for_each(|(d, v)| *d += v);
             }
-            if l == 0 && dx_acc.is_none() {
+            if l == 0 && !want_dx {
                 break;
             }
             da.resize(nr * layer.input, 0.0);
             matmul_a_bt(
-                &mut da,
-                &g,
+                da,
+                g,
                 &w[layer.weight_offset..layer.bias_offset],
                 (nr, layer.output, layer.input),
                 false,
                 Parallelism::None,
             );
             if l == 0 {
-                if let Some(acc) = dx_acc.as_mut() {
-                    acc.iter_mut().zip(&da).for_each(|(s, v)| *s += v);
-                }
+                dx.iter_mut().zip(da.iter()).for_each(|(s, v)| *s += v);
             } else if layer.skip_input {
                 let prev = layer.input - ni;
                 g.resize(nr * prev, 0.0);
                 for r in 0..nr {
                     let src = &da[r * layer.input..(r + 1) * layer.input];
-                    if let Some(acc) = dx_acc.as_mut() {
-                        acc[r * ni..(r + 1) * ni]
+                    if want_dx {
+                        dx[r * ni..(r + 1) * ni]
                             .iter_mut()
                             .zip(&src[..ni])
                             .for_each(|(s, v)| *s += v);
@@ -616,11 +633,21 @@ impl Mlp {
                     g[r * prev..(r + 1) * prev].copy_from_slice(&src[ni..]);
                 }
             } else {
-                std::mem::swap(&mut g, &mut da);
+                std::mem::swap(g, da);
             }
         }
-        dx_acc
     }
+}
+
+/// Per-task scratch buffers, reused across the row blocks one task processes.
+#[derive(Default)]
+struct Scratch {
+    x: Vec<f32>,
+    cur: Vec<f32>,
+    next: Vec<f32>,
+    cat: Vec<f32>,
+    y: Vec<f32>,
+    dx: Vec<f32>,
 }
 
 /// Writes `vals` into `store` and, for f16, rounds `vals` to the stored values so the next layer
@@ -634,13 +661,12 @@ fn store_rounded(store: &mut StoreMut<'_>, vals: &mut [f32]) -> u64 {
 }
 
 /// Row-wise concatenation `[a, b]` of `nr` rows of widths `wa` and `wb`.
-fn concat_rows(a: &[f32], wa: usize, b: &[f32], wb: usize, nr: usize) -> Vec<f32> {
-    let mut out = Vec::with_capacity(nr * (wa + wb));
+fn concat_rows(a: &[f32], wa: usize, b: &[f32], wb: usize, nr: usize, out: &mut Vec<f32>) {
+    out.clear();
     for r in 0..nr {
         out.extend_from_slice(&a[r * wa..(r + 1) * wa]);
         out.extend_from_slice(&b[r * wb..(r + 1) * wb]);
     }
-    out
 }
 
 impl crate::weights::Parameters for Mlp {

@@ -38,8 +38,8 @@ pub struct ObservationNet {
     pub mlp: Mlp,
 }
 
-/// Cache of [`ObservationNet::forward`].
-#[derive(Clone, Debug)]
+/// Cache of [`ObservationNet::forward`] (`default()` is empty, for `forward_reusing`).
+#[derive(Clone, Debug, Default)]
 pub struct ObservationCache {
     positions: Vec<f32>,
     times: Vec<f32>,
@@ -107,6 +107,19 @@ impl ObservationNet {
         times: &[f32],
         rows: usize,
     ) -> Result<(Vec<f32>, ObservationCache), NnError> {
+        let mut cache = ObservationCache::default();
+        let out = self.forward_reusing(positions, times, rows, &mut cache)?;
+        Ok((out, cache))
+    }
+
+    /// [`ObservationNet::forward`] into an existing cache whose buffers are reused.
+    pub fn forward_reusing(
+        &self,
+        positions: &[f32],
+        times: &[f32],
+        rows: usize,
+        cache: &mut ObservationCache,
+    ) -> Result<Vec<f32>, NnError> {
         check_len("observation times", rows, times.len())?;
         self.triplane.check_positions(positions, rows)?;
         BSplineTime::check_times(times)?;
@@ -114,24 +127,25 @@ impl ObservationNet {
         let ctrl = self.bspline.controls_f32();
         let (wx, wt) = (self.triplane.output_width(), self.bspline.output_width());
         let c = self.triplane.config().channels;
-        let (out, mlp) = self.mlp.forward_with(rows, |r0, nr, buf| {
-            let mut feat = vec![0f32; 3 * c];
-            for (i, row) in buf.chunks_exact_mut(wx + wt).enumerate().take(nr) {
-                let r = r0 + i;
-                let (fx, ft) = row.split_at_mut(wx);
-                self.triplane
-                    .encode_row(&planes, &positions[r * 3..r * 3 + 3], fx, &mut feat);
-                self.bspline.encode_row(&ctrl, times[r], ft);
-            }
-        });
-        Ok((
-            out,
-            ObservationCache {
-                positions: positions.to_vec(),
-                times: times.to_vec(),
-                mlp,
+        let out = self.mlp.forward_reusing(
+            rows,
+            |r0, _, buf| {
+                let mut feat = vec![0f32; 3 * c];
+                for (i, row) in buf.chunks_exact_mut(wx + wt).enumerate() {
+                    let r = r0 + i;
+                    let (fx, ft) = row.split_at_mut(wx);
+                    self.triplane
+                        .encode_row(&planes, &positions[r * 3..r * 3 + 3], fx, &mut feat);
+                    self.bspline.encode_row(&ctrl, times[r], ft);
+                }
             },
-        ))
+            &mut cache.mlp,
+        );
+        cache.positions.clear();
+        cache.positions.extend_from_slice(positions);
+        cache.times.clear();
+        cache.times.extend_from_slice(times);
+        Ok(out)
     }
 
     /// Backward from dL/d(output) (rows × D). The encoders take their gradients block by block
@@ -274,8 +288,8 @@ pub struct DeformNet {
     pub mlp: Mlp,
 }
 
-/// Cache of [`DeformNet::forward`].
-#[derive(Clone, Debug)]
+/// Cache of [`DeformNet::forward`] (`default()` is empty, for `forward_reusing`).
+#[derive(Clone, Debug, Default)]
 pub struct DeformCache {
     positions: Vec<f32>,
     mlp: MlpCache,
@@ -328,24 +342,37 @@ impl DeformNet {
         times: &[f32],
         rows: usize,
     ) -> Result<(Vec<f32>, DeformCache), NnError> {
+        let mut cache = DeformCache::default();
+        let out = self.forward_reusing(positions, times, rows, &mut cache)?;
+        Ok((out, cache))
+    }
+
+    /// [`DeformNet::forward`] into an existing cache whose buffers are reused.
+    pub fn forward_reusing(
+        &self,
+        positions: &[f32],
+        times: &[f32],
+        rows: usize,
+        cache: &mut DeformCache,
+    ) -> Result<Vec<f32>, NnError> {
         check_len("deformation positions", rows * 3, positions.len())?;
         check_len("deformation times", rows, times.len())?;
         let (wx, wt) = (self.xyz.output_width(), self.t.output_width());
-        let (out, mlp) = self.mlp.forward_with(rows, |r0, _, buf| {
-            for (i, row) in buf.chunks_exact_mut(wx + wt).enumerate() {
-                let r = r0 + i;
-                let (ex, et) = row.split_at_mut(wx);
-                self.xyz.encode_row(&positions[r * 3..r * 3 + 3], ex);
-                self.t.encode_row(&times[r..r + 1], et);
-            }
-        });
-        Ok((
-            out,
-            DeformCache {
-                positions: positions.to_vec(),
-                mlp,
+        let out = self.mlp.forward_reusing(
+            rows,
+            |r0, _, buf| {
+                for (i, row) in buf.chunks_exact_mut(wx + wt).enumerate() {
+                    let r = r0 + i;
+                    let (ex, et) = row.split_at_mut(wx);
+                    self.xyz.encode_row(&positions[r * 3..r * 3 + 3], ex);
+                    self.t.encode_row(&times[r..r + 1], et);
+                }
             },
-        ))
+            &mut cache.mlp,
+        );
+        cache.positions.clear();
+        cache.positions.extend_from_slice(positions);
+        Ok(out)
     }
 
     /// Backward from dL/d(output) (rows × 10).

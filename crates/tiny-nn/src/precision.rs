@@ -19,13 +19,19 @@ pub enum Precision {
     F16,
 }
 
-/// An owned buffer in one precision.
+/// An owned buffer in one precision (`Store::default()` is an empty f32 buffer).
 #[derive(Clone, Debug, PartialEq)]
 pub enum Store {
     /// f32 values.
     F32(Vec<f32>),
     /// f16 values.
     F16(Vec<f16>),
+}
+
+impl Default for Store {
+    fn default() -> Self {
+        Store::F32(Vec::new())
+    }
 }
 
 /// A borrowed read-only view of a [`Store`].
@@ -79,6 +85,16 @@ impl Store {
         let mut s = Store::zeros(p, xs.len());
         let sat = s.as_mut().write_from(xs);
         (s, sat)
+    }
+
+    /// Makes this store `len` values of precision `p`, reusing its memory when the precision
+    /// already matches (values are unspecified afterwards: callers overwrite them).
+    pub fn resize_for(&mut self, p: Precision, len: usize) {
+        match (self, p) {
+            (Store::F32(v), Precision::F32) => v.resize(len, 0.0),
+            (Store::F16(v), Precision::F16) => v.resize(len, f16::ZERO),
+            (s, p) => *s = Store::zeros(p, len),
+        }
     }
 
     /// Precision of this store.

@@ -262,3 +262,50 @@ fn small_outputs_snapshot() {
         fmt(&t)
     ));
 }
+
+mod props {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+
+        #[test]
+        fn triplane_output_at_any_position_is_that_of_the_clamped_position(
+            x in -1e6f32..1e6, y in -5.0f32..5.0, z in -5.0f32..5.0,
+            combine in prop_oneof![Just(PlaneCombine::Concat), Just(PlaneCombine::Product)],
+        ) {
+            let (lo, hi) = ([-1.0f32, 0.0, 2.0], [1.0f32, 2.0, 3.0]);
+            let tp = TriPlaneConfig::new(3, &[4, 7], combine).bounds(lo, hi).seed(5).build().unwrap();
+            let p = [x, y, z];
+            let clamped: Vec<f32> = (0..3).map(|a| p[a].clamp(lo[a], hi[a])).collect();
+            let (yp, cache) = tp.forward(&p, 1).unwrap();
+            let (yc, _) = tp.forward(&clamped, 1).unwrap();
+            prop_assert!(yp.iter().all(|v| v.is_finite()));
+            for (a, b) in yp.iter().zip(&yc) {
+                prop_assert!((a - b).abs() <= 1e-6 * (1.0 + b.abs()));
+            }
+            let w = tp.output_width();
+            let g = tp.backward(&cache, &vec![1.0; w], true).unwrap();
+            let gp = g.positions.unwrap();
+            for a in 0..3 {
+                if p[a] < lo[a] || p[a] > hi[a] {
+                    prop_assert_eq!(gp[a], 0.0);
+                }
+                prop_assert!(gp[a].is_finite());
+            }
+            prop_assert!(g.params.iter().all(|v| v.is_finite()));
+        }
+
+        #[test]
+        fn bspline_at_any_time_is_that_of_the_clamped_time(t in -10.0f32..10.0, m in 4usize..12) {
+            let sp = BSplineConfig::new(m, 3).seed(m as u64).build().unwrap();
+            let (y, _) = sp.forward(&[t]).unwrap();
+            let (yc, _) = sp.forward(&[t.clamp(0.0, 1.0)]).unwrap();
+            prop_assert_eq!(y, yc);
+            let (k, u, _) = sp.segment(t);
+            prop_assert!(k + 3 < m);
+            prop_assert!((0.0..=1.0).contains(&u));
+        }
+    }
+}

@@ -266,3 +266,30 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn reused_cache_gives_the_same_results() {
+    let a = small(Precision::F16, Activation::Sigmoid);
+    let b = small(Precision::F32, Activation::Identity);
+    let mut cache = tiny_nn::MlpCache::default();
+    // Fill the cache from another network and a larger batch first.
+    let x_big = vals(900 * 5, 1, 1.0);
+    let _ = b.forward_reusing(
+        900,
+        |r0, nr, buf| buf.copy_from_slice(&x_big[r0 * 5..(r0 + nr) * 5]),
+        &mut cache,
+    );
+    let x = vals(300 * 5, 2, 1.0);
+    let y = a.forward_reusing(
+        300,
+        |r0, nr, buf| buf.copy_from_slice(&x[r0 * 5..(r0 + nr) * 5]),
+        &mut cache,
+    );
+    let (y2, fresh) = a.forward(&x, 300).unwrap();
+    assert_eq!(y, y2);
+    let d = vals(300 * 3, 3, 1.0);
+    assert_eq!(
+        a.backward(&cache, &d, true).unwrap(),
+        a.backward(&fresh, &d, true).unwrap()
+    );
+}
