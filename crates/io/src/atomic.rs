@@ -28,6 +28,17 @@ where
     let file = writer
         .into_inner()
         .map_err(|e| IoError::io(path, e.into_error()))?;
+    // Temporary files are created private (0600); give the output the mode an existing file had,
+    // or the usual 0644 for a new one.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = std::fs::metadata(path)
+            .map(|m| m.permissions().mode() & 0o7777)
+            .unwrap_or(0o644);
+        file.set_permissions(std::fs::Permissions::from_mode(mode))
+            .map_err(|e| IoError::io(path, e))?;
+    }
     file.sync_all().map_err(|e| IoError::io(path, e))?;
     drop(file);
     temp_path
@@ -68,5 +79,27 @@ mod tests {
         })
         .unwrap();
         assert_eq!(std::fs::read(&target).unwrap(), b"new");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn new_files_get_0644_and_replaced_files_keep_their_mode() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o7777;
+        let fresh = dir.path().join("fresh.bin");
+        write_atomically(&fresh, |w| {
+            w.write_all(b"x").map_err(|e| IoError::io(&fresh, e))
+        })
+        .unwrap();
+        assert_eq!(mode(&fresh), 0o644);
+        let kept = dir.path().join("kept.bin");
+        std::fs::write(&kept, b"old").unwrap();
+        std::fs::set_permissions(&kept, std::fs::Permissions::from_mode(0o600)).unwrap();
+        write_atomically(&kept, |w| {
+            w.write_all(b"y").map_err(|e| IoError::io(&kept, e))
+        })
+        .unwrap();
+        assert_eq!(mode(&kept), 0o600);
     }
 }

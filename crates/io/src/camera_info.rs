@@ -70,3 +70,38 @@ impl CameraInfo {
         ))
     }
 }
+
+/// One warning for a set of cameras (a dataset), when any has skew or distortion: how many, and
+/// the first one's values. `None` when every camera is pinhole.
+pub fn warning_for_all(cameras: &[CameraInfo]) -> Option<String> {
+    let affected: Vec<&CameraInfo> = cameras.iter().filter(|c| !c.is_pinhole()).collect();
+    let first = affected.first()?.warning()?;
+    Some(format!(
+        "{} of {} cameras have skew or distortion (first: {first})",
+        affected.len(),
+        cameras.len()
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    #[test]
+    fn one_warning_for_many_cameras() {
+        let pinhole =
+            CameraInfo::pinhole(Camera::look_at(4, 4, 1.0, Vec3::ONE, Vec3::ZERO, Vec3::Z));
+        assert_eq!(warning_for_all(&[pinhole; 3]), None);
+        let distorted = CameraInfo {
+            distortion: Distortion {
+                radial: [0.0, 0.2, 0.0],
+                tangential: [0.0; 2],
+            },
+            ..pinhole
+        };
+        let text = warning_for_all(&[pinhole, distorted, distorted]).unwrap();
+        assert!(text.starts_with("2 of 3 cameras"), "{text}");
+        assert!(text.contains("0.2") && !text.contains('\n'), "{text}");
+    }
+}

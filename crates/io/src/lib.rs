@@ -18,7 +18,7 @@ pub mod image_io;
 mod json_fields;
 pub mod ply;
 
-pub use camera_info::{CameraInfo, Distortion};
+pub use camera_info::{CameraInfo, Distortion, warning_for_all};
 pub use camera_json::{nerfies_camera_json, read_nerfies_camera, write_nerfies_camera};
 pub use dnerf::{DnerfFrame, Split, read_dnerf_split, read_transforms};
 pub use error::IoError;

@@ -63,6 +63,22 @@ fn lego_splits_have_the_expected_frames() {
         assert!((c.rotation.determinant() - 1.0).abs() < 1e-5);
     }
     assert_eq!(train[0].image_path.file_name().unwrap(), "r_8.png");
+    // The images are RGBA: at half size over a white background, the corner is background and
+    // the centre holds the (non-white) model.
+    let (img, cam) =
+        evogs_io::load_view(&train[0].image_path, &train[0].camera, [1.0; 3], 0.5).unwrap();
+    assert_eq!(
+        (img.width, img.height, cam.width, cam.height),
+        (400, 400, 400, 400)
+    );
+    assert_eq!((cam.fx, cam.cx), (focal * 0.5, 200.0));
+    assert_eq!(img.get(0, 0), [1.0; 3]);
+    let non_white = img
+        .pixels
+        .iter()
+        .filter(|p| p.iter().any(|&c| c < 0.9))
+        .count();
+    assert!(non_white > 400 * 400 / 20, "{non_white}");
 }
 
 #[test]

@@ -1,0 +1,70 @@
+//! The `evogs` binary: parses arguments, runs the command, prints errors as one line.
+
+use std::process::ExitCode;
+
+use clap::Parser;
+use clap::error::ErrorKind;
+use evogs_cli::render::run_render;
+use evogs_cli::{Cli, Command};
+
+/// One line: line breaks in a message become spaces.
+fn one_line(text: &str) -> String {
+    text.trim().replace(['\n', '\r'], " ")
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(err) => {
+            if matches!(
+                err.kind(),
+                ErrorKind::DisplayHelp | ErrorKind::DisplayVersion
+            ) {
+                // Help and version go to stdout with success.
+                let _ = err.print();
+                return ExitCode::SUCCESS;
+            }
+            if err.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
+                let _ = err.print();
+                return ExitCode::from(2);
+            }
+            // clap's message without the usage and the hint to try --help, joined into one line.
+            let rendered = err.render().to_string();
+            let message = rendered
+                .split("\n\nUsage:")
+                .next()
+                .unwrap_or("")
+                .split("\n\nFor more information")
+                .next()
+                .unwrap_or("");
+            let message = message
+                .trim()
+                .strip_prefix("error: ")
+                .unwrap_or(message.trim());
+            let words: Vec<&str> = message.split_whitespace().collect();
+            eprintln!("evogs: {} (see --help)", words.join(" "));
+            return ExitCode::from(2);
+        }
+    };
+    let result = match &cli.command {
+        Command::Render(args) => run_render(args).map(|report| {
+            for warning in &report.warnings {
+                eprintln!("evogs: warning: {}", one_line(warning));
+            }
+            println!("{}", report.stats);
+            println!(
+                "wrote {} ({}x{})",
+                args.out.display(),
+                report.width,
+                report.height
+            );
+        }),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("evogs: error: {}", one_line(&format!("{err:#}")));
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,36 @@
+//! `evogs --help` and each subcommand's help, as snapshots of the real binary's output.
+
+use std::process::Command;
+
+fn help(args: &[&str]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_evogs"))
+        .args(args)
+        .env("COLUMNS", "100")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+#[test]
+fn top_level_help() {
+    insta::assert_snapshot!("evogs_help", help(&["--help"]));
+}
+
+#[test]
+fn render_help() {
+    let text = help(&["render", "--help"]);
+    assert_eq!(text, help(&["help", "render"]));
+    insta::assert_snapshot!("evogs_render_help", text);
+}
+
+#[test]
+fn no_subcommand_shows_usage_and_fails() {
+    let out = Command::new(env!("CARGO_BIN_EXE_evogs")).output().unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("Usage: evogs"));
+}
