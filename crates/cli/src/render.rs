@@ -40,7 +40,7 @@ pub fn resize_camera(camera: Camera, width: Option<u32>, height: Option<u32>) ->
     }
 }
 
-fn check_output_name(out: &Path) -> Result<()> {
+pub(crate) fn check_output_name(out: &Path) -> Result<()> {
     let is_png = out
         .extension()
         .and_then(|e| e.to_str())
@@ -53,6 +53,9 @@ fn check_output_name(out: &Path) -> Result<()> {
 
 /// Loads the inputs (or builds the demo scene), renders and writes the PNG.
 pub fn run_render(args: &RenderArgs) -> Result<RenderReport> {
+    if let Some(run) = &args.run {
+        return crate::render_run::render_run(run, args);
+    }
     check_output_name(&args.out)?;
     let mut warnings = Vec::new();
     let (gaussians, camera, source): (Gaussians, Camera, String) = match (&args.ply, &args.camera) {
@@ -79,8 +82,8 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderReport> {
             );
             (demo_scene::build(), camera, "the demo scene".to_string())
         }
-        // clap enforces that --ply and --camera come together.
-        _ => bail!("--ply and --camera must be given together"),
+        // clap enforces that --ply comes with --camera.
+        _ => bail!("--camera needs --ply or --run"),
     };
     let options = RenderOptions {
         background: args.background,
