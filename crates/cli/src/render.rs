@@ -9,6 +9,10 @@ use splat_raster::{Camera, CpuRasterizer, Gaussians, Rasterizer, RenderOptions};
 use crate::args::RenderArgs;
 use crate::demo_scene;
 
+/// Renders larger than this many pixels are refused (a corrupt or mistyped size would otherwise
+/// exhaust memory): 8192 × 8192.
+pub const MAX_PIXELS: u64 = 8192 * 8192;
+
 /// What a render produced, for printing.
 #[derive(Debug)]
 pub struct RenderReport {
@@ -58,40 +62,59 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderReport> {
     }
     check_output_name(&args.out)?;
     let mut warnings = Vec::new();
-    let (gaussians, camera, source): (Gaussians, Camera, String) = match (&args.ply, &args.camera) {
-        (Some(ply), Some(camera_path)) => {
-            let loaded = read_ply(ply)?;
-            if loaded.nonfinite_rows > 0 {
-                warnings.push(format!(
-                    "{}: {} Gaussian(s) hold non-finite values; they are culled",
-                    ply.display(),
-                    loaded.nonfinite_rows
-                ));
+    let (gaussians, camera, source, viewpoint): (Gaussians, Camera, String, String) =
+        match (&args.ply, &args.camera) {
+            (Some(ply), Some(camera_path)) => {
+                let loaded = read_ply(ply)?;
+                if loaded.nonfinite_rows > 0 {
+                    warnings.push(format!(
+                        "{}: {} Gaussian(s) hold non-finite values; they are culled",
+                        ply.display(),
+                        loaded.nonfinite_rows
+                    ));
+                }
+                let info = read_nerfies_camera(camera_path)?;
+                if let Some(w) = info.warning() {
+                    warnings.push(format!("{}: {w}", camera_path.display()));
+                }
+                let camera = resize_camera(info.camera, args.width, args.height);
+                (
+                    loaded.gaussians,
+                    camera,
+                    ply.display().to_string(),
+                    camera_path.display().to_string(),
+                )
             }
-            let info = read_nerfies_camera(camera_path)?;
-            if let Some(w) = info.warning() {
-                warnings.push(format!("{}: {w}", camera_path.display()));
+            (None, None) => {
+                let camera = demo_scene::default_camera(
+                    args.width.unwrap_or(demo_scene::DEFAULT_WIDTH),
+                    args.height.unwrap_or(demo_scene::DEFAULT_HEIGHT),
+                );
+                (
+                    demo_scene::build(),
+                    camera,
+                    "the demo scene".to_string(),
+                    "the default camera".to_string(),
+                )
             }
-            let camera = resize_camera(info.camera, args.width, args.height);
-            (loaded.gaussians, camera, ply.display().to_string())
-        }
-        (None, None) => {
-            let camera = demo_scene::default_camera(
-                args.width.unwrap_or(demo_scene::DEFAULT_WIDTH),
-                args.height.unwrap_or(demo_scene::DEFAULT_HEIGHT),
-            );
-            (demo_scene::build(), camera, "the demo scene".to_string())
-        }
-        // clap enforces that --ply comes with --camera.
-        _ => bail!("--camera needs --ply or --run"),
-    };
+            // clap enforces that --ply comes with --camera.
+            _ => bail!("--camera needs --ply or --run"),
+        };
+    let pixels = camera.width as u64 * camera.height as u64;
+    if pixels > MAX_PIXELS {
+        bail!(
+            "{viewpoint}: image size {}x{} exceeds the limit of {MAX_PIXELS} pixels",
+            camera.width,
+            camera.height
+        );
+    }
     let options = RenderOptions {
         background: args.background,
         sh_degree: None,
     };
     let output = CpuRasterizer::new()
         .forward(gaussians.view(), &camera, &options)
-        .with_context(|| format!("rendering {source}"))?;
+        .with_context(|| format!("rendering {source} from {viewpoint}"))?;
     let image = ImageRgb {
         width: output.width,
         height: output.height,

@@ -221,6 +221,10 @@ fn bad_inputs_fail_with_one_line_naming_the_file_and_keep_the_output() {
         serde_json::from_str(&std::fs::read_to_string(&f.camera).unwrap()).unwrap();
     value.as_object_mut().unwrap().remove("focal_length");
     std::fs::write(&no_focal, value.to_string()).unwrap();
+    let huge = f.dir.path().join("huge.json");
+    value["focal_length"] = serde_json::json!(100.0);
+    value["image_size"] = serde_json::json!([60000, 60000]);
+    std::fs::write(&huge, value.to_string()).unwrap();
     let missing = f.dir.path().join("missing.ply");
     let (ply, cam, out) = (s(&f.ply), s(&f.camera), s(&f.out));
     let cases: Vec<(Vec<&str>, &str)> = vec![
@@ -327,5 +331,5 @@ fn bad_inputs_fail_with_one_line_naming_the_file_and_keep_the_output() {
     assert!(String::from_utf8_lossy(&result.stderr).contains("no/such/dir/out.png"));
     // Nothing but the inputs and the untouched output is in the directory.
     let count = std::fs::read_dir(f.dir.path()).unwrap().count();
-    assert_eq!(count, 7);
+    assert_eq!(count, 8);
 }

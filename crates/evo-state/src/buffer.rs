@@ -1,4 +1,4 @@
-//! The buffer of corrected states B[k][i] ∈ R^D, one contiguous N × D block per frame, stored in
+//! The buffer of corrected states `B[k][i] ∈ R^D`, one contiguous N × D block per frame, stored in
 //! f32 or f16. Exactly `Storage::bytes() · D` bytes per Gaussian per frame.
 
 use half::f16;
@@ -121,11 +121,21 @@ impl StateBuffer {
                 0
             }
             Block::F16(v) => {
-                let mut saturated = 0;
-                for (o, &x) in v.iter_mut().zip(values) {
-                    let (h, s) = saturate_f16(x);
-                    *o = h;
-                    saturated += s as u64;
+                use half::slice::HalfFloatSliceExt;
+                // Clamp a chunk into scratch, then convert it with half's slice conversion
+                // (hardware F16C where available); count what the clamp changed.
+                let mut saturated = 0u64;
+                let mut scratch = [0.0f32; 4096];
+                for (out, src) in v
+                    .chunks_mut(scratch.len())
+                    .zip(values.chunks(scratch.len()))
+                {
+                    let tmp = &mut scratch[..src.len()];
+                    for (t, &x) in tmp.iter_mut().zip(src) {
+                        saturated += (x.abs() > F16_MAX) as u64;
+                        *t = x.clamp(-F16_MAX, F16_MAX);
+                    }
+                    out.convert_from_f32_slice(tmp);
                 }
                 saturated
             }

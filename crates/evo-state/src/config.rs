@@ -224,6 +224,17 @@ impl EvoConfig {
         self.layout.dim()
     }
 
+    /// Bytes the buffer of corrected states takes for `rows` Gaussians over `frames` frames:
+    /// exactly `rows · frames · D · (4 or 2)`, 0 when no buffer is kept (evolution off or
+    /// history re-queried).
+    pub fn buffer_bytes(&self, rows: usize, frames: usize) -> usize {
+        if self.evolution && self.history == HistoryMode::Buffer {
+            rows * frames * self.dim() * self.storage.bytes()
+        } else {
+            0
+        }
+    }
+
     /// Checks every field.
     pub fn validate(&self) -> Result<(), ConfigError> {
         let err = |field, value: String, problem| {
@@ -299,6 +310,23 @@ mod tests {
             assert_eq!(Layout::from_bits(bits).unwrap().bits(), bits);
         }
         assert_eq!(Layout::from_bits(32), None);
+    }
+
+    #[test]
+    fn buffer_bytes_for_the_paper_setting() {
+        // Neu3D: 150K Gaussians, 300 frames, D = 10.
+        let f32_config = EvoConfig::default();
+        assert_eq!(f32_config.buffer_bytes(150_000, 300), 1_800_000_000);
+        let f16_config = EvoConfig {
+            storage: Storage::F16,
+            ..EvoConfig::default()
+        };
+        assert_eq!(f16_config.buffer_bytes(150_000, 300), 900_000_000);
+        let requery = EvoConfig {
+            history: HistoryMode::Requery,
+            ..EvoConfig::default()
+        };
+        assert_eq!(requery.buffer_bytes(150_000, 300), 0);
     }
 
     #[test]

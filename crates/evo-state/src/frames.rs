@@ -82,7 +82,9 @@ impl Frames {
 
     /// The frame whose time is exactly `t`, if any.
     pub fn frame_of(&self, t: f32) -> Option<usize> {
-        self.times.binary_search_by(|x| x.total_cmp(&t)).ok()
+        // Numeric comparison (so -0.0 finds 0.0); NaN matches nothing.
+        let k = self.position(t);
+        (k < self.times.len() && self.times[k] == t).then_some(k)
     }
 
     /// Number of frames strictly before `t`: the query sits at this frame position.
@@ -140,6 +142,9 @@ mod tests {
         assert_eq!(frames.times(), &[0.0, 0.25, 0.5]);
         assert_eq!(frames.frame_of(0.25), Some(1));
         assert_eq!(frames.frame_of(0.3), None);
+        assert_eq!(frames.frame_of(-0.0), Some(0));
+        assert_eq!(frames.frame_of(f32::NAN), None);
+        assert_eq!(frames.frame_of(7.0), None);
         assert_eq!(
             Frames::new(vec![0.0, 0.0]),
             Err(FramesError::NotIncreasing {

@@ -70,6 +70,28 @@ impl GainNet {
         Ok(self.mlp.forward(x, rows)?)
     }
 
+    /// Like [`GainNet::forward`], reusing `cache`'s buffers.
+    pub fn forward_reusing(
+        &self,
+        x: &[f32],
+        rows: usize,
+        cache: &mut MlpCache,
+    ) -> Result<Vec<f32>, EvoError> {
+        let width = self.inputs();
+        if x.len() != rows * width {
+            return Err(EvoError::Length {
+                what: "Ψ input",
+                expected: rows * width,
+                actual: x.len(),
+            });
+        }
+        Ok(self.mlp.forward_reusing(
+            rows,
+            |r0, nr, buf| buf.copy_from_slice(&x[r0 * width..(r0 + nr) * width]),
+            cache,
+        ))
+    }
+
     /// dL/dθ from dL/dK per row.
     ///
     /// dL/dK larger than 2^60 is scaled down by a power of two (exact) before tiny-nn's f32

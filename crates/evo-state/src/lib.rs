@@ -36,6 +36,9 @@
 //!     state.commit(&step)?; // training steps only: writes B[k], sets valid[k], updates m
 //! }
 //!
+//! // A training loop can keep one Step and one Backward and reuse their buffers with
+//! // `forward_into` / `backward_into` (same results, no per-step allocation).
+//!
 //! // Evaluation at any time (between or beyond frames) never writes.
 //! let step = state.forward(0.4, &vec![0.0; n * d])?;
 //! assert_eq!(step.history().frames(), &[3, 2, 1]);
@@ -71,11 +74,13 @@
 //!   storage saturates at ±65504 and counts saturations; non-finite z, dL/dd̃ or opacities are
 //!   rejected naming the Gaussian (row) and component.
 
+pub mod backward;
 pub mod buffer;
 pub mod config;
 pub mod error;
 pub mod frames;
 pub mod gain;
+mod kernel;
 pub mod persist;
 pub mod rows;
 pub mod state;
@@ -86,6 +91,7 @@ pub use config::{Component, EvoConfig, Gain, HistoryMode, Layout, Storage};
 pub use error::EvoError;
 pub use frames::{Frames, History};
 pub use gain::GainNet;
+pub use kernel::PSI_INPUT_CLAMP;
 pub use rows::{NewRows, RowPlan};
-pub use state::{EvoState, ObservationSource};
+pub use state::{EvoState, ObservationSource, WARMUP_GAIN};
 pub use step::{Backward, Gains, Losses, Stats, Step};

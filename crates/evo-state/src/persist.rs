@@ -1,6 +1,6 @@
-//! Saving and loading the whole state as safetensors, bit-exact. Tensors: `times` (F32 [T]),
-//! `valid` (U8 [T]), `memory` (F32 [N, D]), `psi` (F32 [P]) and, with a buffer, `buffer.KKKKK`
-//! (F32 or F16 [N, D]) per frame. The configuration and counters are string metadata; floats
+//! Saving and loading the whole state as safetensors, bit-exact. Tensors: `times` (F32 `[T]`),
+//! `valid` (U8 `[T]`), `memory` (F32 `[N, D]`), `psi` (F32 `[P]`) and, with a buffer, `buffer.KKKKK`
+//! (F32 or F16 `[N, D]`) per frame. The configuration and counters are string metadata; floats
 //! are written in Rust's shortest round-trip form, so they load bit-exact. The file is written
 //! to a temporary file in the same directory and renamed.
 

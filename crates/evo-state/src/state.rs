@@ -1,5 +1,6 @@
-//! [`EvoState`]: the per-Gaussian evolution state and the forward, backward and commit steps of
-//! SPEC §4.
+//! [`EvoState`]: the per-Gaussian evolution state of SPEC §4, its forward pass, commit and row
+//! maintenance (the backward pass is in [`crate::backward`], the per-row arithmetic in the
+//! private `kernel` module).
 
 use rayon::prelude::*;
 
@@ -8,15 +9,12 @@ use crate::config::{Component, EvoConfig, Gain, HistoryMode};
 use crate::error::EvoError;
 use crate::frames::{Frames, History};
 use crate::gain::GainNet;
+use crate::kernel::{RowContext, fin};
 use crate::rows::{NewRows, RowPlan};
-use crate::step::{Backward, Gains, Losses, Stats, Step};
+use crate::step::{Gains, Stats, Step};
 
 /// Rows per parallel task.
-const CHUNK: usize = 1024;
-/// Ψ's inputs are clamped to ±this after normalisation, so Ψ stays finite for any finite input.
-pub const PSI_INPUT_CLAMP: f32 = 1e4;
-/// ε in θ's denominator (the paper's 1e-6).
-const THETA_EPS: f64 = 1e-6;
+pub(crate) const CHUNK: usize = 1024;
 /// The gain of the h = 2 warm-up stage.
 pub const WARMUP_GAIN: f32 = 0.5;
 
@@ -57,25 +55,6 @@ pub struct EvoState {
     pub(crate) memory: Vec<f32>,
     pub(crate) psi: GainNet,
     pub(crate) saturations: u64,
-}
-
-/// Saturates an f64 into the finite f32 range.
-#[inline]
-fn fin(x: f64) -> f32 {
-    x.clamp(-(f32::MAX as f64), f32::MAX as f64) as f32
-}
-
-/// Everything a row of the forward pass reads.
-struct RowContext<'a> {
-    history: &'a [FrameRef<'a>],
-    frames: [usize; 3],
-    s: f64,
-    beta: f64,
-    dim: usize,
-    position: Option<std::ops::Range<usize>>,
-    extent: f64,
-    floor: f64,
-    memory: &'a [f32],
 }
 
 impl EvoState {
@@ -168,7 +147,11 @@ impl EvoState {
         }
     }
 
-    fn check_len(what: &'static str, data: &[f32], expected: usize) -> Result<(), EvoError> {
+    pub(crate) fn check_len(
+        what: &'static str,
+        data: &[f32],
+        expected: usize,
+    ) -> Result<(), EvoError> {
         if data.len() != expected {
             return Err(EvoError::Length {
                 what,
@@ -179,23 +162,37 @@ impl EvoState {
         Ok(())
     }
 
-    fn check_finite(what: &'static str, data: &[f32], stride: usize) -> Result<(), EvoError> {
-        match data.par_iter().position_first(|v| !v.is_finite()) {
-            None => Ok(()),
-            Some(p) => Err(EvoError::NonFinite {
-                what,
-                row: p / stride,
-                component: p % stride,
-                value: data[p],
-            }),
-        }
+    pub(crate) fn check_finite(
+        what: &'static str,
+        data: &[f32],
+        stride: usize,
+    ) -> Result<(), EvoError> {
+        // A branch-free (vectorised) scan per chunk; only a chunk with a bad value is searched.
+        const SCAN: usize = 1 << 14;
+        let bad_chunk = data
+            .par_chunks(SCAN)
+            .position_first(|c| !c.iter().fold(true, |ok, v| ok & v.is_finite()));
+        let Some(c) = bad_chunk else { return Ok(()) };
+        let p = c * SCAN
+            + data[c * SCAN..]
+                .iter()
+                .position(|v| !v.is_finite())
+                .unwrap_or(0);
+        Err(EvoError::NonFinite {
+            what,
+            row: p / stride,
+            component: p % stride,
+            value: data[p],
+        })
     }
 
     /// Forward pass for a query at time `t` with observations `z` (N × D). Read-only: use it
     /// for training steps (then [`EvoState::commit`]) and for evaluation at any time.
     /// History mode `Requery` needs [`EvoState::forward_with`].
     pub fn forward(&self, t: f32, z: &[f32]) -> Result<Step, EvoError> {
-        self.forward_impl(t, z, None)
+        let mut step = Step::empty();
+        self.forward_into(t, z, None, &mut step)?;
+        Ok(step)
     }
 
     /// Forward pass with an observation source for history mode `Requery` (ignored with the
@@ -206,15 +203,32 @@ impl EvoState {
         z: &[f32],
         source: &mut dyn ObservationSource,
     ) -> Result<Step, EvoError> {
-        self.forward_impl(t, z, Some(source))
+        let mut step = Step::empty();
+        self.forward_into(t, z, Some(source), &mut step)?;
+        Ok(step)
     }
 
-    fn forward_impl(
+    /// The forward pass into an existing [`Step`], reusing its buffers (a training loop that
+    /// keeps one step avoids reallocating, and page-faulting, tens of MB per step). On error
+    /// the step is left empty and cannot be committed.
+    pub fn forward_into(
         &self,
         t: f32,
         z: &[f32],
         source: Option<&mut dyn ObservationSource>,
-    ) -> Result<Step, EvoError> {
+        step: &mut Step,
+    ) -> Result<(), EvoError> {
+        // Until this pass succeeds, the step belongs to no frame and no generation.
+        step.frame = None;
+        step.generation = u64::MAX;
+        step.rows = 0;
+        let mut corrected = std::mem::take(&mut step.corrected);
+        let mut prior = step.prior.take().unwrap_or_default();
+        let mut memory_next = step.memory_next.take().unwrap_or_default();
+        let mut stats = step.stats.take().unwrap_or_default();
+        let mut psi_cache = step.psi_cache.take().unwrap_or_default();
+        let mut inputs = std::mem::take(&mut step.scratch);
+        step.gains = Gains::Observation;
         let dim = self.dim();
         let n = self.rows;
         if !t.is_finite() {
@@ -231,22 +245,19 @@ impl EvoState {
                 len: 0,
             }
         };
-        let mut step = Step {
-            time: t,
-            frame,
-            history,
-            rows: n,
-            generation: self.generation,
-            corrected: Vec::new(),
-            prior: None,
-            gains: Gains::Observation,
-            stats: None,
-            psi_cache: None,
-            memory_next: None,
+        let finish = |step: &mut Step| {
+            step.time = t;
+            step.frame = frame;
+            step.history = history;
+            step.rows = n;
+            step.generation = self.generation;
         };
         if history.len <= 1 {
-            step.corrected = z.to_vec();
-            return Ok(step);
+            corrected.clear();
+            corrected.extend_from_slice(z);
+            step.corrected = corrected;
+            finish(step);
+            return Ok(());
         }
 
         // History blocks: from the buffer, or re-queried.
@@ -287,12 +298,13 @@ impl EvoState {
         };
 
         let width = dim + 3;
-        let mut prior = vec![0.0f32; n * dim];
-        let mut memory_next = vec![0.0f32; n * dim];
+        // Every element of these is written below; resizing only sets the length.
+        prior.resize(n * dim, 0.0);
+        memory_next.resize(n * dim, 0.0);
         let full = history.len == 3;
         let stats_rows = if full { n } else { 0 };
-        let mut stats = vec![Stats::default(); stats_rows];
-        let mut inputs = vec![0.0f32; stats_rows * width];
+        stats.resize(stats_rows, Stats::default());
+        inputs.resize(stats_rows * width, 0.0);
         if full {
             prior
                 .par_chunks_mut(CHUNK * dim)
@@ -333,18 +345,17 @@ impl EvoState {
                 });
         }
 
-        let mut psi_cache = None;
+        let mut used_psi = false;
         let gains = match (history.len, self.config.gain) {
             (2, _) => Gains::Uniform(WARMUP_GAIN),
             (_, Gain::Fixed(k)) => Gains::Uniform(k),
             (_, Gain::Learned) => {
-                let (k, cache) = self.psi.forward(&inputs, n)?;
-                psi_cache = Some(cache);
-                Gains::Learned(k)
+                used_psi = true;
+                Gains::Learned(self.psi.forward_reusing(&inputs, n, &mut psi_cache)?)
             }
         };
 
-        let mut corrected = vec![0.0f32; n * dim];
+        corrected.resize(n * dim, 0.0);
         corrected
             .par_chunks_mut(CHUNK * dim)
             .zip(prior.par_chunks(CHUNK * dim))
@@ -367,95 +378,12 @@ impl EvoState {
         step.corrected = corrected;
         step.prior = Some(prior);
         step.memory_next = Some(memory_next);
-        if full {
-            step.stats = Some(stats);
-        }
-        step.psi_cache = psi_cache;
+        step.stats = full.then_some(stats);
+        step.psi_cache = used_psi.then_some(psi_cache);
+        step.scratch = inputs;
         step.gains = gains;
-        Ok(step)
-    }
-
-    /// Backward pass: from dL_render/dd̃ (`dl_dd`, N × D) and the (stop-gradient) opacities
-    /// (N, activated), the gradients of `L_render + λ1 L_sup + λ2 L_prior` with respect to z
-    /// and to Ψ's parameters. d̂ and Ψ's inputs are constants.
-    pub fn backward(
-        &self,
-        step: &Step,
-        z: &[f32],
-        dl_dd: &[f32],
-        opacity: &[f32],
-    ) -> Result<Backward, EvoError> {
-        let dim = self.dim();
-        let n = step.rows;
-        Self::check_len("observation z", z, n * dim)?;
-        Self::check_len("render gradient dL/dd", dl_dd, n * dim)?;
-        Self::check_len("opacity", opacity, n)?;
-        Self::check_finite("observation z", z, dim)?;
-        Self::check_finite("render gradient dL/dd", dl_dd, dim)?;
-        Self::check_finite("opacity", opacity, 1)?;
-        let Some(prior) = step.prior.as_deref() else {
-            // d̃ = z: no EvoGS loss, identity Jacobian.
-            return Ok(Backward {
-                dz: dl_dd.to_vec(),
-                dpsi: None,
-                losses: Losses::default(),
-            });
-        };
-        let inv_n = 1.0 / n.max(1) as f64;
-        let l1 = self.config.lambda_sup as f64;
-        let l2 = self.config.lambda_prior as f64;
-        let learned = matches!(step.gains, Gains::Learned(_));
-        let mut dz = vec![0.0f32; n * dim];
-        let mut dk = vec![0.0f32; if learned { n } else { 0 }];
-        let dk_chunks: Vec<&mut [f32]> = if learned {
-            dk.chunks_mut(CHUNK).collect()
-        } else {
-            Vec::new()
-        };
-        let mut dk_iter = dk_chunks.into_iter();
-        let chunk_count = n.div_ceil(CHUNK);
-        let dk_slots: Vec<Option<&mut [f32]>> = (0..chunk_count).map(|_| dk_iter.next()).collect();
-        let partial: Vec<(f64, f64)> = dz
-            .par_chunks_mut(CHUNK * dim)
-            .zip(dk_slots.into_par_iter())
-            .enumerate()
-            .map(|(c, (dz, mut dk))| {
-                let (mut sup, mut pri) = (0.0f64, 0.0f64);
-                for r in 0..dz.len() / dim {
-                    let i = c * CHUNK + r;
-                    let k = step.gains.at(i) as f64;
-                    let op = opacity[i] as f64;
-                    let mut dki = 0.0f64;
-                    for j in 0..dim {
-                        let e = i * dim + j;
-                        let (zv, pv, dv) = (z[e] as f64, prior[e] as f64, step.corrected[e] as f64);
-                        let res = dv - zv;
-                        sup += res * res;
-                        pri += op * (pv - zv) * (pv - zv);
-                        let g = dl_dd[e] as f64 + l1 * 2.0 * inv_n * res;
-                        dz[r * dim + j] =
-                            fin(g * k - l1 * 2.0 * inv_n * res + l2 * 2.0 * inv_n * op * (zv - pv));
-                        dki += g * (zv - pv);
-                    }
-                    if let Some(dk) = dk.as_deref_mut() {
-                        dk[r] = fin(dki);
-                    }
-                }
-                (sup, pri)
-            })
-            .collect();
-        let (sup, pri) = partial
-            .iter()
-            .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
-        let losses = Losses {
-            sup: sup * inv_n,
-            prior: pri * inv_n,
-        };
-        let dpsi = match (learned, &step.psi_cache) {
-            (true, Some(cache)) => Some(self.psi.backward(cache, &dk)?),
-            _ => None,
-        };
-        Ok(Backward { dz, dpsi, losses })
+        finish(step);
+        Ok(())
     }
 
     /// Commits a training step at a frame time: writes d̃ to the frame's buffer block, marks
@@ -495,70 +423,5 @@ impl EvoState {
         self.rows = plan.new_len();
         self.generation += 1;
         Ok(())
-    }
-}
-
-impl RowContext<'_> {
-    /// Prior, next memory and (h = 3) statistics and Ψ inputs of row `i`.
-    #[inline]
-    fn row(
-        &self,
-        i: usize,
-        z: &[f32],
-        prior: &mut [f32],
-        memory_next: &mut [f32],
-        full: Option<(&mut Stats, &mut [f32])>,
-    ) {
-        const MAX_DIM: usize = 14;
-        let d = self.dim;
-        let mut h = [[0.0f64; MAX_DIM]; 3];
-        for (slot, block) in h.iter_mut().zip(self.history) {
-            block.read_row(i, &mut slot[..d]);
-        }
-        let m_old = &self.memory[i * d..(i + 1) * d];
-        for j in 0..d {
-            let p = fin(h[0][j] + self.s * (h[0][j] - h[1][j]));
-            prior[j] = p;
-            memory_next[j] =
-                fin(self.beta * m_old[j] as f64 + (1.0 - self.beta) * (z[j] as f64 - p as f64));
-        }
-        let Some((stats, inputs)) = full else { return };
-        let [k1, k2, k3] = self.frames;
-        let (mut n1, mut n2, mut dot) = (0.0f64, 0.0f64, 0.0f64);
-        if let Some(pos) = &self.position {
-            for j in pos.clone() {
-                let v1 = (h[0][j] - h[1][j]) / (k1 - k2) as f64;
-                let v2 = (h[1][j] - h[2][j]) / (k2 - k3) as f64;
-                n1 += v1 * v1;
-                n2 += v2 * v2;
-                dot += v1 * v2;
-            }
-        }
-        let (n1, n2) = (n1.sqrt(), n2.sqrt());
-        let theta = if n1 < self.floor || n2 < self.floor || !(n1 * n2).is_finite() {
-            // Below the motion floor a Gaussian moves consistently; beyond f64 range (only with
-            // absurd states) the angle is not measurable and counts as consistent too.
-            0.0
-        } else {
-            (dot / (n1 * n2 + THETA_EPS)).clamp(-1.0, 1.0).acos()
-        };
-        *stats = Stats {
-            speed_prev: fin(n2),
-            speed_last: fin(n1),
-            theta: theta as f32,
-        };
-        let clamp = |x: f64| (x.clamp(-(PSI_INPUT_CLAMP as f64), PSI_INPUT_CLAMP as f64)) as f32;
-        for j in 0..d {
-            let in_scene_units = self.position.as_ref().is_some_and(|p| p.contains(&j));
-            let scale = if in_scene_units {
-                1.0 / self.extent
-            } else {
-                1.0
-            };
-            inputs[j] = clamp(memory_next[j] as f64 * scale);
-        }
-        inputs[d] = clamp(n2 / self.extent);
-        inputs[d + 1] = clamp(n1 / self.extent);
-        inputs[d + 2] = theta as f32;
     }
 }

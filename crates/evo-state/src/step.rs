@@ -50,9 +50,33 @@ pub struct Step {
     pub(crate) stats: Option<Vec<Stats>>,
     pub(crate) psi_cache: Option<tiny_nn::MlpCache>,
     pub(crate) memory_next: Option<Vec<f32>>,
+    /// Ψ's inputs of the last pass, kept only so the next pass can reuse the allocation.
+    pub(crate) scratch: Vec<f32>,
 }
 
 impl Step {
+    /// A step holding nothing, to be filled by [`crate::EvoState::forward_into`]. It cannot be
+    /// committed.
+    pub fn empty() -> Self {
+        Self {
+            time: 0.0,
+            frame: None,
+            history: History {
+                frames: [0; 3],
+                len: 0,
+            },
+            rows: 0,
+            generation: u64::MAX,
+            corrected: Vec::new(),
+            prior: None,
+            gains: Gains::Observation,
+            stats: None,
+            psi_cache: None,
+            memory_next: None,
+            scratch: Vec::new(),
+        }
+    }
+
     /// The query time.
     pub fn time(&self) -> f32 {
         self.time

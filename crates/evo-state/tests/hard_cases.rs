@@ -226,3 +226,32 @@ proptest! {
         prop_assert!(step.corrected().iter().all(|v| v.is_finite()));
     }
 }
+
+/// Zero and one Gaussian, including pruning every row mid-training.
+#[test]
+fn zero_and_one_gaussian() {
+    for rows in [0usize, 1] {
+        let mut st = state(EvoConfig::default(), uniform_frames(6), rows);
+        let d = st.dim();
+        for k in 0..5 {
+            let z = vec![k as f32; rows * d];
+            let step = train(&mut st, k, &z);
+            let back = st
+                .backward(&step, &z, &vec![0.1; rows * d], &vec![1.0; rows])
+                .unwrap();
+            assert_eq!(back.dz.len(), rows * d);
+            assert!(back.losses.sup.is_finite() && back.losses.prior.is_finite());
+            assert!(back.dpsi.iter().flatten().all(|g| g.is_finite()));
+        }
+    }
+    let mut st = state(EvoConfig::default(), uniform_frames(6), 3);
+    let d = st.dim();
+    for k in 0..4 {
+        train(&mut st, k, &vec![k as f32; 3 * d]);
+    }
+    st.apply_rows(&RowPlan::prune(&[false, false, false]))
+        .unwrap();
+    assert_eq!((st.rows(), st.memory().len(), st.buffer_bytes()), (0, 0, 0));
+    let step = train(&mut st, 4, &[]);
+    assert_eq!(step.history().len, 3);
+}

@@ -239,3 +239,84 @@ fn evolution_off_is_the_baseline() {
     assert_eq!(step.corrected(), &z[..]);
     assert_eq!(step.history().len, 0);
 }
+
+/// The buffer holds exactly 4·D (f32) or 2·D (f16) bytes per Gaussian per frame, as the
+/// configuration predicts, and nothing without a buffer.
+#[test]
+fn buffer_memory_matches_the_configuration() {
+    for config in [
+        EvoConfig::default(),
+        EvoConfig {
+            storage: Storage::F16,
+            ..EvoConfig::default()
+        },
+        EvoConfig {
+            history: HistoryMode::Requery,
+            ..EvoConfig::default()
+        },
+        EvoConfig {
+            evolution: false,
+            ..EvoConfig::default()
+        },
+    ] {
+        let st = state(config, uniform_frames(7), 11);
+        assert_eq!(st.buffer_bytes(), config.buffer_bytes(11, 7));
+        if st.buffer().is_some() {
+            assert_eq!(
+                st.buffer_bytes(),
+                11 * 7 * st.dim() * config.storage.bytes()
+            );
+        }
+    }
+}
+
+/// Reusing one step and one backward across frames, stages and row counts gives exactly what
+/// fresh ones give; a failed pass leaves a step that cannot be committed.
+#[test]
+fn reused_steps_match_fresh_ones() {
+    let mut fresh = state(EvoConfig::default(), uniform_frames(8), 5);
+    let mut reused = fresh.clone();
+    let mut step = evo_state::Step::empty();
+    let mut back = evo_state::Backward {
+        dz: vec![],
+        dpsi: None,
+        losses: Default::default(),
+    };
+    for k in 0..7 {
+        if k == 5 {
+            let plan = RowPlan {
+                kept: vec![0, 2, 3, 4],
+                parent_from_new: vec![1, 1, 3],
+            };
+            fresh.apply_rows(&plan).unwrap();
+            reused.apply_rows(&plan).unwrap();
+        }
+        let (n, d) = (fresh.rows(), fresh.dim());
+        let z: Vec<f32> = (0..n * d)
+            .map(|e| ((e * 5 + k) % 9) as f32 * 0.3 - k as f32 * 0.1)
+            .collect();
+        let g: Vec<f32> = (0..n * d).map(|e| (e % 4) as f32 * 0.01).collect();
+        let t = fresh.frames().times()[k];
+        let a = fresh.forward(t, &z).unwrap();
+        reused.forward_into(t, &z, None, &mut step).unwrap();
+        assert_eq!(a.corrected(), step.corrected());
+        assert_eq!(a.prior(), step.prior());
+        assert_eq!(a.gains(), step.gains());
+        assert_eq!(a.stats(), step.stats());
+        let ba = fresh.backward(&a, &z, &g, &vec![0.7; n]).unwrap();
+        reused
+            .backward_into(&step, &z, &g, &vec![0.7; n], &mut back)
+            .unwrap();
+        assert_eq!(ba, back);
+        fresh.commit(&a).unwrap();
+        reused.commit(&step).unwrap();
+        assert_eq!(fresh, reused);
+    }
+    let bad = vec![f32::NAN; reused.rows() * reused.dim()];
+    assert!(
+        reused
+            .forward_into(reused.frames().times()[7], &bad, None, &mut step)
+            .is_err()
+    );
+    assert!(reused.commit(&step).is_err());
+}

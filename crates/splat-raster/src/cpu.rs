@@ -17,6 +17,7 @@ use crate::options::{CullStats, RenderOptions};
 use crate::output::{BackwardState, ForwardOutput, Gradients};
 use crate::project::{self, CullReason, Frame, Splat, SplatGrad, TILE};
 use crate::tiles;
+use crate::validate::{check_pixels, validate};
 
 /// The CPU rasterizer. By default it runs on rayon's global pool.
 #[derive(Clone, Debug, Default)]
@@ -52,79 +53,6 @@ impl CpuRasterizer {
     }
 }
 
-/// Checks the inputs and returns the active SH degree.
-fn validate(g: &GaussiansView<'_>, cam: &Camera, opts: &RenderOptions) -> Result<u32, RasterError> {
-    if g.sh_degree > 3 {
-        return Err(RasterError::ShDegree(g.sh_degree));
-    }
-    let n = g.len();
-    let checks = [
-        ("log_scales", g.log_scales.len(), n),
-        ("rotations", g.rotations.len(), n),
-        ("opacity_logits", g.opacity_logits.len(), n),
-        ("sh", g.sh.len(), n * g.sh_stride()),
-    ];
-    for (field, got, expected) in checks {
-        if got != expected {
-            return Err(RasterError::LengthMismatch {
-                field,
-                got,
-                expected,
-            });
-        }
-    }
-    if n > u32::MAX as usize {
-        return Err(RasterError::LengthMismatch {
-            field: "means",
-            got: n,
-            expected: u32::MAX as usize,
-        });
-    }
-    let active = opts.sh_degree.unwrap_or(g.sh_degree);
-    if active > g.sh_degree {
-        return Err(RasterError::ActiveShDegree {
-            requested: active,
-            available: g.sh_degree,
-        });
-    }
-    if cam.width == 0 || cam.height == 0 {
-        return Err(RasterError::EmptyImage {
-            width: cam.width,
-            height: cam.height,
-        });
-    }
-    for (field, value) in [("fx", cam.fx), ("fy", cam.fy)] {
-        if !(value.is_finite() && value > 0.0) {
-            return Err(RasterError::BadCamera {
-                field,
-                value,
-                why: "must be finite and positive",
-            });
-        }
-    }
-    let finite = [
-        ("cx", vec![cam.cx]),
-        ("cy", vec![cam.cy]),
-        ("rotation", cam.rotation.to_cols_array().to_vec()),
-        ("translation", cam.translation.to_array().to_vec()),
-    ];
-    for (field, values) in finite {
-        if let Some(&value) = values.iter().find(|v| !v.is_finite()) {
-            return Err(RasterError::BadCamera {
-                field,
-                value,
-                why: "must be finite",
-            });
-        }
-    }
-    for (channel, &value) in opts.background.iter().enumerate() {
-        if !value.is_finite() {
-            return Err(RasterError::BadBackground { channel, value });
-        }
-    }
-    Ok(active)
-}
-
 fn count(stats: &mut CullStats, reason: CullReason) {
     match reason {
         CullReason::NonFinite => stats.non_finite += 1,
@@ -143,25 +71,6 @@ fn tile_lane(frame: &Frame, x: usize, y: usize) -> (usize, usize) {
         (y / t) * frame.tiles_x as usize + x / t,
         (y % t) * t + x % t,
     )
-}
-
-fn check_pixels<T: Copy>(
-    field: &'static str,
-    data: &[T],
-    expected: usize,
-    finite: impl Fn(T) -> bool,
-) -> Result<(), RasterError> {
-    if data.len() != expected {
-        return Err(RasterError::GradientLength {
-            field,
-            got: data.len(),
-            expected,
-        });
-    }
-    match data.iter().position(|&v| !finite(v)) {
-        Some(pixel) => Err(RasterError::NonFiniteGradient { field, pixel }),
-        None => Ok(()),
-    }
 }
 
 impl CpuRasterizer {

@@ -12,7 +12,17 @@
 //! - `d = pixel centre − projected mean` in `σ`; the 2D-mean gradient is dL/d(u, v) in pixels;
 //! - the 0.99 alpha cap and the `max(·, 0)` colour clamp pass zero gradient where active;
 //! - the screen radius is `3·sqrt(λ_max(Σ2d))` pixels (3DGS convention);
-//! - a pixel's loop stops at the first Gaussian that would take `T` below `1e-4` (not blended).
+//! - per-Gaussian geometry (covariance, Jacobian, `Σ2d`, conic) and its backward run in f64, since
+//!   `det(Σ2d)` of thin Gaussians cancels badly in f32; per-pixel work runs in f32;
+//! - a pixel's loop stops at the first Gaussian that would take `T` below `1e-4` (not blended);
+//! - tiles are 16×16; a Gaussian is listed in a tile only if its opacity-aware ellipse
+//!   (`σ <= ln(255·o)`, with a small safety margin) reaches a pixel centre of the tile, and only
+//!   the pixels of its bounding box are visited, so results equal the per-pixel definition.
+//!
+//! Memory of the backward pass is bounded as in 3DGS: per pixel the final transmittance and the
+//! position of the last contributor, per tile the depth-sorted list; the backward walks each
+//! pixel back to front recovering `T` by division. Results do not depend on the thread count:
+//! tiles are composited independently, and per-entry gradients are reduced in a fixed order.
 //!
 //! What it is not: a trainer, an optimiser, a file reader or a deformation model. Those live in
 //! other crates of the workspace and hand this crate slices.
@@ -27,6 +37,7 @@ mod output;
 mod project;
 pub mod sh;
 mod tiles;
+mod validate;
 
 pub use camera::Camera;
 pub use cpu::CpuRasterizer;

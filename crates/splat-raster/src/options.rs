@@ -23,9 +23,11 @@ impl Default for RenderOptions {
 
 /// How many Gaussians a forward pass drew and why the others were culled.
 ///
-/// Every Gaussian is counted once, under the first reason that applies, checked in this order:
+/// Every Gaussian is counted once, under the first reason found; the checks run in the order
 /// non-finite input, zero quaternion, low opacity, behind the near plane, degenerate covariance,
-/// off screen. `total = drawn + (sum of the culled counts)`.
+/// off screen. Two computed cases are folded in: a camera-space position or projected mean that
+/// overflows `f32` counts as off screen, and an SH colour above `MAX_COLOR` counts as non-finite.
+/// `total = drawn + (sum of the culled counts)`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct CullStats {
     /// Gaussians in the input.
@@ -41,7 +43,8 @@ pub struct CullStats {
     pub low_opacity: usize,
     /// Camera-space `z <= 0.01`.
     pub behind_near_plane: usize,
-    /// `det(Σ2d) <= 0`, or the covariance overflowed `f32`.
+    /// `det(Σ2d) <= 0`, the covariance overflowed (it is computed in f64), or its conic does not
+    /// fit `f32`.
     pub degenerate_covariance: usize,
     /// The opacity-aware extent touches no pixel of the image (or the projection overflowed).
     pub off_screen: usize,

@@ -1,7 +1,7 @@
 //! Per-Gaussian work of SPEC §3: activation, culling, covariance projection with the clamped
 //! Jacobian and 0.3 dilation, conic, opacity-aware screen extent, SH colour; and its backward pass.
 
-use glam::{Mat3, Vec3};
+use glam::{DMat3, DVec3, Vec3};
 
 use crate::camera::Camera;
 use crate::gaussians::GaussiansView;
@@ -36,20 +36,23 @@ pub(crate) enum CullReason {
     OffScreen,
 }
 
-/// Camera quantities shared by every Gaussian of a frame.
+/// Camera quantities shared by every Gaussian of a frame. The per-Gaussian geometry runs in
+/// f64 (it is cheap, and `det(Σ2d)` of thin Gaussians cancels badly in f32); per-pixel work runs
+/// in f32 on the resulting [`Splat`].
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Frame {
-    pub fx: f32,
-    pub fy: f32,
-    pub cx: f32,
-    pub cy: f32,
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
     pub width: u32,
     pub height: u32,
     /// Clamp range of x/z and y/z for the Jacobian.
-    pub lim_x: [f32; 2],
-    pub lim_y: [f32; 2],
-    pub w: Mat3,
-    pub t: Vec3,
+    pub lim_x: [f64; 2],
+    pub lim_y: [f64; 2],
+    pub w: DMat3,
+    pub t: DVec3,
+    /// Camera centre (f32: the SH view direction is computed in f32).
     pub center: Vec3,
     pub tiles_x: u32,
     pub tiles_y: u32,
@@ -57,25 +60,22 @@ pub(crate) struct Frame {
 
 impl Frame {
     pub fn new(cam: &Camera) -> Self {
-        let tan_x = 0.5 * cam.width as f32 / cam.fx;
-        let tan_y = 0.5 * cam.height as f32 / cam.fy;
+        let (fx, fy) = (f64::from(cam.fx), f64::from(cam.fy));
+        let (cx, cy) = (f64::from(cam.cx), f64::from(cam.cy));
+        let (width, height) = (f64::from(cam.width), f64::from(cam.height));
+        let tan_x = 0.5 * width / fx;
+        let tan_y = 0.5 * height / fy;
         Self {
-            fx: cam.fx,
-            fy: cam.fy,
-            cx: cam.cx,
-            cy: cam.cy,
+            fx,
+            fy,
+            cx,
+            cy,
             width: cam.width,
             height: cam.height,
-            lim_x: [
-                -(cam.cx / cam.fx + 0.3 * tan_x),
-                (cam.width as f32 - cam.cx) / cam.fx + 0.3 * tan_x,
-            ],
-            lim_y: [
-                -(cam.cy / cam.fy + 0.3 * tan_y),
-                (cam.height as f32 - cam.cy) / cam.fy + 0.3 * tan_y,
-            ],
-            w: cam.rotation,
-            t: cam.translation,
+            lim_x: [-(cx / fx + 0.3 * tan_x), (width - cx) / fx + 0.3 * tan_x],
+            lim_y: [-(cy / fy + 0.3 * tan_y), (height - cy) / fy + 0.3 * tan_y],
+            w: cam.rotation.as_dmat3(),
+            t: cam.translation.as_dvec3(),
             center: cam.center(),
             tiles_x: cam.width.div_ceil(TILE),
             tiles_y: cam.height.div_ceil(TILE),
@@ -188,20 +188,20 @@ impl Raw<'_> {
 }
 
 /// Rotation matrix of a unit quaternion `w, x, y, z`.
-fn rotation(q: [f32; 4]) -> Mat3 {
+fn rotation(q: [f64; 4]) -> DMat3 {
     let [w, x, y, z] = q;
-    Mat3::from_cols(
-        Vec3::new(
+    DMat3::from_cols(
+        DVec3::new(
             1.0 - 2.0 * (y * y + z * z),
             2.0 * (x * y + w * z),
             2.0 * (x * z - w * y),
         ),
-        Vec3::new(
+        DVec3::new(
             2.0 * (x * y - w * z),
             1.0 - 2.0 * (x * x + z * z),
             2.0 * (y * z + w * x),
         ),
-        Vec3::new(
+        DVec3::new(
             2.0 * (x * z + w * y),
             2.0 * (y * z - w * x),
             1.0 - 2.0 * (x * x + y * y),
@@ -215,26 +215,26 @@ fn sigmoid(x: f32) -> f32 {
 
 /// Intermediate values of one Gaussian's projection, shared by forward and backward.
 struct Geometry {
-    qn: [f32; 4],
-    q_norm: f32,
-    rot: Mat3,
-    scale: Vec3,
+    qn: [f64; 4],
+    q_norm: f64,
+    rot: DMat3,
+    scale: DVec3,
     /// `M = R S`.
-    m: Mat3,
+    m: DMat3,
     /// Camera-space covariance `W Σ Wᵀ`.
-    sigma_cam: Mat3,
-    p: Vec3,
+    sigma_cam: DMat3,
+    p: DVec3,
     /// Jacobian rows.
-    j0: Vec3,
-    j1: Vec3,
+    j0: DVec3,
+    j1: DVec3,
     /// Clamped x/z and y/z used in the Jacobian, and whether the clamp was active.
-    rxc: f32,
-    ryc: f32,
+    rxc: f64,
+    ryc: f64,
     clamped_x: bool,
     clamped_y: bool,
     /// Σ2d entries (A, B, C).
-    cov2d: [f32; 3],
-    det: f32,
+    cov2d: [f64; 3],
+    det: f64,
     opacity: f32,
 }
 
@@ -242,30 +242,27 @@ fn geometry(frame: &Frame, r: &Raw<'_>) -> Result<Geometry, CullReason> {
     if !r.all_finite() {
         return Err(CullReason::NonFinite);
     }
-    let n2 = r.q.iter().map(|v| v * v).sum::<f32>();
-    if n2 < QUAT_NORM2_MIN {
+    let q = r.q.map(f64::from);
+    let n2 = q.iter().map(|v| v * v).sum::<f64>();
+    if n2 < f64::from(QUAT_NORM2_MIN) {
         return Err(CullReason::ZeroQuaternion);
     }
     let opacity = sigmoid(r.logit);
     if opacity < ALPHA_MIN {
         return Err(CullReason::LowOpacity);
     }
-    let p = frame.w * r.mean + frame.t;
+    let p = frame.w * r.mean.as_dvec3() + frame.t;
     if !p.is_finite() {
         return Err(CullReason::OffScreen);
     }
-    if p.z <= NEAR_PLANE {
+    if p.z <= f64::from(NEAR_PLANE) {
         return Err(CullReason::BehindNearPlane);
     }
-    // Normalise via the largest component so that |q|² overflowing f32 does no harm.
-    let q_max = r.q.iter().fold(0.0f32, |m, v| m.max(v.abs()));
-    let q_scaled = r.q.map(|v| v / q_max);
-    let scaled_norm = q_scaled.iter().map(|v| v * v).sum::<f32>().sqrt();
-    let q_norm = q_max * scaled_norm;
-    let qn = q_scaled.map(|v| v / scaled_norm);
+    let q_norm = n2.sqrt();
+    let qn = q.map(|v| v / q_norm);
     let rot = rotation(qn);
-    let scale = r.log_scale.exp();
-    let m = rot * Mat3::from_diagonal(scale);
+    let scale = r.log_scale.as_dvec3().exp();
+    let m = rot * DMat3::from_diagonal(scale);
     let sigma = m * m.transpose();
     let sigma_cam = frame.w * sigma * frame.w.transpose();
     let z = p.z;
@@ -273,11 +270,12 @@ fn geometry(frame: &Frame, r: &Raw<'_>) -> Result<Geometry, CullReason> {
     let ry = p.y / z;
     let rxc = rx.clamp(frame.lim_x[0], frame.lim_x[1]);
     let ryc = ry.clamp(frame.lim_y[0], frame.lim_y[1]);
-    let j0 = Vec3::new(frame.fx / z, 0.0, -frame.fx * rxc / z);
-    let j1 = Vec3::new(0.0, frame.fy / z, -frame.fy * ryc / z);
+    let j0 = DVec3::new(frame.fx / z, 0.0, -frame.fx * rxc / z);
+    let j1 = DVec3::new(0.0, frame.fy / z, -frame.fy * ryc / z);
     let s0 = sigma_cam * j0;
     let s1 = sigma_cam * j1;
-    let cov2d = [j0.dot(s0) + DILATION, j0.dot(s1), j1.dot(s1) + DILATION];
+    let dilation = f64::from(DILATION);
+    let cov2d = [j0.dot(s0) + dilation, j0.dot(s1), j1.dot(s1) + dilation];
     let det = cov2d[0] * cov2d[2] - cov2d[1] * cov2d[1];
     if !det.is_finite() || det <= 0.0 || !cov2d.iter().all(|v| v.is_finite()) {
         return Err(CullReason::DegenerateCovariance);
@@ -312,26 +310,35 @@ pub(crate) fn project(
     let r = raw(g, i);
     let geo = geometry(frame, &r)?;
     let p = geo.p;
-    let u = frame.fx * p.x / p.z + frame.cx;
-    let v = frame.fy * p.y / p.z + frame.cy;
-    if !u.is_finite() || !v.is_finite() {
-        return Err(CullReason::OffScreen);
-    }
+    let u_f64 = frame.fx * p.x / p.z + frame.cx;
+    let v_f64 = frame.fy * p.y / p.z + frame.cy;
     let [ca, cb, cc] = geo.cov2d;
     let det = geo.det;
-    let (a, b, c) = (cc / det, -cb / det, ca / det);
+    let (u, v, z) = (u_f64 as f32, v_f64 as f32, p.z as f32);
+    let (a, b, c) = ((cc / det) as f32, (-cb / det) as f32, (ca / det) as f32);
+    if ![u, v, z].iter().all(|x| x.is_finite()) {
+        return Err(CullReason::OffScreen);
+    }
+    if ![a, b, c].iter().all(|x| x.is_finite()) {
+        return Err(CullReason::DegenerateCovariance);
+    }
     // α >= 1/255 needs o·exp(-σ) >= 1/255, i.e. σ <= ln(255 o). The ellipse dᵀ Σ2d⁻¹ d <= 2 s
     // spans ±sqrt(2 s Σ2d_xx) in x and ±sqrt(2 s Σ2d_yy) in y. A relative margin and a small
     // absolute one keep the bound safe under f32 rounding of σ and exp.
     let s_max = (255.0 * geo.opacity).ln().max(0.0);
     let sigma_cut = s_max * 1.001 + 1e-3;
-    let ext_x = (2.0 * sigma_cut * ca).sqrt() + 1e-2;
-    let ext_y = (2.0 * sigma_cut * cc).sqrt() + 1e-2;
+    let ext_x = (2.0 * f64::from(sigma_cut) * ca).sqrt() + 1e-2;
+    let ext_y = (2.0 * f64::from(sigma_cut) * cc).sqrt() + 1e-2;
     // Pixels i whose centre i + 0.5 lies within [u - ext, u + ext].
-    let x_lo = (u - ext_x - 0.5).ceil().max(0.0);
-    let x_hi = (u + ext_x - 0.5).floor().min(frame.width as f32 - 1.0);
-    let y_lo = (v - ext_y - 0.5).ceil().max(0.0);
-    let y_hi = (v + ext_y - 0.5).floor().min(frame.height as f32 - 1.0);
+    let (u_px, v_px) = (f64::from(u), f64::from(v));
+    let x_lo = (u_px - ext_x - 0.5).ceil().max(0.0);
+    let x_hi = (u_px + ext_x - 0.5)
+        .floor()
+        .min(f64::from(frame.width) - 1.0);
+    let y_lo = (v_px - ext_y - 0.5).ceil().max(0.0);
+    let y_hi = (v_px + ext_y - 0.5)
+        .floor()
+        .min(f64::from(frame.height) - 1.0);
     if !(x_lo <= x_hi && y_lo <= y_hi) {
         return Err(CullReason::OffScreen);
     }
@@ -343,7 +350,7 @@ pub(crate) fn project(
     ];
     let mid = 0.5 * (ca + cc);
     let lambda_max = mid + (mid * mid - det).max(0.0).sqrt();
-    let radius = 3.0 * lambda_max.sqrt();
+    let radius = (3.0 * lambda_max.sqrt()) as f32;
     let rgb = color(frame, r.mean, r.sh, active_degree).0;
     if !rgb.iter().all(|c| c.is_finite() && *c <= MAX_COLOR) {
         return Err(CullReason::NonFinite);
@@ -357,7 +364,7 @@ pub(crate) fn project(
         opacity: geo.opacity,
         sigma_cut,
         rgb,
-        z: p.z,
+        z,
         bbox: [x_lo as u32, y_lo as u32, x_hi as u32, y_hi as u32],
     };
     let touches_any = (tiles[1]..=tiles[3])
@@ -425,12 +432,12 @@ pub(crate) struct RawGrad {
     pub logit: f32,
 }
 
-fn at(m: &Mat3, i: usize, j: usize) -> f32 {
+fn at(m: &DMat3, i: usize, j: usize) -> f64 {
     m.col(j)[i]
 }
 
-fn outer(a: Vec3, b: Vec3) -> Mat3 {
-    Mat3::from_cols(a * b.x, a * b.y, a * b.z)
+fn outer(a: DVec3, b: DVec3) -> DMat3 {
+    DMat3::from_cols(a * b.x, a * b.y, a * b.z)
 }
 
 /// Backward of [`project`]: chains the record's gradient to the raw parameters of Gaussian `i`.
@@ -449,18 +456,19 @@ pub(crate) fn project_backward(
     let (fx, fy) = (frame.fx, frame.fy);
     let p = geo.p;
     let z = p.z;
-    let mut dp = Vec3::new(0.0, 0.0, d.z);
+    let (du, dv) = (f64::from(d.u), f64::from(d.v));
+    let mut dp = DVec3::new(0.0, 0.0, f64::from(d.z));
 
     // Projected mean u = fx x/z + cx, v = fy y/z + cy.
-    dp.x += d.u * fx / z;
-    dp.y += d.v * fy / z;
-    dp.z += -d.u * fx * p.x / (z * z) - d.v * fy * p.y / (z * z);
+    dp.x += du * fx / z;
+    dp.y += dv * fy / z;
+    dp.z += -du * fx * p.x / (z * z) - dv * fy * p.y / (z * z);
 
     // Conic Q = Σ2d⁻¹: G_Σ2d = -Q G_Q Q with G_Q = [[ga, gb/2], [gb/2, gc]].
     let [ca, cb, cc] = geo.cov2d;
     let det = geo.det;
     let (qa, qb, qc) = (cc / det, -cb / det, ca / det);
-    let (ga, gb, gc) = (d.a, 0.5 * d.b, d.c);
+    let (ga, gb, gc) = (f64::from(d.a), 0.5 * f64::from(d.b), f64::from(d.c));
     // X = G_Q Q
     let x00 = ga * qa + gb * qb;
     let x01 = ga * qb + gb * qc;
@@ -492,22 +500,22 @@ pub(crate) fn project_backward(
         dp.y += -gj1.z * fy / (z * z);
         dp.z += gj1.z * 2.0 * fy * p.y / (z * z * z);
     }
-    let mut d_mean = frame.w.transpose() * dp;
+    let d_mean64 = frame.w.transpose() * dp;
 
     // Σ_cam = W Σ Wᵀ, Σ = M Mᵀ, M = R S.
     let g_sigma = frame.w.transpose() * g_sc * frame.w;
     let g_m = g_sigma * geo.m * 2.0;
-    let mut g_scale = [0.0f32; 3];
-    let mut g_rot = Mat3::ZERO;
+    let mut g_scale = [0.0f64; 3];
+    let mut g_rot = DMat3::ZERO;
     for (j, gs) in g_scale.iter_mut().enumerate() {
         let col = g_m.col(j);
         *gs = col.dot(geo.rot.col(j));
         *g_rot.col_mut(j) = col * geo.scale[j];
     }
     let log_scale = [
-        g_scale[0] * geo.scale.x,
-        g_scale[1] * geo.scale.y,
-        g_scale[2] * geo.scale.z,
+        (g_scale[0] * geo.scale.x) as f32,
+        (g_scale[1] * geo.scale.y) as f32,
+        (g_scale[2] * geo.scale.z) as f32,
     ];
     let [w, x, y, zq] = geo.qn;
     let gr = |i, j| at(&g_rot, i, j);
@@ -528,8 +536,8 @@ pub(crate) fn project_backward(
             + x * gr(2, 0)
             + y * gr(2, 1)),
     ];
-    let dot = (0..4).map(|k| geo.qn[k] * dqn[k]).sum::<f32>();
-    let q = std::array::from_fn(|k| (dqn[k] - geo.qn[k] * dot) / geo.q_norm);
+    let dot = (0..4).map(|k| geo.qn[k] * dqn[k]).sum::<f64>();
+    let q = std::array::from_fn(|k| ((dqn[k] - geo.qn[k] * dot) / geo.q_norm) as f32);
 
     // Opacity sigmoid.
     let logit = d.opacity * geo.opacity * (1.0 - geo.opacity);
@@ -550,7 +558,7 @@ pub(crate) fn project_backward(
         }
         d_dir += Vec3::from_array(dbasis[k]) * s;
     }
-    d_mean += (d_dir - dir * dir.dot(d_dir)) / len;
+    let d_mean = d_mean64.as_vec3() + (d_dir - dir * dir.dot(d_dir)) / len;
 
     Some(RawGrad {
         mean: d_mean.to_array(),

@@ -41,6 +41,18 @@ fn add_clamped(g: &mut Gaussians, cam: &Camera) {
     g.sh.extend((0..3 * k).map(|i| if i < 3 { 0.4 } else { 0.05 }));
 }
 
+/// What a test scene stresses beyond random small Gaussians.
+#[derive(Clone, Copy, PartialEq)]
+enum Extra {
+    None,
+    /// One Gaussian outside the Jacobian clamp range.
+    Clamp,
+    /// Many overlapping, fairly opaque Gaussians: pixels stop at T < 1e-4.
+    Dense,
+    /// Needle- and disc-like Gaussians (scale ratios up to ~100).
+    Anisotropic,
+}
+
 /// Finds a scene (by seed) with every kink at least `margin` away.
 fn scene(
     seed0: u64,
@@ -48,15 +60,30 @@ fn scene(
     height: u32,
     degree: u32,
     n: usize,
-    clamp: bool,
+    extra: Extra,
 ) -> (u64, Camera, Gaussians) {
+    let dense = extra == Extra::Dense;
     for seed in seed0..seed0 + 200 {
         let mut rng = common::rng(seed);
         let cam = common::random_camera(&mut rng, width, height);
-        let mut g = common::random_gaussians(&mut rng, n, degree, 1.0);
-        // Opacity at most ~0.88 keeps every Gaussian far from the 0.99 cap.
-        if clamp {
+        let mut g = common::random_gaussians(&mut rng, n, degree, if dense { 0.35 } else { 1.0 });
+        // Opacity at most ~0.9 keeps every Gaussian far from the 0.99 cap.
+        if dense {
+            for l in &mut g.opacity_logits {
+                *l = rng.random_range(1.0f32..2.2);
+            }
+        }
+        if extra == Extra::Clamp {
             add_clamped(&mut g, &cam);
+        }
+        if extra == Extra::Anisotropic {
+            for s in &mut g.log_scales {
+                *s = [
+                    rng.random_range(-5.0f32..-3.5),
+                    rng.random_range(-1.5f32..-0.8),
+                    rng.random_range(-3.5f32..-2.0),
+                ];
+            }
         }
         let img = common::render(
             &Params::from(&g),
@@ -64,15 +91,16 @@ fn scene(
             [0.3, 0.2, 0.1],
             degree,
         );
-        if img.margin > 1e-3 && img.drawn == g.len() {
+        // A dense scene must exercise the early stop at T < 1e-4.
+        if img.margin > 1e-3 && img.drawn == g.len() && (!dense || img.stopped > 0) {
             return (seed, cam, g);
         }
     }
     panic!("no scene away from kinks near seed {seed0}");
 }
 
-fn check_gradients(seed0: u64, width: u32, height: u32, degree: u32, n: usize, clamp: bool) {
-    let (seed, cam, g) = scene(seed0, width, height, degree, n, clamp);
+fn check_gradients(seed0: u64, width: u32, height: u32, degree: u32, n: usize, extra: Extra) {
+    let (seed, cam, g) = scene(seed0, width, height, degree, n, extra);
     let mut rng = common::rng(seed ^ 0xabcdef);
     let npix = cam.pixel_count();
     let w = Weights {
@@ -152,26 +180,31 @@ fn check_gradients(seed0: u64, width: u32, height: u32, degree: u32, n: usize, c
 
 #[test]
 fn gradients_match_finite_differences_sh_degree_0() {
-    check_gradients(1000, 29, 23, 0, 8, true);
+    check_gradients(1000, 29, 23, 0, 8, Extra::Clamp);
 }
 
 #[test]
 fn gradients_match_finite_differences_sh_degree_1() {
-    check_gradients(2000, 31, 17, 1, 8, true);
+    check_gradients(2000, 31, 17, 1, 8, Extra::Clamp);
 }
 
 #[test]
 fn gradients_match_finite_differences_sh_degree_2() {
-    check_gradients(3000, 24, 30, 2, 8, false);
+    check_gradients(3000, 24, 30, 2, 8, Extra::None);
 }
 
 #[test]
 fn gradients_match_finite_differences_sh_degree_3() {
-    check_gradients(4000, 33, 21, 3, 8, true);
+    check_gradients(4000, 33, 21, 3, 8, Extra::Clamp);
 }
 
 #[test]
 fn gradients_match_finite_differences_dense_scene() {
     // Dense enough that pixels stop early at T < 1e-4, so the stop path is differentiated too.
-    check_gradients(5000, 20, 18, 1, 40, false);
+    check_gradients(5000, 20, 18, 1, 30, Extra::Dense);
+}
+
+#[test]
+fn gradients_match_finite_differences_anisotropic() {
+    check_gradients(6000, 30, 26, 2, 8, Extra::Anisotropic);
 }

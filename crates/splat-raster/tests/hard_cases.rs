@@ -101,8 +101,12 @@ fn needle_thin_and_huge_gaussians_render_finitely() {
     let (s, grads) = render_all_finite(&concat(&[needle, flat, huge]), &camera());
     assert_eq!(s.drawn, 3, "{s}");
     assert!(grads.radii.iter().all(|&r| r > 0.0));
-    // Overflowing f32 in the covariance is culled, not rendered as NaN.
-    let overflow = one([0.0, 0.0, 5.0], [60.0, 0.0, 0.0], Q, 0.0, 1);
+    // Scales far beyond f32 squares still render (as a flat wash over the image) ...
+    let vast = one([0.0, 0.0, 5.0], [60.0, 0.0, 0.0], Q, 0.0, 1);
+    let (s, _) = render_all_finite(&vast, &camera());
+    assert_eq!(s.drawn, 1, "{s}");
+    // ... and a covariance that overflows even f64 is culled, not rendered as NaN.
+    let overflow = one([0.0, 0.0, 5.0], [400.0, 0.0, 0.0], Q, 0.0, 1);
     let (s, grads) = render_all_finite(&overflow, &camera());
     assert_eq!(s.degenerate_covariance, 1, "{s}");
     assert_eq!(grads.radii[0], 0.0);

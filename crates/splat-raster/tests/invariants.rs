@@ -91,7 +91,7 @@ fn culled_gaussians_change_nothing() {
         ),
         (
             "degenerate",
-            Box::new(|b: &mut Gaussians| b.log_scales[0] = [60.0; 3]),
+            Box::new(|b: &mut Gaussians| b.log_scales[0] = [400.0; 3]),
         ),
         (
             "off_screen",
@@ -207,4 +207,33 @@ fn thread_count_changes_nothing() {
         assert_eq!(f.depth, f1.depth);
         assert_eq!(gr, g1);
     }
+}
+
+#[test]
+fn inactive_sh_bands_get_zero_gradient_and_change_nothing() {
+    let (cam, g, _) = setup(14, 30);
+    let r = CpuRasterizer::new();
+    let opts = RenderOptions {
+        background: [0.5; 3],
+        sh_degree: Some(1),
+    };
+    let (fwd, grads) = run(&r, &g, &cam, &opts);
+    let stride = g.sh_stride();
+    for i in 0..g.len() {
+        let row = &grads.sh[i * stride..(i + 1) * stride];
+        assert!(
+            row[12..].iter().all(|&v| v == 0.0),
+            "Gaussian {i}: bands above 1 must be 0"
+        );
+    }
+    assert!(grads.sh.iter().any(|&v| v != 0.0));
+    // Changing the inactive coefficients changes nothing.
+    let mut h = g.clone();
+    for i in 0..h.len() {
+        for v in &mut h.sh[i * stride + 12..(i + 1) * stride] {
+            *v += 0.7;
+        }
+    }
+    let (fwd2, _) = run(&r, &h, &cam, &opts);
+    assert_eq!(fwd.color, fwd2.color);
 }

@@ -10,10 +10,24 @@ use splat_raster::{CpuRasterizer, Rasterizer, RenderOptions};
 
 const TOL: f64 = 1e-5;
 
-fn check_scene(seed: u64, width: u32, height: u32, degree: u32, active: Option<u32>, n: usize) {
+fn check_scene(
+    seed: u64,
+    width: u32,
+    height: u32,
+    degree: u32,
+    active: Option<u32>,
+    n: usize,
+    dense: bool,
+) -> usize {
     let mut rng = common::rng(seed);
     let cam = common::random_camera(&mut rng, width, height);
-    let g = common::random_gaussians(&mut rng, n, degree, 1.2);
+    let mut g = common::random_gaussians(&mut rng, n, degree, if dense { 0.4 } else { 1.2 });
+    if dense {
+        // Opaque enough to saturate pixels, some beyond the 0.99 cap.
+        for l in &mut g.opacity_logits {
+            *l = rng.random_range(1.0f32..6.0);
+        }
+    }
     let background: [f32; 3] = std::array::from_fn(|_| rng.random_range(-0.5f32..1.5));
     let opts = RenderOptions {
         background,
@@ -62,6 +76,7 @@ fn check_scene(seed: u64, width: u32, height: u32, degree: u32, active: Option<u
         compared * 10 >= out.color.len() * 9,
         "seed {seed}: too many pixels skipped"
     );
+    reference.stopped
 }
 
 #[test]
@@ -71,22 +86,66 @@ fn matches_reference_for_every_sh_degree_and_odd_sizes() {
     for degree in 0..=3 {
         for &(w, h) in &sizes {
             seed += 1;
-            check_scene(seed, w, h, degree, None, 14);
+            check_scene(seed, w, h, degree, None, 14, false);
         }
     }
 }
 
 #[test]
 fn matches_reference_with_fewer_active_bands() {
-    check_scene(100, 41, 30, 3, Some(1), 10);
-    check_scene(101, 41, 30, 2, Some(0), 10);
-    check_scene(102, 41, 30, 3, Some(2), 10);
+    check_scene(100, 41, 30, 3, Some(1), 10, false);
+    check_scene(101, 41, 30, 2, Some(0), 10, false);
+    check_scene(102, 41, 30, 3, Some(2), 10, false);
 }
 
 #[test]
 fn matches_reference_with_many_overlapping_gaussians() {
     // Dense enough that pixels saturate and stop at T < 1e-4.
-    for seed in 200..203 {
-        check_scene(seed, 40, 34, 1, None, 120);
+    let stopped: usize = (200..203)
+        .map(|seed| check_scene(seed, 40, 34, 1, None, 120, true))
+        .sum();
+    assert!(stopped > 20, "only {stopped} pixels reached T < 1e-4");
+}
+
+#[test]
+fn matches_reference_for_needles_and_large_gaussians() {
+    // Strongly anisotropic and large Gaussians: thin needles across the image, flat discs seen
+    // edge-on, and Gaussians larger than the image.
+    for seed in 300..306 {
+        let mut rng = common::rng(seed);
+        let cam = common::random_camera(&mut rng, 45, 38);
+        let mut g = common::random_gaussians(&mut rng, 10, 1, 1.0);
+        for s in &mut g.log_scales {
+            *s = [
+                rng.random_range(-7.0f32..-4.0),
+                rng.random_range(-1.5f32..1.5),
+                rng.random_range(-4.0f32..-1.0),
+            ];
+        }
+        let out = CpuRasterizer::new()
+            .forward(g.view(), &cam, &RenderOptions::default())
+            .unwrap();
+        let reference = common::render(&Params::from(&g), &RefCam::from(&cam), [0.0; 3], 1);
+        let mut compared = 0;
+        for p in 0..out.color.len() {
+            if reference.pixel_margin[p] < 1e-4 {
+                continue;
+            }
+            compared += 1;
+            for ch in 0..3 {
+                let (a, b) = (f64::from(out.color[p][ch]), reference.color[p][ch]);
+                assert!(
+                    (a - b).abs() <= TOL,
+                    "seed {seed} pixel {p} ch {ch}: {a} vs {b}"
+                );
+            }
+            let (a, b) = (f64::from(out.alpha[p]), reference.alpha[p]);
+            assert!(
+                (a - b).abs() <= TOL,
+                "seed {seed} pixel {p} alpha: {a} vs {b}"
+            );
+        }
+        assert!(compared * 10 >= out.color.len() * 9, "seed {seed}");
+        assert!(out.stats.drawn >= 5, "seed {seed}: {}", out.stats);
     }
 }

@@ -140,6 +140,8 @@ pub struct RefImage {
     /// clamp, near plane, opacity cull), and of any pixel (`pixel_margin`).
     pub margin: f64,
     pub drawn: usize,
+    /// Pixels whose loop stopped at `T' < 1e-4`.
+    pub stopped: usize,
 }
 
 const C0: f64 = 0.282_094_791_773_878_14;
@@ -345,6 +347,7 @@ pub fn render(p: &Params, cam: &RefCam, background: [f64; 3], active: u32) -> Re
         pixel_margin: vec![f64::INFINITY; npix],
         margin,
         drawn: list.len(),
+        stopped: 0,
     };
     for py in 0..cam.height {
         for px in 0..cam.width {
@@ -373,6 +376,7 @@ pub fn render(p: &Params, cam: &RefCam, background: [f64; 3], active: u32) -> Re
                 let next = t * (1.0 - alpha);
                 pm = pm.min((next / 1e-4).ln().abs());
                 if next < 1e-4 {
+                    out.stopped += 1;
                     break;
                 }
                 for ch in 0..3 {
