@@ -88,3 +88,49 @@ pub fn deformation_gradient(
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The deformation is added to the raw parameters, so for any per-parameter gradient G the
+        /// first-order change of `Σ G·params` under a deformation δ is `deformation_gradient(G)·δ`:
+        /// both functions must agree on the order of the 10 components.
+        #[test]
+        fn gradient_rows_match_the_order_of_the_deformation(
+            n in 1usize..6,
+            seed in any::<u64>(),
+        ) {
+            use rand::{RngExt, SeedableRng};
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let mut r = || rng.random_range(-1.0f32..1.0);
+            let canonical = Gaussians {
+                sh_degree: 0,
+                means: (0..n).map(|_| [r(), r(), r()]).collect(),
+                log_scales: (0..n).map(|_| [r(), r(), r()]).collect(),
+                rotations: (0..n).map(|_| [r(), r(), r(), r()]).collect(),
+                opacity_logits: (0..n).map(|_| r()).collect(),
+                sh: (0..n * 3).map(|_| r()).collect(),
+            };
+            let delta: Vec<f32> = (0..n * DEFORM_DIM).map(|_| r()).collect();
+            let gm: Vec<[f32; 3]> = (0..n).map(|_| [r(), r(), r()]).collect();
+            let gq: Vec<[f32; 4]> = (0..n).map(|_| [r(), r(), r(), r()]).collect();
+            let gs: Vec<[f32; 3]> = (0..n).map(|_| [r(), r(), r()]).collect();
+            let deformed = DeformedGeometry::new(&canonical, Some(&delta));
+            let dot = |a: &[f32], b: &[f32], c: &[f32]| -> f64 {
+                a.iter().zip(b).zip(c).map(|((g, x), y)| f64::from(*g) * f64::from(x - y)).sum()
+            };
+            let change = dot(gm.as_flattened(), deformed.means.as_flattened(), canonical.means.as_flattened())
+                + dot(gq.as_flattened(), deformed.rotations.as_flattened(), canonical.rotations.as_flattened())
+                + dot(gs.as_flattened(), deformed.log_scales.as_flattened(), canonical.log_scales.as_flattened());
+            let rows = deformation_gradient(&gm, &gq, &gs);
+            let predicted: f64 = rows.iter().zip(&delta).map(|(g, d)| f64::from(*g) * f64::from(*d)).sum();
+            prop_assert!((change - predicted).abs() < 1e-4, "{change} vs {predicted}");
+            let view = deformed.view(&canonical);
+            prop_assert_eq!(view.opacity_logits, &canonical.opacity_logits[..]);
+            prop_assert_eq!(DeformedGeometry::new(&canonical, None).means, canonical.means.clone());
+        }
+    }
+}

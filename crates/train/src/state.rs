@@ -284,3 +284,105 @@ impl SceneState {
         Ok(result?)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::backbone::D3dgsBackbone;
+    use crate::config::{NetSettings, Preset, TrainConfig};
+    use densify::{NewValues, PlanSummary};
+    use evo_state::RowPlan;
+
+    fn state(n: usize) -> (SceneState, D3dgsBackbone) {
+        let c = TrainConfig::preset(Preset::Tiny);
+        let net = NetSettings { width: 8, depth: 2, skip_after: None, ..c.net };
+        let backbone = D3dgsBackbone::new(&net, 1).unwrap();
+        let g = crate::init::random_gaussians(n, 1.0, 3, 5);
+        let mut s = SceneState::new(g, &backbone, &c.lr).unwrap();
+        // Distinct moments per row so that the plan's row movements are visible.
+        for id in s.groups.all() {
+            let group = s.adam.group_mut(id);
+            let w = group.row_width;
+            for (k, m) in group.m.iter_mut().enumerate() {
+                *m = (k / w) as f32 + 1.0;
+            }
+            group.v.clone_from(&group.m);
+        }
+        (s, backbone)
+    }
+
+    #[test]
+    fn a_plan_keeps_every_group_aligned() {
+        let (mut s, mut backbone) = state(5);
+        let parent_from_new = vec![1u32, 4];
+        let plan = DensifyPlan {
+            rows: RowPlan {
+                kept: vec![0, 1, 3, 4],
+                parent_from_new: parent_from_new.clone(),
+            },
+            old_len: 5,
+            new_values: NewValues {
+                means: vec![[0.5; 3]; 2],
+                log_scales: vec![[-3.0; 3]; 2],
+                rotations: vec![[1.0, 0.0, 0.0, 0.0]; 2],
+                opacity_logits: vec![0.0; 2],
+                sh_dc: vec![[0.1; 3]; 2],
+            },
+            reset_rows: vec![2],
+            reset_opacity: 0.01,
+            clears_stats: true,
+            summary: PlanSummary::default(),
+        };
+        let before = s.gaussians.clone();
+        s.apply_plan(&plan, &mut backbone).unwrap();
+        assert_eq!(s.len(), 6);
+        assert_eq!(s.stats.len(), 6);
+        for id in s.groups.all() {
+            let g = s.adam.group(id);
+            assert_eq!(g.m.len(), 6 * g.row_width, "{}", g.name);
+            let w = g.row_width;
+            let row = |r: usize| g.m[r * w];
+            // Kept rows carry their moments, new rows start at zero (3DGS).
+            assert_eq!(row(0), 1.0, "{}", g.name);
+            assert_eq!(row(1), 2.0, "{}", g.name);
+            assert_eq!(row(4), 0.0, "{}", g.name);
+            assert_eq!(row(5), 0.0, "{}", g.name);
+            if g.name == "opacity" {
+                assert_eq!(row(2), 0.0, "reset row's opacity moment");
+            } else {
+                assert_eq!(row(2), 4.0, "{}", g.name);
+            }
+        }
+        assert_eq!(s.gaussians.means[3], before.means[4]);
+        assert_eq!(s.gaussians.means[4], [0.5; 3]);
+        // The SH rest of a new row is its parent's; its DC is the plan's.
+        let st = s.gaussians.sh_stride();
+        assert_eq!(&s.gaussians.sh[4 * st..4 * st + 3], &[0.1; 3]);
+        assert_eq!(&s.gaussians.sh[4 * st + 3..5 * st], &before.sh[st + 3..2 * st]);
+        assert!(s.gaussians.opacity_logits[2] <= (0.01f32 / 0.99).ln() + 1e-6);
+    }
+
+    #[test]
+    fn a_plan_for_the_wrong_row_count_changes_nothing() {
+        let (mut s, mut backbone) = state(4);
+        let plan = DensifyPlan::identity(5);
+        let before = s.gaussians.clone();
+        let err = s.apply_plan(&plan, &mut backbone).unwrap_err().to_string();
+        assert!(err.contains("expected 5"), "{err}");
+        assert_eq!(s.gaussians, before);
+        assert_eq!(s.adam.group(s.groups.xyz).m.len(), 12);
+    }
+
+    #[test]
+    fn schedules_follow_d3dgs() {
+        let lr = LrSettings::default();
+        let s = gaussian_schedules(&lr);
+        assert!((s[0].at(0) - 0.0008).abs() < 1e-9);
+        assert!((s[0].at(30_000) - 0.000008).abs() < 1e-10);
+        assert_eq!(s[2].at(5), 0.0025 / 20.0);
+        assert!((s[4].at(5) - 0.005).abs() < 1e-9);
+        let net = network_schedule(&lr);
+        assert!((net.at(0) - 0.0008).abs() < 1e-9);
+        assert!((net.at(40_000) - 0.0000016).abs() < 1e-11);
+    }
+}
