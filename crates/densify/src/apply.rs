@@ -15,15 +15,17 @@
 //! - [`Rows`]: any other array of rows, with a chosen fill for new rows.
 
 use crate::error::DensifyError;
+use crate::inplace::apply_in_place;
 use crate::plan::DensifyPlan;
 use crate::stats::DensifyStats;
 use evo_state::rows::RowPlanError;
 use evo_state::{EvoState, NewRows, RowPlan};
+use rayon::prelude::*;
 use splat_raster::Gaussians;
-use tiny_nn::adam::AdamGroup;
+use tiny_nn::adam::{Adam, AdamGroup, GroupId};
 
 /// A container of per-Gaussian rows that a plan can be applied to.
-pub trait PerGaussian {
+pub trait PerGaussian: Send {
     /// Name used in errors.
     fn label(&self) -> String;
     /// Number of rows (Gaussians) held.
@@ -54,9 +56,8 @@ pub fn apply_plan(
             });
         }
     }
-    for a in arrays.iter_mut() {
-        a.apply(plan)?;
-    }
+    // Containers are independent: apply them in parallel.
+    arrays.par_iter_mut().try_for_each(|a| a.apply(plan))?;
     for a in arrays.iter() {
         if a.rows() != plan.new_len() {
             return Err(DensifyError::Rows {
@@ -119,7 +120,7 @@ fn apply_rows<T: Copy + Send + Sync>(
     fill: NewRows<T>,
     label: &str,
 ) -> Result<(), DensifyError> {
-    plan.apply(data, stride, fill).map_err(rows_err(label))
+    apply_in_place(plan, data, stride, fill).map_err(rows_err(label))
 }
 
 fn copy_rows<T: Copy + Send + Sync>(
@@ -205,14 +206,76 @@ impl PerGaussian for Moments<'_> {
             });
         }
         let zero = NewRows::Fill(0.0);
-        apply_rows(&plan.rows, &mut self.group.m, w, zero, &label)?;
-        apply_rows(&plan.rows, &mut self.group.v, w, zero, &label)?;
+        let group = &mut *self.group;
+        let (m, v) = rayon::join(
+            || apply_rows(&plan.rows, &mut group.m, w, zero, &label),
+            || apply_rows(&plan.rows, &mut group.v, w, zero, &label),
+        );
+        m?;
+        v?;
         if let Some(c) = self.opacity_column {
             for &row in &plan.reset_rows {
                 let e = row as usize * w + c;
                 self.group.m[e] = 0.0;
                 self.group.v[e] = 0.0;
             }
+        }
+        Ok(())
+    }
+}
+
+/// The per-Gaussian groups of an optimiser (e.g. means, scales, rotations, opacity, SH DC, SH
+/// rest), each with the column holding the opacity if any; treated as one container.
+#[derive(Debug)]
+pub struct OptimiserMoments<'a> {
+    pub adam: &'a mut Adam,
+    /// (group, opacity column) of every group whose rows are Gaussians.
+    pub groups: &'a [(GroupId, Option<usize>)],
+}
+
+impl OptimiserMoments<'_> {
+    fn group_rows(&self, id: GroupId) -> Option<usize> {
+        let g = self.adam.groups().get(id.0)?;
+        Some(g.m.len() / g.row_width.max(1))
+    }
+}
+
+impl PerGaussian for OptimiserMoments<'_> {
+    fn label(&self) -> String {
+        "optimiser moments".into()
+    }
+
+    /// The common row count of the groups; `usize::MAX` when a group is missing or the groups
+    /// disagree (so [`apply_plan`] reports a mismatch before touching anything).
+    fn rows(&self) -> usize {
+        let mut rows = self.groups.iter().map(|&(id, _)| self.group_rows(id));
+        match rows.next() {
+            None => 0,
+            Some(first) => {
+                if first.is_some() && rows.all(|r| r == first) {
+                    first.unwrap_or(usize::MAX)
+                } else {
+                    usize::MAX
+                }
+            }
+        }
+    }
+
+    fn apply(&mut self, plan: &DensifyPlan) -> Result<(), DensifyError> {
+        for (k, &(id, _)) in self.groups.iter().enumerate() {
+            if self.groups[..k].iter().any(|&(other, _)| other == id) {
+                return Err(DensifyError::Input {
+                    field: "optimiser moments groups",
+                    problem: format!("group {} is listed twice", id.0),
+                });
+            }
+        }
+        for &(id, opacity_column) in self.groups {
+            let mut one = Moments {
+                group: self.adam.group_mut(id),
+                opacity_column,
+            };
+            one.apply(plan)?;
         }
         Ok(())
     }

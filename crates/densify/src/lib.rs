@@ -13,18 +13,33 @@
 //!    checks that all end with the same length.
 //!
 //! It is not a trainer: it renders nothing, computes no gradients and steps no optimiser; it
-//! reads slices from the rasterizer and evo-state and never depends on their internals.
+//! reads plain slices from the rasterizer (`means2d`: dL/d projected mean in pixels, `radii`: px,
+//! 0 when culled) and evo-state's public step outputs, and never depends on their internals.
+//!
+//! Choices where SPEC §6 is silent (details in each module):
+//! - Conditions and order are those of 3DGS's `train.py` / `densify_and_prune` (see
+//!   [`config::Schedule`], [`planner`]); the one deliberate difference is that the screen-size
+//!   prune reads the interval's maximum radius (the original zeroes it just before reading it).
+//! - Clones and split children are pruned in the same step when they qualify (opacity, world
+//!   size), as in 3DGS; new rows are never screen-pruned (no screen statistics yet).
+//! - EvoGS trigger defaults τ_r = 0.01 (position residual / extent) and τ_θ = π/3, reasoned in
+//!   [`config::Trigger`]; a Gaussian without samples passes.
+//! - Deformation-aware policy: clone/split decisions use canonical parameters; the new rows'
+//!   values start from canonical + α·d̃; without a deformation d̃ is taken as 0.
+//! - New rows start with zero Adam moments; statistics restart at zero after every densification
+//!   step; an opacity reset zeroes only the opacity moments.
 
 pub mod apply;
 pub mod config;
 pub mod error;
 pub mod extent;
+pub mod inplace;
 pub mod math;
 pub mod plan;
 pub mod planner;
 pub mod stats;
 
-pub use apply::{Moments, PerGaussian, Rows, apply_plan};
+pub use apply::{Moments, OptimiserMoments, PerGaussian, Rows, apply_plan};
 pub use config::{DensifyConfig, Schedule, Trigger};
 pub use error::DensifyError;
 pub use extent::scene_extent;

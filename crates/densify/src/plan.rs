@@ -23,6 +23,17 @@ pub struct NewValues {
 }
 
 impl NewValues {
+    /// Empty, with room for `n` rows.
+    pub fn with_capacity(n: usize) -> Self {
+        Self {
+            means: Vec::with_capacity(n),
+            log_scales: Vec::with_capacity(n),
+            rotations: Vec::with_capacity(n),
+            opacity_logits: Vec::with_capacity(n),
+            sh_dc: Vec::with_capacity(n),
+        }
+    }
+
     /// Number of new rows described.
     pub fn len(&self) -> usize {
         self.means.len()

@@ -25,7 +25,7 @@
 
 use crate::config::DensifyConfig;
 use crate::error::DensifyError;
-use crate::math::{max_scale, rotation, sigmoid};
+use crate::math::{logit, rotation};
 use crate::plan::{DensifyPlan, NewValues, PlanSummary, Values};
 use crate::stats::DensifyStats;
 use evo_state::{Component, Layout, RowPlan};
@@ -134,12 +134,6 @@ pub fn make_plan(
                     actual: d.corrected.len(),
                 });
             }
-            if let Some(i) = d.corrected.iter().position(|v| !v.is_finite()) {
-                return Err(DensifyError::Input {
-                    field: "deformation.corrected",
-                    problem: format!("non-finite value at Gaussian {}", i / off.dim.max(1)),
-                });
-            }
             Some((alpha, d.corrected, off))
         }
         _ => None,
@@ -191,14 +185,20 @@ pub fn make_plan(
         let small_limit = config.percent_dense * input.extent;
         let world_limit = config.max_world_fraction * input.extent;
         let prunes_large = schedule.prunes_large(it);
+        // Thresholds compared in raw space (monotone activations), which avoids an `exp` per
+        // Gaussian: sigmoid(x) < p ⇔ x < logit(p), max exp(l) > s ⇔ max l > ln s.
+        let min_logit = logit(config.min_opacity);
+        let ln_world = world_limit.ln();
+        let ln_small = small_limit.ln();
+        let max_log = |l: [f32; 3]| l[0].max(l[1]).max(l[2]);
         let prune_of = |opacity_logit: f32, log_scale: [f32; 3], radius: f32| -> Prune {
             if !config.prune {
                 Prune::No
-            } else if sigmoid(opacity_logit) < config.min_opacity {
+            } else if opacity_logit < min_logit {
                 Prune::Opacity
             } else if prunes_large && radius > config.max_screen_radius {
                 Prune::Screen
-            } else if prunes_large && max_scale(log_scale) > world_limit {
+            } else if prunes_large && max_log(log_scale) > ln_world {
                 Prune::World
             } else {
                 Prune::No
@@ -213,7 +213,7 @@ pub fn make_plan(
                 let trusted = config.trigger.is_none_or(|t| {
                     stats.mean_residual(i) < t.tau_r && stats.mean_theta(i) < t.tau_theta
                 });
-                let small = max_scale(g.log_scales[i]) <= small_limit;
+                let small = max_log(g.log_scales[i]) <= ln_small;
                 let d = match (large_grad, trusted, small) {
                     (false, _, _) => Densify::No,
                     (true, false, _) => Densify::Blocked,
@@ -226,6 +226,20 @@ pub fn make_plan(
             })
             .collect();
 
+        // Only the densified rows' d̃ is read: check those for non-finite values.
+        if let Some((_, d, off)) = deformation
+            && let Some(i) = (0..n).find(|&i| {
+                matches!(decisions[i].0, Densify::Clone | Densify::Split)
+                    && d[i * off.dim..(i + 1) * off.dim]
+                        .iter()
+                        .any(|v| !v.is_finite())
+            })
+        {
+            return Err(DensifyError::Input {
+                field: "deformation.corrected",
+                problem: format!("non-finite value at Gaussian {i}"),
+            });
+        }
         let count = |p: Prune, summary: &mut PlanSummary| match p {
             Prune::No => true,
             Prune::Opacity => {
@@ -253,8 +267,9 @@ pub fn make_plan(
                 kept.push(i as u32);
             }
         }
-        let mut parents = Vec::new();
-        let mut new_values = NewValues::default();
+        let new_count = summary.cloned + config.split_children * summary.split;
+        let mut parents = Vec::with_capacity(new_count);
+        let mut new_values = NewValues::with_capacity(new_count);
         let mut push_new = |parent: usize, v: Values, summary: &mut PlanSummary| {
             if count(prune_of(v.opacity_logit, v.log_scale, 0.0), summary) {
                 parents.push(parent as u32);

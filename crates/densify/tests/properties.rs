@@ -2,6 +2,9 @@
 //! their data, and each new row inherits its parent's data except the documented overridden
 //! parameter values (which match the rule that produced them).
 
+// Index loops mirror the row arithmetic being checked.
+#![allow(clippy::needless_range_loop)]
+
 mod common;
 
 use common::logit;
@@ -37,16 +40,18 @@ fn row() -> impl Strategy<Value = Row> {
         proptest::array::uniform10(-0.2f32..0.2),
         proptest::array::uniform3(proptest::array::uniform10(-1.0f32..1.0)),
     )
-        .prop_map(|(s, opacity, grad, radius, residual, theta, deformation, z)| Row {
-            log_scale: s.map(f32::ln),
-            opacity,
-            grad,
-            radius,
-            residual,
-            theta,
-            deformation,
-            z,
-        })
+        .prop_map(
+            |(s, opacity, grad, radius, residual, theta, deformation, z)| Row {
+                log_scale: s.map(f32::ln),
+                opacity,
+                grad,
+                radius,
+                residual,
+                theta,
+                deformation,
+                z,
+            },
+        )
 }
 
 #[derive(Debug, Clone)]
@@ -64,7 +69,13 @@ struct Switches {
 fn switches() -> impl Strategy<Value = Switches> {
     (
         proptest::array::uniform6(any::<bool>()),
-        prop_oneof![Just(600u64), Just(650), Just(3000), Just(3100), Just(14_900)],
+        prop_oneof![
+            Just(600u64),
+            Just(650),
+            Just(3000),
+            Just(3100),
+            Just(14_900)
+        ],
         any::<u64>(),
     )
         .prop_map(|(b, iteration, seed)| Switches {
@@ -246,6 +257,45 @@ proptest! {
             };
             let expected_opacity = if is_reset(j) { opacity_before_reset.min(reset_logit) } else { opacity_before_reset };
             prop_assert_eq!(after.opacity_logits[j], expected_opacity);
+        }
+    }
+}
+
+fn row_plan() -> impl Strategy<Value = (usize, evo_state::RowPlan)> {
+    (0usize..40).prop_flat_map(|rows| {
+        (
+            Just(rows),
+            proptest::collection::vec(any::<bool>(), rows),
+            proptest::collection::vec(0..rows.max(1) as u32, 0..30),
+        )
+            .prop_map(|(rows, keep, parents)| {
+                let mut plan = evo_state::RowPlan::prune(&keep);
+                plan.parent_from_new = if rows == 0 { Vec::new() } else { parents };
+                (rows, plan)
+            })
+    })
+}
+
+proptest! {
+    /// The in-place application equals evo-state's `RowPlan::applied` for every stride and fill.
+    #[test]
+    fn in_place_apply_equals_row_plan_applied(
+        (rows, plan) in row_plan(),
+        stride in 1usize..5,
+        fill in prop_oneof![Just(None), any::<i32>().prop_map(Some)],
+    ) {
+        let data: Vec<i32> = (0..(rows * stride) as i32).collect();
+        let new_rows = fill.map_or(NewRows::CopyParent, NewRows::Fill);
+        let expected = plan.applied(&data, stride, new_rows).unwrap();
+        let mut got = data.clone();
+        densify::inplace::apply_in_place(&plan, &mut got, stride, new_rows).unwrap();
+        prop_assert_eq!(got, expected);
+        // Errors match too, and leave the data unchanged.
+        let mut bad = data.clone();
+        bad.push(0);
+        if stride > 1 {
+            prop_assert!(densify::inplace::apply_in_place(&plan, &mut bad, stride, new_rows).is_err());
+            prop_assert_eq!(bad.len(), data.len() + 1);
         }
     }
 }

@@ -241,6 +241,29 @@ fn opacity_reset_caps_opacity_and_zeroes_only_opacity_moments() {
         adam_packed.group(packed).v,
         vec![2.0, 2.0, 2.0, 0.0, 2.0, 2.0, 2.0, 0.0]
     );
+    // The whole optimiser as one container; a group listed twice is refused before any change.
+    let mut adam = Adam::new();
+    let a = adam
+        .add_group("means", 2 * 3, 3, LrSchedule::Constant(0.1))
+        .unwrap();
+    let b = adam
+        .add_group("opacity", 2, 1, LrSchedule::Constant(0.1))
+        .unwrap();
+    adam.group_mut(b).m.fill(3.0);
+    let twice = [(a, None), (a, None)];
+    let mut moments = densify::OptimiserMoments {
+        adam: &mut adam,
+        groups: &twice,
+    };
+    let err = apply_plan(&plan, &mut [&mut moments]).unwrap_err();
+    assert!(err.to_string().contains("listed twice"), "{err}");
+    let groups = [(a, None), (b, Some(0))];
+    let mut moments = densify::OptimiserMoments {
+        adam: &mut adam,
+        groups: &groups,
+    };
+    apply_plan(&plan, &mut [&mut moments]).unwrap();
+    assert_eq!(adam.group(b).m, vec![0.0, 0.0]);
     // Switched off, nothing is reset.
     let off = DensifyConfig {
         opacity_reset: false,
@@ -484,6 +507,33 @@ fn bad_inputs_name_the_field_and_change_nothing() {
     .unwrap_err();
     assert!(err.to_string().contains("min_opacity"), "{err}");
 
+    // A non-finite d̃ is an error naming the Gaussian when that row is densified, and unused
+    // otherwise.
+    let mut corrected = vec![0.0f32; 20];
+    corrected[13] = f32::NAN;
+    let deformation = Some(Deformation {
+        corrected: &corrected,
+        layout: Layout::default(),
+    });
+    let with = |grads: &[f32]| {
+        make_plan(
+            &DensifyConfig::evogs(),
+            &PlanInput {
+                gaussians: g.view(),
+                stats: &stats_with_grads(grads),
+                extent: EXTENT,
+                iteration: 600,
+                deformation,
+            },
+        )
+    };
+    let err = with(&[0.0, 0.01]).unwrap_err();
+    assert!(
+        err.to_string().contains("deformation.corrected") && err.to_string().contains("Gaussian 1"),
+        "{err}"
+    );
+    assert_eq!(with(&[0.01, 0.0]).unwrap().summary.cloned, 1);
+
     // An array with the wrong row count is named, and no array is touched.
     let plan = plan_at(&standard(), &g, &stats_with_grads(&[0.01; 2]), 600);
     let mut after = g.clone();
@@ -498,4 +548,61 @@ fn bad_inputs_name_the_field_and_change_nothing() {
     assert!(err.to_string().contains("tags"), "{err}");
     assert_eq!(after, g);
     assert_eq!(rows.rows(), 3);
+}
+
+#[test]
+fn evolution_cues_come_from_evo_state_steps() {
+    use densify::{residual_norms, thetas};
+    use evo_state::{EvoConfig, EvoState, Frames, Gain};
+    let config = EvoConfig {
+        gain: Gain::Fixed(0.5),
+        extent: 2.0,
+        ..EvoConfig::default()
+    };
+    let layout = config.layout;
+    let mut evo =
+        EvoState::new(config, Frames::new(vec![0.0, 0.1, 0.2, 0.3]).unwrap(), 2, 1).unwrap();
+    let mut stats = DensifyStats::new(2);
+    // Gaussian 0 moves steadily along x; Gaussian 1 zig-zags.
+    let z_at = |k: usize| -> Vec<f32> {
+        let mut z = vec![0.0f32; 20];
+        z[0] = 0.1 * k as f32;
+        z[10] = 0.1 * k as f32;
+        z[11] = if k.is_multiple_of(2) { 0.0 } else { 0.3 };
+        z
+    };
+    for k in 0..4 {
+        let z = z_at(k);
+        let step = evo.forward(evo.frames().times()[k], &z).unwrap();
+        let r = residual_norms(&step, &z, &layout, 2.0).unwrap();
+        let t = thetas(&step);
+        match k {
+            0 | 1 => assert!(r.is_none() && t.is_none(), "no prior before h = 2"),
+            _ => {
+                let r = r.as_ref().unwrap();
+                let prior = step.prior().unwrap();
+                for i in 0..2 {
+                    let expected = (0..3)
+                        .map(|j| (z[i * 10 + j] - prior[i * 10 + j]).powi(2))
+                        .sum::<f32>()
+                        .sqrt()
+                        / 2.0;
+                    assert!((r[i] - expected).abs() < 1e-6, "{} vs {expected}", r[i]);
+                }
+                assert_eq!(t.is_some(), k == 3, "θ only with h = 3");
+            }
+        }
+        stats.add_evolution(r.as_deref(), t.as_deref()).unwrap();
+        evo.commit(&step).unwrap();
+    }
+    assert_eq!(stats.residual_count, vec![2, 2]);
+    assert_eq!(stats.theta_count, vec![1, 1]);
+    assert!(
+        stats.mean_residual(0) < 1e-6,
+        "steady motion is predicted exactly"
+    );
+    assert!(stats.mean_residual(1) > 0.05);
+    // Not exactly 0: SPEC's θ divides by |v1||v2| + 1e-6 (here |v|² = 0.01, so θ ≈ 0.014).
+    assert!(stats.mean_theta(0) < 0.05, "{}", stats.mean_theta(0));
+    assert!(stats.mean_theta(1) > 1.0, "{}", stats.mean_theta(1));
 }

@@ -18,12 +18,16 @@ fn scene() -> (Gaussians, DensifyStats, Vec<f32>) {
     let mut g = Gaussians::with_degree(0);
     let mut stats = DensifyStats::new(n);
     for i in 0..n {
-        g.means
-            .push([rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), 0.0]);
+        g.means.push([
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            0.0,
+        ]);
         let s: f32 = rng.random_range(0.002f32..0.25);
         g.log_scales.push([s.ln(), (0.5 * s).ln(), (0.5 * s).ln()]);
         g.rotations.push([1.0, 0.0, 0.0, 0.0]);
-        g.opacity_logits.push(logit(rng.random_range(0.001f32..0.99)));
+        g.opacity_logits
+            .push(logit(rng.random_range(0.001f32..0.99)));
         g.sh.extend([0.1, 0.2, 0.3]);
         stats.grad_sum[i] = rng.random_range(0.0f32..0.0004) * 4.0;
         stats.visible[i] = 4;

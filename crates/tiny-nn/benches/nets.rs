@@ -202,6 +202,30 @@ fn phi_benches<M: Measurement>(c: &mut Criterion<M>) {
     g.finish();
 }
 
+/// The Φ decoder alone (product tri-plane: 32 + 16 inputs → 64 → 64 → 10): the matrix work.
+fn decoder_benches<M: Measurement>(c: &mut Criterion<M>) {
+    let mut g = c.benchmark_group(format!("{}phi_decoder", prefix::<M>()));
+    let rows = 100_000;
+    let mlp = phi(Precision::F32, PlaneCombine::Product).mlp;
+    let ni = mlp.input_width();
+    let x = vals(rows * ni, 4, 1.0);
+    let d = vals(rows * 10, 9, 1.0);
+    let (_, mut cache) = mlp.forward(&x, rows).unwrap();
+    let fill =
+        |r0: usize, nr: usize, buf: &mut [f32]| buf.copy_from_slice(&x[r0 * ni..(r0 + nr) * ni]);
+    g.throughput(Throughput::Elements(rows as u64));
+    g.bench_function(BenchmarkId::new("F32/fwd", rows), |b| {
+        b.iter(|| mlp.forward_reusing(rows, fill, &mut cache))
+    });
+    g.bench_function(BenchmarkId::new("F32/fwd+bwd(dx)", rows), |b| {
+        b.iter(|| {
+            mlp.forward_reusing(rows, fill, &mut cache);
+            mlp.backward(&cache, &d, true).unwrap()
+        })
+    });
+    g.finish();
+}
+
 fn d3dgs_benches<M: Measurement>(c: &mut Criterion<M>) {
     let mut g = c.benchmark_group(format!("{}d3dgs", prefix::<M>()));
     for rows in [10_000usize, 100_000] {
@@ -242,10 +266,17 @@ fn accuracy(_: &mut Criterion) {
     report_accuracy();
 }
 
-criterion_group!(benches, accuracy, gemm_peak, phi_benches, d3dgs_benches);
+criterion_group!(
+    benches,
+    accuracy,
+    gemm_peak,
+    decoder_benches,
+    phi_benches,
+    d3dgs_benches
+);
 criterion_group! {
     name = cpu_benches;
     config = Criterion::default().with_measurement(CpuTime);
-    targets = gemm_peak, phi_benches, d3dgs_benches
+    targets = gemm_peak, decoder_benches, phi_benches, d3dgs_benches
 }
 criterion_main!(benches, cpu_benches);

@@ -156,12 +156,24 @@ impl Adam {
         &self.groups
     }
 
+    fn checked_group(&mut self, id: GroupId) -> Result<&mut AdamGroup, NnError> {
+        self.groups
+            .get_mut(id.0)
+            .ok_or_else(|| NnError::Config(format!("no Adam group {}", id.0)))
+    }
+
     /// One group.
+    ///
+    /// # Panics
+    /// Panics when `id` does not come from this optimiser's [`Adam::add_group`].
     pub fn group(&self, id: GroupId) -> &AdamGroup {
         &self.groups[id.0]
     }
 
     /// One group, mutable (moments, schedule, step).
+    ///
+    /// # Panics
+    /// Panics when `id` does not come from this optimiser's [`Adam::add_group`].
     pub fn group_mut(&mut self, id: GroupId) -> &mut AdamGroup {
         &mut self.groups[id.0]
     }
@@ -181,10 +193,7 @@ impl Adam {
         grads: &[f32],
     ) -> Result<u64, NnError> {
         let (b1, b2, eps) = (self.beta1, self.beta2, self.eps);
-        let g = self
-            .groups
-            .get_mut(id.0)
-            .ok_or_else(|| NnError::Config(format!("no Adam group {}", id.0)))?;
+        let g = self.checked_group(id)?;
         check_len(
             &format!("Adam group `{}` parameters", g.name),
             g.m.len(),
@@ -229,7 +238,7 @@ impl Adam {
     /// Zeroes both moments of the given rows of group `id` (3DGS does this for the opacity of
     /// every Gaussian at an opacity reset).
     pub fn reset_rows(&mut self, id: GroupId, rows: &[usize]) -> Result<(), NnError> {
-        let g = &mut self.groups[id.0];
+        let g = self.checked_group(id)?;
         let n_rows = g.m.len() / g.row_width;
         for &r in rows {
             if r >= n_rows {
@@ -252,7 +261,7 @@ impl Adam {
         id: GroupId,
         old_from_new: &[Option<usize>],
     ) -> Result<(), NnError> {
-        let g = &mut self.groups[id.0];
+        let g = self.checked_group(id)?;
         let w = g.row_width;
         let n_old = g.m.len() / w;
         let mut m = vec![0f32; old_from_new.len() * w];

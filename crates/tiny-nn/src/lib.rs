@@ -12,6 +12,39 @@
 //! What it is not: an autodiff framework (each module has a hand-written backward), a GPU
 //! backend, or a trainer. Losses, schedules of training and data live in other crates.
 //!
+//! # Modules
+//!
+//! - [`mlp`]: [`Mlp`] built from [`MlpConfig`] (hidden width and count, activations, optional
+//!   D-3DGS skip, zero-initialised output layer, precision, seed). `forward` returns outputs and a
+//!   [`MlpCache`]; `backward` returns [`MlpGrads`] (parameters, and inputs when asked).
+//!   `forward_with` / `backward_with` let an encoder fill input blocks and consume input-gradient
+//!   blocks without materialising them; `forward_reusing` keeps a cache's memory across steps.
+//! - [`encoding`]: [`Sinusoidal`] (D-3DGS ordering), [`TriPlane`] (concat or product, gradients to
+//!   planes and positions), [`BSplineTime`] (uniform cubic, exact at t = 0 and t = 1).
+//! - [`nets`]: [`ObservationNet`] (EvoGS Φ: tri-plane + B-spline → MLP, output starts at 0) and
+//!   [`DeformNet`] (D-3DGS: sinusoidal xyz and t → depth-8 MLP with skip → 10 outputs).
+//! - [`adam`]: [`Adam`] with groups, [`LrSchedule`] (constant or 3DGS exponential), per-row moment
+//!   reset and remapping; moments are public `Vec<f32>`.
+//! - [`weights`]: [`weights::save`] / [`weights::load`] of any [`Parameters`] as safetensors.
+//! - [`precision`], [`linalg`], [`activation`], [`error`]: storage, gemm wrappers, activations,
+//!   [`NnError`].
+//!
+//! # Precision
+//!
+//! [`Precision::F16`] stores parameters and cached activations as `half::f16`; every product and
+//! sum is done in f32 (blocks are widened to f32 and multiplied with gemm's f32 kernel; see
+//! [`linalg`] for why gemm's own f16 path is not used). Values written to f16 storage saturate at
+//! ±65504 and are counted ([`MlpCache::saturations`], and the return value of [`Adam::step`]).
+//! Gradients are always f32. Adam updates f16 parameters in f32 and rounds back, so updates below
+//! half an f16 ulp of a weight are lost (pure f16 storage, no f32 master copy).
+//!
+//! # Parallelism
+//!
+//! Rows are cut into blocks of [`mlp::ROW_BLOCK`] (MLP) or 1024 (encoders) processed in parallel
+//! with rayon; inside a block each product is one single-threaded gemm call, fused with bias,
+//! activation and storage conversion. Parameter gradients are accumulated per rayon task and
+//! summed. Results do not depend on the thread count up to f32 summation order.
+//!
 //! # Example: the EvoGS gain network Ψ
 //!
 //! `Ψ = Linear(D+3, 32) ReLU Linear(32, 32) ReLU Linear(32, 1) sigmoid` over N rows, one Adam step:

@@ -295,7 +295,7 @@ impl Mlp {
     {
         let p = self.config.precision;
         let ni = self.config.input;
-        let weights = self.params.to_f32_vec();
+        let weights = self.params.as_f32();
         cache.rows = rows;
         cache.input.resize_for(p, rows * ni);
         cache
@@ -417,7 +417,7 @@ impl Mlp {
         self.check_backward(cache, d_out)?;
         let rows = cache.rows;
         let ni = self.config.input;
-        let weights = self.params.to_f32_vec();
+        let weights = self.params.as_f32();
         let mut d_input = want_input_grad.then(|| vec![0f32; rows * ni]);
         let n_blocks = rows.div_ceil(ROW_BLOCK);
         let dx_blocks: Vec<Option<&mut [f32]>> = match d_input.as_mut() {
@@ -463,7 +463,7 @@ impl Mlp {
         M: Fn(A, A) -> A + Sync + Send,
     {
         self.check_backward(cache, d_out)?;
-        let weights = self.params.to_f32_vec();
+        let weights = self.params.as_f32();
         let n_blocks = cache.rows.div_ceil(ROW_BLOCK);
         let blocks: Vec<Option<&mut [f32]>> = (0..n_blocks).map(|_| None).collect();
         Ok(self.backward_blocks(
@@ -555,8 +555,7 @@ impl Mlp {
             y,
             dx,
         } = scr;
-        x.resize(nr * ni, 0.0);
-        cache.input.as_ref().slice(r0 * ni, nr * ni).read_into(x);
+        let x = cache.input.as_ref().slice(r0 * ni, nr * ni).view_f32(x);
         g.clear();
         g.extend_from_slice(&d_out[r0 * self.config.output..(r0 + nr) * self.config.output]);
         if want_dx {
@@ -565,32 +564,30 @@ impl Mlp {
         }
         for l in (0..self.layers.len()).rev() {
             let layer = self.layers[l];
-            y.resize(nr * layer.output, 0.0);
-            cache.acts[l]
+            let yv = cache.acts[l]
                 .as_ref()
                 .slice(r0 * layer.output, nr * layer.output)
-                .read_into(y);
+                .view_f32(y);
             let act = if l == last {
                 self.config.output_activation
             } else {
                 self.config.hidden_activation
             };
-            act.backward_from_output(y, g);
+            act.backward_from_output(yv, g);
             // Layer input: x, the previous activation, or [x, previous activation].
             let input: &[f32] = if l == 0 {
                 x
             } else {
                 let prev = self.layers[l - 1].output;
-                y.resize(nr * prev, 0.0);
-                cache.acts[l - 1]
+                let h = cache.acts[l - 1]
                     .as_ref()
                     .slice(r0 * prev, nr * prev)
-                    .read_into(y);
+                    .view_f32(y);
                 if layer.skip_input {
-                    concat_rows(x, ni, y, prev, nr, a);
+                    concat_rows(x, ni, h, prev, nr, a);
                     a
                 } else {
-                    y
+                    h
                 }
             };
             matmul_at_b(

@@ -138,6 +138,14 @@ impl Store {
         out
     }
 
+    /// All values as f32, borrowed for f32 storage and widened into a new buffer for f16.
+    pub fn as_f32(&self) -> std::borrow::Cow<'_, [f32]> {
+        match self {
+            Store::F32(v) => std::borrow::Cow::Borrowed(v),
+            Store::F16(_) => std::borrow::Cow::Owned(self.to_f32_vec()),
+        }
+    }
+
     /// Splits into consecutive mutable chunks of `chunk` values (the last may be shorter).
     pub fn chunks_mut(&mut self, chunk: usize) -> Vec<StoreMut<'_>> {
         match self {
@@ -182,6 +190,21 @@ impl<'a> StoreRef<'a> {
         let mut out = vec![0.0; self.len()];
         self.read_into(&mut out);
         out
+    }
+
+    /// The values as an f32 slice: borrowed for f32 storage, widened into `buf` for f16.
+    pub fn view_f32<'b>(&self, buf: &'b mut Vec<f32>) -> &'b [f32]
+    where
+        'a: 'b,
+    {
+        match *self {
+            StoreRef::F32(v) => v,
+            StoreRef::F16(v) => {
+                buf.resize(v.len(), 0.0);
+                v.convert_to_f32_slice(buf);
+                buf
+            }
+        }
     }
 
     /// One value as f32.

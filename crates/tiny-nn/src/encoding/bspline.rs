@@ -167,8 +167,8 @@ impl BSplineTime {
     }
 
     /// The control vectors as f32.
-    pub(crate) fn controls_f32(&self) -> Vec<f32> {
-        self.params.to_f32_vec()
+    pub(crate) fn controls_f32(&self) -> std::borrow::Cow<'_, [f32]> {
+        self.params.as_f32()
     }
 
     /// Checks that every time is finite.

@@ -266,8 +266,8 @@ impl TriPlane {
     }
 
     /// The planes as f32 (a copy; f16 storage is widened once per pass).
-    pub(crate) fn planes_f32(&self) -> Vec<f32> {
-        self.params.to_f32_vec()
+    pub(crate) fn planes_f32(&self) -> std::borrow::Cow<'_, [f32]> {
+        self.params.as_f32()
     }
 
     /// Encodes one position `p` (3 values) into `out` (output width); `feat` is scratch of `3C`.
