@@ -52,10 +52,8 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
         ProgressBar::hidden()
     };
     bar.set_style(
-        ProgressStyle::with_template(
-            "{bar:30} {pos}/{len} {per_sec} ETA {eta} | {msg}",
-        )
-        .context("progress bar template")?,
+        ProgressStyle::with_template("{bar:30} {pos}/{len} {per_sec} ETA {eta} | {msg}")
+            .context("progress bar template")?,
     );
     let started = Instant::now();
     let mut first = None;

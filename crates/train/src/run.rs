@@ -190,16 +190,19 @@ pub fn train(
         let train = load_split(&data, Split::Train, c.background.rgb(), c.downscale)?;
         Trainer::new(c.clone(), train)?
     };
-    let end = request
-        .stop_after
-        .map_or(trainer.config.iterations, |s| s.min(trainer.config.iterations));
+    let end = request.stop_after.map_or(trainer.config.iterations, |s| {
+        s.min(trainer.config.iterations)
+    });
     let start_iteration = trainer.iteration;
     let started = Instant::now();
     let mut last = None;
     while trainer.iteration < end {
         let report = trainer.step()?;
         progress(&report, &trainer);
-        if report.iteration.is_multiple_of(trainer.config.checkpoint_every) && report.iteration < end
+        if report
+            .iteration
+            .is_multiple_of(trainer.config.checkpoint_every)
+            && report.iteration < end
         {
             save_checkpoint(
                 &paths.checkpoint(),
