@@ -16,6 +16,7 @@ pub mod eval_cmd;
 pub mod export_cmd;
 pub mod render;
 pub mod render_run;
+pub mod synth_cmd;
 pub mod train_cmd;
 
 pub use args::{Cli, Command, EvalArgs, ExportArgs, RenderArgs, TrainArgs};
