@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
 
-/// Dynamic 3D Gaussian Splatting with EvoGS. So far: render a 3DGS PLY or the demo scene.
+/// Dynamic 3D Gaussian Splatting with EvoGS: train on D-NeRF scenes, evaluate, render, export.
 #[derive(Debug, Parser)]
 #[command(name = "evogs", version)]
 pub struct Cli {
@@ -16,10 +16,92 @@ pub struct Cli {
 /// The subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Render Gaussians (a 3DGS PLY, or the built-in demo scene) to a PNG image.
+    /// Train a dynamic scene on a D-NeRF dataset into a run directory.
+    Train(TrainArgs),
+    /// Evaluate a run on a split: PSNR, SSIM, flicker, jitter (JSON and markdown).
+    Eval(EvalArgs),
+    /// Render Gaussians (a trained run at a time, a 3DGS PLY, or the built-in demo scene) to PNG.
     Render(RenderArgs),
     /// Generate a procedural dynamic scene (D-NeRF layout) with its ground truth.
     Synth(crate::synth_cmd::SynthArgs),
+    /// Export a run's deformed Gaussians at a time as a standard 3DGS PLY.
+    Export(ExportArgs),
+}
+
+/// Arguments of `evogs train`.
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// D-NeRF dataset directory (transforms_{train,val,test}.json and images).
+    #[arg(long, value_name = "DIR", required_unless_present = "resume")]
+    pub data: Option<PathBuf>,
+
+    /// Run directory to write (config, checkpoint, PLY, weights, metrics).
+    #[arg(long, value_name = "RUN")]
+    pub out: PathBuf,
+
+    /// Deformation method; only `baseline` (D-3DGS) for now.
+    #[arg(long, default_value = "baseline")]
+    pub method: String,
+
+    /// Settings preset: paper (D-3DGS reference, width 256, 40K iterations), cpu (400×400 on
+    /// 2 cores, width 64, 3K iterations), tiny (CI, width 32, 300 iterations).
+    #[arg(long, default_value = "cpu")]
+    pub preset: String,
+
+    /// Iterations; the preset's schedule is scaled to this count.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub iterations: Option<u64>,
+
+    /// Image resize factor, e.g. 2 trains lego at 400×400 [preset: cpu 2, paper 1].
+    #[arg(long, value_name = "F")]
+    pub downscale: Option<f32>,
+
+    /// Seed of everything random.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+
+    /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
+    #[arg(
+        long,
+        conflicts_with_all = ["data", "method", "preset", "iterations", "downscale", "seed", "background"]
+    )]
+    pub resume: bool,
+
+    /// Background behind the Gaussians and the images' alpha [D-3DGS default for D-NeRF: black].
+    #[arg(long, value_name = "white|black")]
+    pub background: Option<String>,
+
+    /// Stop after this many iterations in total (the run stays resumable).
+    #[arg(long, value_name = "N", hide = true)]
+    pub stop_after: Option<u64>,
+}
+
+/// Arguments of `evogs eval`.
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// Run directory written by `evogs train`.
+    #[arg(long, value_name = "RUN")]
+    pub run: PathBuf,
+
+    /// Split to evaluate.
+    #[arg(long, default_value = "test", value_name = "test|val|train")]
+    pub split: String,
+}
+
+/// Arguments of `evogs export`.
+#[derive(Debug, Args)]
+pub struct ExportArgs {
+    /// Run directory written by `evogs train`.
+    #[arg(long, value_name = "RUN")]
+    pub run: PathBuf,
+
+    /// Time in [0, 1].
+    #[arg(long, value_name = "T")]
+    pub time: f32,
+
+    /// Output PLY file (3DGS layout), written atomically.
+    #[arg(long, value_name = "FRAME.ply")]
+    pub out: PathBuf,
 }
 
 /// Arguments of `evogs render`.
@@ -30,18 +112,31 @@ pub enum Command {
 )]
 pub struct RenderArgs {
     /// Gaussians to render: a PLY file in the 3DGS layout. Needs --camera.
-    #[arg(long, value_name = "FILE", requires = "camera")]
+    #[arg(long, value_name = "FILE", requires = "camera", conflicts_with = "run")]
     pub ply: Option<PathBuf>,
 
-    /// Camera to render from: a nerfies camera JSON file. Needs --ply.
-    #[arg(long, value_name = "CAMERA.json", requires = "ply")]
+    /// A trained run to render at --time (or a --sweep of times). Needs --camera.
+    #[arg(long, value_name = "RUN", requires = "camera")]
+    pub run: Option<PathBuf>,
+
+    /// Camera to render from: a nerfies camera JSON file. Needs --ply or --run.
+    #[arg(long, value_name = "CAMERA.json")]
     pub camera: Option<PathBuf>,
 
-    /// Output PNG image, written atomically (temporary file, then rename).
+    /// Time in [0, 1] at which to render a run.
+    #[arg(long, value_name = "T", requires = "run", default_value_t = 0.0)]
+    pub time: f32,
+
+    /// Render N frames of a run at times evenly spaced over [0, 1] into the folder --out, plus
+    /// strip.png with all frames side by side.
+    #[arg(long, value_name = "N", requires = "run", value_parser = clap::value_parser!(u32).range(2..=1000))]
+    pub sweep: Option<u32>,
+
+    /// Output PNG image (a folder with --sweep), written atomically (temporary file, rename).
     #[arg(long, value_name = "IMAGE.png")]
     pub out: PathBuf,
 
-    /// Background colour behind the Gaussians, three numbers in [0, 1].
+    /// Background colour behind the Gaussians, three numbers in [0, 1] (a run uses its own).
     #[arg(long, value_name = "R,G,B", default_value = "0,0,0", value_parser = parse_background)]
     pub background: [f32; 3],
 

@@ -1,15 +1,22 @@
 //! `evogs-cli`: the `evogs` command line.
 //!
-//! What it is: argument parsing ([`args`]), the `render` command ([`render`]) that draws a 3DGS
-//! PLY from a nerfies camera to a PNG, and the built-in procedural scene ([`demo_scene`]) that
-//! `render` draws when no PLY and camera are given.
+//! What it is: argument parsing ([`args`]) and one thin module per subcommand: `train`
+//! ([`train_cmd`]: settings from the flags, progress bar), `eval` ([`eval_cmd`]), `export`
+//! ([`export_cmd`]), and `render` ([`render`]: a 3DGS PLY from a nerfies camera, the built-in
+//! procedural scene of [`demo_scene`], or a trained run at a time or a time sweep via
+//! [`render_run`]), and `synth` ([`synth_cmd`]: procedural scenes in the D-NeRF layout).
 //!
-//! What it is not: a trainer or a dataset tool (yet); every file format lives in `evogs-io`,
-//! rendering in `splat-raster`. Errors are `anyhow` here and are shown as one line.
+//! What it is not: a trainer or a scene generator; training, evaluation, export and synthetic
+//! scenes live in `evogs-train`, file formats in `evogs-io`, rendering in `splat-raster`. Errors are `anyhow`
+//! here and are shown as one line.
 
 pub mod args;
 pub mod demo_scene;
+pub mod eval_cmd;
+pub mod export_cmd;
 pub mod render;
+pub mod render_run;
 pub mod synth_cmd;
+pub mod train_cmd;
 
-pub use args::{Cli, Command, RenderArgs};
+pub use args::{Cli, Command, EvalArgs, ExportArgs, RenderArgs, TrainArgs};

@@ -4,7 +4,10 @@ use std::process::ExitCode;
 
 use clap::Parser;
 use clap::error::ErrorKind;
+use evogs_cli::eval_cmd::run_eval;
+use evogs_cli::export_cmd::run_export;
 use evogs_cli::render::run_render;
+use evogs_cli::train_cmd::run_train;
 use evogs_cli::{Cli, Command};
 
 /// One line: line breaks in a message become spaces.
@@ -47,6 +50,34 @@ fn main() -> ExitCode {
         }
     };
     let result = match &cli.command {
+        Command::Train(args) => run_train(args).map(|s| {
+            println!(
+                "trained {} iterations ({} in this process, {:.2} it/s, network width {}): \
+                 loss {:.4}, PSNR {:.2} dB, {} Gaussians; wrote {}",
+                s.iteration,
+                s.iterations_this_process,
+                s.iterations_per_second,
+                s.net_width,
+                s.last_loss,
+                s.last_psnr,
+                s.gaussians,
+                args.out.display()
+            );
+            println!("time per phase:\n{}", s.phases);
+        }),
+        Command::Eval(args) => run_eval(args).map(|r| {
+            println!(
+                "{} split: mean PSNR {:.2} dB, mean SSIM {:.4} over {} images; wrote {}",
+                r.split,
+                r.mean_psnr,
+                r.mean_ssim,
+                r.images.len(),
+                args.run.display()
+            );
+        }),
+        Command::Export(args) => run_export(args).map(|n| {
+            println!("wrote {} ({n} Gaussians)", args.out.display());
+        }),
         Command::Render(args) => run_render(args).map(|report| {
             for warning in &report.warnings {
                 eprintln!("evogs: warning: {}", one_line(warning));

@@ -44,7 +44,7 @@ pub fn resize_camera(camera: Camera, width: Option<u32>, height: Option<u32>) ->
     }
 }
 
-fn check_output_name(out: &Path) -> Result<()> {
+pub(crate) fn check_output_name(out: &Path) -> Result<()> {
     let is_png = out
         .extension()
         .and_then(|e| e.to_str())
@@ -57,6 +57,9 @@ fn check_output_name(out: &Path) -> Result<()> {
 
 /// Loads the inputs (or builds the demo scene), renders and writes the PNG.
 pub fn run_render(args: &RenderArgs) -> Result<RenderReport> {
+    if let Some(run) = &args.run {
+        return crate::render_run::render_run(run, args);
+    }
     check_output_name(&args.out)?;
     let mut warnings = Vec::new();
     let (gaussians, camera, source, viewpoint): (Gaussians, Camera, String, String) =
@@ -94,8 +97,8 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderReport> {
                     "the default camera".to_string(),
                 )
             }
-            // clap enforces that --ply and --camera come together.
-            _ => bail!("--ply and --camera must be given together"),
+            // clap enforces that --ply comes with --camera.
+            _ => bail!("--camera needs --ply or --run"),
         };
     let pixels = camera.width as u64 * camera.height as u64;
     if pixels > MAX_PIXELS {

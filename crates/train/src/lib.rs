@@ -4,8 +4,39 @@
 //! through densify's row plans, deformation backbones, losses, schedules, checkpoints), synthetic
 //! scene generation, and the image and temporal metrics shared by training and evaluation.
 //!
+//! - [`config`]: the D-3DGS recipe and the presets (`paper`, `cpu`, `tiny`);
+//! - [`backbone`]: the deformation-backbone trait and the D-3DGS backbone;
+//! - [`state`]: canonical Gaussians, Adam groups and statistics, aligned through densify's plans;
+//! - [`trainer`]: the training loop; [`run`]: run directories, `train` and resume;
+//! - [`checkpoint`]: exact checkpoints; [`eval`], [`render`]: evaluation, rendering, export;
+//! - [`metrics`]: PSNR, SSIM, the loss with its gradient, flicker, jitter; [`synth`]: synthetic
+//!   scenes in the D-NeRF layout.
+//!
+//! The recipe follows Deformable-3D-Gaussians (`ingra14m/Deformable-3D-Gaussians`: `train.py`,
+//! `arguments/__init__.py`, `scene/deform_model.py`, `utils/time_utils.py`) and 3DGS's
+//! `scene/gaussian_model.py`; each module says what it follows.
+//!
 //! What it is not: a rasterizer, a network library, a file-format reader or a command line. Those
 //! are `splat-raster`, `tiny-nn`, `evogs-io` and `evogs-cli`.
 
+pub mod backbone;
+pub mod checkpoint;
+pub mod config;
+pub mod data;
+pub mod deformed;
+pub mod error;
+pub mod eval;
+pub mod init;
 pub mod metrics;
+pub mod render;
+pub mod run;
+pub mod state;
 pub mod synth;
+pub mod timers;
+pub mod trainer;
+
+pub use backbone::{Backbone, D3dgsBackbone, DEFORM_DIM};
+pub use config::{Background, Method, Preset, TrainConfig};
+pub use error::TrainError;
+pub use run::{LoadedRun, RunPaths, TrainRequest, TrainSummary, train};
+pub use trainer::{StepReport, Trainer};

@@ -1,0 +1,83 @@
+//! `evogs train`: builds the settings from the preset and flags, trains with a progress bar
+//! (or plain log lines when stderr is not a terminal) and prints the per-phase times.
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use evogs_train::{Background, Method, Preset, TrainConfig, TrainRequest, TrainSummary, train};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::args::TrainArgs;
+
+/// The settings the flags ask for.
+pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
+    let preset: Preset = args.preset.parse()?;
+    let method: Method = args.method.parse()?;
+    let mut config = TrainConfig::preset(preset);
+    if let Some(n) = args.iterations {
+        config = config.with_iterations(n);
+    }
+    if let Some(f) = args.downscale {
+        anyhow::ensure!(
+            f.is_finite() && f >= 1.0,
+            "--downscale {f}: must be a number >= 1 (2 halves the image size)"
+        );
+        config.downscale = 1.0 / f;
+    }
+    if let Some(b) = &args.background {
+        config.background = b.parse::<Background>()?;
+    }
+    config.method = method;
+    config.seed = args.seed;
+    config.validate()?;
+    Ok(config)
+}
+
+/// Runs `evogs train`.
+pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
+    let config = config_from_args(args)?;
+    let request = TrainRequest {
+        data: args.data.clone().unwrap_or_else(|| PathBuf::from(".")),
+        out: args.out.clone(),
+        config,
+        resume: args.resume,
+        stop_after: args.stop_after,
+    };
+    let terminal = std::io::stderr().is_terminal();
+    let bar = if terminal {
+        ProgressBar::new(0)
+    } else {
+        ProgressBar::hidden()
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} {per_sec} ETA {eta} | {msg}")
+            .context("progress bar template")?,
+    );
+    let started = Instant::now();
+    let mut first = None;
+    let summary = train(&request, &mut |report, trainer| {
+        let total = trainer.config.iterations;
+        let start = *first.get_or_insert(report.iteration - 1);
+        bar.set_length(total);
+        bar.set_position(report.iteration);
+        let msg = format!(
+            "loss {:.4} PSNR {:.2} dB, {} Gaussians",
+            report.loss, report.psnr, report.gaussians
+        );
+        bar.set_message(msg.clone());
+        let every = (total / 20).clamp(1, 500);
+        if !terminal && (report.iteration.is_multiple_of(every) || report.iteration == total) {
+            let done = report.iteration - start;
+            let rate = done as f64 / started.elapsed().as_secs_f64().max(1e-9);
+            let eta = (total - report.iteration) as f64 / rate.max(1e-9);
+            eprintln!(
+                "iteration {}/{total}: {msg}, {rate:.2} it/s, ETA {eta:.0} s",
+                report.iteration
+            );
+        }
+    })?;
+    bar.finish_and_clear();
+    Ok(summary)
+}

@@ -1,0 +1,289 @@
+//! `evogs train`, `eval`, `render --run` and `export` end to end through the binary on a tiny
+//! dynamic scene, and one-line errors naming the file for bad input.
+
+#[path = "../../train/tests/common/mod.rs"]
+mod common;
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn evogs(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_evogs"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+#[test]
+fn trains_evaluates_renders_and_exports_a_tiny_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("scene");
+    // A small synthetic scene from the synth module (rigid motion, 16 training frames, 32×32).
+    let o = evogs(&[
+        "synth",
+        "--preset",
+        "rigid",
+        "--out",
+        s(&data),
+        "--size",
+        "32",
+        "--frames",
+        "16",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let run = dir.path().join("run");
+
+    // An untrained run (0 optimiser steps: one iteration, which never steps) is the floor.
+    let untrained = dir.path().join("untrained");
+    let o = evogs(&[
+        "train",
+        "--data",
+        s(&data),
+        "--out",
+        s(&untrained),
+        "--preset",
+        "tiny",
+        "--iterations",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = evogs(&["eval", "--run", s(&untrained), "--split", "test"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let floor = json(&untrained.join("eval_test.json"))["mean_psnr"]
+        .as_f64()
+        .unwrap();
+
+    let o = evogs(&[
+        "train",
+        "--data",
+        s(&data),
+        "--out",
+        s(&run),
+        "--preset",
+        "tiny",
+        "--seed",
+        "3",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("trained 300 iterations"), "{out}");
+    assert!(out.contains("rasterizer backward"), "{out}");
+    // Not a terminal: plain progress lines instead of a bar.
+    assert!(stderr(&o).contains("iteration 300/300"), "{}", stderr(&o));
+    for f in [
+        "config.json",
+        "checkpoint.safetensors",
+        "canonical.ply",
+        "deform.safetensors",
+        "train_metrics.json",
+    ] {
+        assert!(run.join(f).is_file(), "{f} missing");
+    }
+
+    let o = evogs(&["eval", "--run", s(&run), "--split", "test"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report = json(&run.join("eval_test.json"));
+    let psnr = report["mean_psnr"].as_f64().unwrap();
+    // Measured: untrained 7.5 dB, trained 16.5 dB.
+    assert!(
+        psnr > floor + 5.0 && psnr > 14.0,
+        "trained {psnr} dB vs untrained {floor} dB"
+    );
+    assert_eq!(report["images"].as_array().unwrap().len(), 3);
+    assert!(report["temporal"]["jitter"].as_f64().unwrap().is_finite());
+    assert!(run.join("eval_test.md").is_file());
+    assert!(run.join("renders/test/0000.png").is_file());
+
+    // Export at t = 0.5 and read it back with the io reader.
+    let ply = dir.path().join("frame.ply");
+    let o = evogs(&[
+        "export",
+        "--run",
+        s(&run),
+        "--time",
+        "0.5",
+        "--out",
+        s(&ply),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let loaded = evogs_io::read_ply(&ply).unwrap();
+    let canonical = evogs_io::read_ply(&run.join("canonical.ply")).unwrap();
+    assert_eq!(loaded.gaussians.len(), canonical.gaussians.len());
+    assert_eq!(loaded.gaussians.sh, canonical.gaussians.sh);
+    assert_ne!(loaded.gaussians.means, canonical.gaussians.means);
+
+    // Render one image and a sweep from a nerfies camera.
+    let cam = dir.path().join("cam.json");
+    let camera = splat_raster::Camera::look_at(
+        24,
+        20,
+        0.8,
+        glam::Vec3::new(3.0, 0.5, 1.0),
+        glam::Vec3::ZERO,
+        glam::Vec3::Z,
+    );
+    evogs_io::write_nerfies_camera(&cam, &evogs_io::CameraInfo::pinhole(camera)).unwrap();
+    let img = dir.path().join("t.png");
+    let o = evogs(&[
+        "render",
+        "--run",
+        s(&run),
+        "--camera",
+        s(&cam),
+        "--time",
+        "0.25",
+        "--out",
+        s(&img),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(image::image_dimensions(&img).unwrap(), (24, 20));
+    let sweep = dir.path().join("sweep");
+    let o = evogs(&[
+        "render",
+        "--run",
+        s(&run),
+        "--camera",
+        s(&cam),
+        "--sweep",
+        "3",
+        "--out",
+        s(&sweep),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(sweep.join("frame_0002.png").is_file());
+    assert_eq!(
+        image::image_dimensions(sweep.join("strip.png")).unwrap(),
+        (72, 20)
+    );
+    let o = evogs(&[
+        "render",
+        "--run",
+        s(&run),
+        "--camera",
+        s(&cam),
+        "--time",
+        "1.5",
+        "--out",
+        s(&img),
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("outside [0, 1]"), "{}", stderr(&o));
+}
+
+fn one_line_error(o: &Output) -> String {
+    assert!(!o.status.success());
+    let e = stderr(o);
+    assert_eq!(e.trim_end().lines().count(), 1, "not one line: {e}");
+    e
+}
+
+#[test]
+fn bad_input_gives_one_line_errors_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("scene");
+    common::write_scene(&data);
+    let train = |data: &Path, out: &Path| {
+        evogs(&[
+            "train",
+            "--data",
+            s(data),
+            "--out",
+            s(out),
+            "--preset",
+            "tiny",
+            "--iterations",
+            "2",
+        ])
+    };
+
+    // A missing image.
+    let broken = dir.path().join("missing");
+    copy_dir(&data, &broken);
+    std::fs::remove_file(broken.join("train/r_003.png")).unwrap();
+    let e = one_line_error(&train(&broken, &dir.path().join("o1")));
+    assert!(
+        e.contains("transforms_train.json") && e.contains("r_003"),
+        "{e}"
+    );
+
+    // Malformed JSON.
+    let bad_json = dir.path().join("json");
+    copy_dir(&data, &bad_json);
+    std::fs::write(bad_json.join("transforms_train.json"), "{\"frames\": [").unwrap();
+    let e = one_line_error(&train(&bad_json, &dir.path().join("o2")));
+    assert!(
+        e.contains("transforms_train.json") && e.contains("JSON"),
+        "{e}"
+    );
+
+    // An image of the wrong size.
+    let wrong = dir.path().join("wrong");
+    copy_dir(&data, &wrong);
+    evogs_io::save_png(
+        &wrong.join("train/r_005.png"),
+        &evogs_io::ImageRgb::filled(20, 12, [0.5; 3]),
+    )
+    .unwrap();
+    let e = one_line_error(&train(&wrong, &dir.path().join("o3")));
+    assert!(e.contains("r_005.png"), "{e}");
+
+    // An empty split.
+    let empty = dir.path().join("empty");
+    copy_dir(&data, &empty);
+    std::fs::write(
+        empty.join("transforms_train.json"),
+        "{\"camera_angle_x\": 0.7, \"frames\": []}",
+    )
+    .unwrap();
+    let e = one_line_error(&train(&empty, &dir.path().join("o4")));
+    assert!(
+        e.contains("transforms_train.json") && e.contains("empty"),
+        "{e}"
+    );
+
+    // An unwritable output folder (a file stands where the folder should be).
+    let blocker = dir.path().join("blocker");
+    std::fs::write(&blocker, "not a folder").unwrap();
+    let e = one_line_error(&train(&data, &blocker.join("run")));
+    assert!(e.contains("blocker"), "{e}");
+
+    // Unknown method, and a run directory that is not one.
+    let o = evogs(&[
+        "train",
+        "--data",
+        s(&data),
+        "--out",
+        s(&dir.path().join("o5")),
+        "--method",
+        "evogs",
+    ]);
+    let e = one_line_error(&o);
+    assert!(e.contains("evogs") && e.contains("baseline"), "{e}");
+    let e = one_line_error(&evogs(&["eval", "--run", s(&dir.path().join("nope"))]));
+    assert!(e.contains("nope"), "{e}");
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let target = to.join(entry.file_name());
+        if entry.file_type().unwrap().is_dir() {
+            copy_dir(&entry.path(), &target);
+        } else {
+            std::fs::copy(entry.path(), target).unwrap();
+        }
+    }
+}

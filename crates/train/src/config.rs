@@ -1,0 +1,468 @@
+//! Training settings: the recipe of Deformable-3D-Gaussians (D-3DGS) and the presets.
+//!
+//! The reference values are D-3DGS's (`ingra14m/Deformable-3D-Gaussians`, `arguments/__init__.py`
+//! `OptimizationParams`, `scene/gaussian_model.py` `training_setup`, `scene/deform_model.py`
+//! `train_setting`): 40 000 iterations, a static warm-up of 3 000 iterations before the
+//! deformation network is switched on, position lr 1.6e-4 → 1.6e-6 (×`spatial_lr_scale`) over
+//! 30 000 steps with delay multiplier 0.01, deformation-network lr 1.6e-4·5 → 1.6e-6 over 40 000
+//! steps, features 2.5e-3 (the higher SH bands /20), opacity 0.05, scaling 1e-3·5, rotation 1e-3,
+//! and 3DGS's densification (500..15 000 every 100, opacity reset every 3 000, gradient threshold
+//! 2e-4, percent dense 0.01).
+//!
+//! `spatial_lr_scale`: 3DGS scales the position lr by the scene extent; D-3DGS overrides it with
+//! the constant 5 (`self.spatial_lr_scale = 5` in `create_from_pcd` and `training_setup`), which
+//! also multiplies the scaling lr. We follow D-3DGS; it is a setting.
+//!
+//! Background: D-3DGS trains D-NeRF scenes with `--is_blender` and without
+//! `--white_background`, so the default is black; `white` is an option. Time noise: D-3DGS adds
+//! annealed noise to the network's time input only for real scenes (`ast_noise = 0 if
+//! dataset.is_blender`); every dataset read here is in the D-NeRF (Blender) layout, so no time
+//! noise is added.
+
+use std::fmt;
+use std::str::FromStr;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::TrainError;
+
+/// The deformation method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// D-3DGS: the deformation MLP alone.
+    Baseline,
+}
+
+impl FromStr for Method {
+    type Err = TrainError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "baseline" => Ok(Self::Baseline),
+            "evogs" => Err(TrainError::config(
+                "method",
+                "`evogs` is not available yet (issue T2); only `baseline` is",
+            )),
+            other => Err(TrainError::config(
+                "method",
+                format!("unknown method `{other}`; only `baseline` is available"),
+            )),
+        }
+    }
+}
+
+impl fmt::Display for Method {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("baseline")
+    }
+}
+
+/// Background colour composited behind the Gaussians and behind the images' alpha.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Background {
+    /// (0, 0, 0): D-3DGS's default for D-NeRF.
+    Black,
+    /// (1, 1, 1).
+    White,
+}
+
+impl Background {
+    /// The colour.
+    pub fn rgb(self) -> [f32; 3] {
+        match self {
+            Self::Black => [0.0; 3],
+            Self::White => [1.0; 3],
+        }
+    }
+}
+
+impl FromStr for Background {
+    type Err = TrainError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "black" => Ok(Self::Black),
+            "white" => Ok(Self::White),
+            other => Err(TrainError::config(
+                "background",
+                format!("unknown background `{other}`; expected white or black"),
+            )),
+        }
+    }
+}
+
+/// A named set of settings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Preset {
+    /// D-3DGS's reference setting (network width 256, 40 000 iterations, 100 000 initial points,
+    /// full resolution). Far too slow for a CPU; kept for GPU backends.
+    Paper,
+    /// Lego-like D-NeRF scenes at 400×400 on 2 CPU cores: width 64, 3 000 iterations (warm-up
+    /// 500, SH up every 500, densification 250..2 000 every 100 with one opacity reset at 1 000,
+    /// lr decays over the whole run), 10 000 initial points.
+    Cpu,
+    /// CI: a small synthetic scene trains in seconds (width 32, depth 4, 300 iterations, warm-up
+    /// 50, densification 50..250 every 25 without opacity reset, 2 000 initial points).
+    Tiny,
+}
+
+impl Preset {
+    /// All presets.
+    pub const ALL: [Preset; 3] = [Preset::Paper, Preset::Cpu, Preset::Tiny];
+
+    /// The preset's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Paper => "paper",
+            Self::Cpu => "cpu",
+            Self::Tiny => "tiny",
+        }
+    }
+}
+
+impl FromStr for Preset {
+    type Err = TrainError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::ALL
+            .into_iter()
+            .find(|p| p.name() == s)
+            .ok_or_else(|| {
+                TrainError::config(
+                    "preset",
+                    format!("unknown preset `{s}`; expected paper, cpu or tiny"),
+                )
+            })
+    }
+}
+
+/// The D-3DGS deformation network's shape.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct NetSettings {
+    /// Hidden width (D-3DGS: 256).
+    pub width: usize,
+    /// Hidden layers (8).
+    pub depth: usize,
+    /// Skip connection after this hidden layer (4).
+    pub skip_after: Option<usize>,
+    /// Frequencies of the position encoding (10).
+    pub xyz_freqs: usize,
+    /// Frequencies of the time encoding (6 for synthetic scenes).
+    pub t_freqs: usize,
+}
+
+/// Learning rates and their schedules.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LrSettings {
+    /// Initial position lr before `spatial_lr_scale` (1.6e-4).
+    pub position_init: f32,
+    /// Final position lr before `spatial_lr_scale` (1.6e-6).
+    pub position_final: f32,
+    /// Delay multiplier of the position and network schedules (0.01; without delay steps it has
+    /// no effect, as in D-3DGS).
+    pub position_delay_mult: f32,
+    /// Steps of the position decay (30 000).
+    pub position_max_steps: u64,
+    /// Steps of the network decay (40 000).
+    pub deform_max_steps: u64,
+    /// SH DC lr (2.5e-3); the higher bands use 1/20 of it.
+    pub feature: f32,
+    /// Opacity lr (0.05).
+    pub opacity: f32,
+    /// Log-scale lr before `spatial_lr_scale` (1e-3).
+    pub scaling: f32,
+    /// Quaternion lr (1e-3).
+    pub rotation: f32,
+    /// D-3DGS's constant 5 (3DGS uses the scene extent).
+    pub spatial_lr_scale: f32,
+}
+
+impl Default for LrSettings {
+    fn default() -> Self {
+        Self {
+            position_init: 0.00016,
+            position_final: 0.0000016,
+            position_delay_mult: 0.01,
+            position_max_steps: 30_000,
+            deform_max_steps: 40_000,
+            feature: 0.0025,
+            opacity: 0.05,
+            scaling: 0.001,
+            rotation: 0.001,
+            spatial_lr_scale: 5.0,
+        }
+    }
+}
+
+/// Densification (3DGS adaptive density control) schedule and thresholds.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DensifySettings {
+    /// Densification starts after this iteration (500).
+    pub from: u64,
+    /// ... and stops before this one (15 000).
+    pub until: u64,
+    /// Every this many iterations (100).
+    pub interval: u64,
+    /// Opacity reset interval (3 000).
+    pub opacity_reset_interval: u64,
+    /// Mean NDC gradient threshold (2e-4).
+    pub grad_threshold: f32,
+    /// Clone/split boundary as a fraction of the extent (0.01).
+    pub percent_dense: f32,
+    /// Prune below this opacity (0.005).
+    pub min_opacity: f32,
+    /// Prune above this screen radius in pixels, after the first reset (20).
+    pub max_screen_radius: f32,
+    /// Prune above this fraction of the extent in world size, after the first reset (0.1).
+    pub max_world_fraction: f32,
+}
+
+impl Default for DensifySettings {
+    fn default() -> Self {
+        Self {
+            from: 500,
+            until: 15_000,
+            interval: 100,
+            opacity_reset_interval: 3_000,
+            grad_threshold: 0.0002,
+            percent_dense: 0.01,
+            min_opacity: 0.005,
+            max_screen_radius: 20.0,
+            max_world_fraction: 0.1,
+        }
+    }
+}
+
+/// Everything a training run is made from; saved as `config.json` in the run directory.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TrainConfig {
+    /// The preset these settings started from.
+    pub preset: Preset,
+    /// The deformation method.
+    pub method: Method,
+    /// Seed of initialisation, frame order, network initialisation and split sampling.
+    pub seed: u64,
+    /// Training iterations (counted from 1, as D-3DGS).
+    pub iterations: u64,
+    /// Iterations of static training before the deformation network is used (D-3DGS: 3 000).
+    pub warm_up: u64,
+    /// Maximum SH degree (3).
+    pub sh_degree: u32,
+    /// The active SH degree goes up by one every this many iterations (1 000).
+    pub sh_interval: u64,
+    /// Background colour.
+    pub background: Background,
+    /// Image resize factor applied to the dataset (0.5 = half size, e.g. lego at 400×400).
+    pub downscale: f32,
+    /// Random initial points (D-3DGS/3DGS Blender practice: 100 000).
+    pub init_points: usize,
+    /// Initial points are uniform in the cube [-h, h]³ (3DGS Blender: h = 1.3).
+    pub init_half_extent: f32,
+    /// Deformation network shape.
+    pub net: NetSettings,
+    /// Learning rates.
+    pub lr: LrSettings,
+    /// Densification.
+    pub densify: DensifySettings,
+    /// A checkpoint is written every this many iterations (and at the end).
+    pub checkpoint_every: u64,
+}
+
+impl TrainConfig {
+    /// The settings of a preset.
+    pub fn preset(preset: Preset) -> Self {
+        let d3dgs_net = NetSettings {
+            width: 256,
+            depth: 8,
+            skip_after: Some(4),
+            xyz_freqs: 10,
+            t_freqs: 6,
+        };
+        let paper = Self {
+            preset: Preset::Paper,
+            method: Method::Baseline,
+            seed: 0,
+            iterations: 40_000,
+            warm_up: 3_000,
+            sh_degree: 3,
+            sh_interval: 1_000,
+            background: Background::Black,
+            downscale: 1.0,
+            init_points: 100_000,
+            init_half_extent: 1.3,
+            net: d3dgs_net,
+            lr: LrSettings::default(),
+            densify: DensifySettings::default(),
+            checkpoint_every: 5_000,
+        };
+        match preset {
+            Preset::Paper => paper,
+            Preset::Cpu => Self {
+                preset,
+                iterations: 3_000,
+                warm_up: 500,
+                sh_interval: 500,
+                downscale: 0.5,
+                init_points: 10_000,
+                net: NetSettings {
+                    width: 64,
+                    ..d3dgs_net
+                },
+                lr: LrSettings {
+                    position_max_steps: 3_000,
+                    deform_max_steps: 3_000,
+                    ..LrSettings::default()
+                },
+                densify: DensifySettings {
+                    from: 250,
+                    until: 2_000,
+                    interval: 100,
+                    opacity_reset_interval: 1_000,
+                    ..DensifySettings::default()
+                },
+                checkpoint_every: 500,
+                ..paper
+            },
+            Preset::Tiny => Self {
+                preset,
+                iterations: 300,
+                warm_up: 50,
+                sh_interval: 100,
+                init_points: 2_000,
+                net: NetSettings {
+                    width: 32,
+                    depth: 4,
+                    skip_after: Some(2),
+                    ..d3dgs_net
+                },
+                lr: LrSettings {
+                    position_max_steps: 300,
+                    deform_max_steps: 300,
+                    ..LrSettings::default()
+                },
+                densify: DensifySettings {
+                    from: 50,
+                    until: 250,
+                    interval: 25,
+                    // No opacity reset (nor large-Gaussian pruning) in so short a run.
+                    opacity_reset_interval: 100_000,
+                    ..DensifySettings::default()
+                },
+                checkpoint_every: 100,
+                ..paper
+            },
+        }
+    }
+
+    /// The same recipe over `iterations`: every iteration count of the schedule (warm-up, SH
+    /// interval, lr decay lengths, densification window, interval and opacity reset) is scaled
+    /// by `iterations / self.iterations` (rounded, at least 1), so the phases keep their
+    /// proportions.
+    pub fn with_iterations(mut self, iterations: u64) -> Self {
+        let ratio = iterations as f64 / self.iterations.max(1) as f64;
+        let scale = |v: u64| ((v as f64 * ratio).round() as u64).max(1);
+        self.warm_up = scale(self.warm_up);
+        self.sh_interval = scale(self.sh_interval);
+        self.lr.position_max_steps = scale(self.lr.position_max_steps);
+        self.lr.deform_max_steps = scale(self.lr.deform_max_steps);
+        self.densify.from = scale(self.densify.from);
+        self.densify.until = scale(self.densify.until);
+        self.densify.interval = scale(self.densify.interval);
+        self.densify.opacity_reset_interval = scale(self.densify.opacity_reset_interval);
+        self.checkpoint_every = scale(self.checkpoint_every);
+        self.iterations = iterations;
+        self
+    }
+
+    /// Checks every setting's range.
+    pub fn validate(&self) -> Result<(), TrainError> {
+        let bad = |field: &str, problem: &str| Err(TrainError::config(field, problem));
+        if self.iterations == 0 {
+            return bad("iterations", "must be at least 1");
+        }
+        if self.sh_degree > 3 {
+            return bad("sh_degree", "must be 0..=3");
+        }
+        if self.sh_interval == 0 || self.checkpoint_every == 0 || self.densify.interval == 0 {
+            return bad(
+                "sh_interval / checkpoint_every / densify.interval",
+                "must be at least 1",
+            );
+        }
+        if !(self.downscale > 0.0 && self.downscale <= 1.0) {
+            return bad("downscale", "must lie in (0, 1] (a resize factor)");
+        }
+        if self.init_points == 0 {
+            return bad("init_points", "must be at least 1");
+        }
+        if !(self.init_half_extent.is_finite() && self.init_half_extent > 0.0) {
+            return bad("init_half_extent", "must be finite and positive");
+        }
+        if self.net.width == 0 || self.net.depth == 0 {
+            return bad("net", "width and depth must be at least 1");
+        }
+        let lr = &self.lr;
+        for (field, v) in [
+            ("lr.position_init", lr.position_init),
+            ("lr.position_final", lr.position_final),
+            ("lr.feature", lr.feature),
+            ("lr.opacity", lr.opacity),
+            ("lr.scaling", lr.scaling),
+            ("lr.rotation", lr.rotation),
+            ("lr.spatial_lr_scale", lr.spatial_lr_scale),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(field, "must be finite and positive");
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn paper_preset_is_d3dgs() {
+        let c = TrainConfig::preset(Preset::Paper);
+        assert_eq!((c.iterations, c.warm_up, c.net.width), (40_000, 3_000, 256));
+        assert_eq!(c.lr.position_max_steps, 30_000);
+        assert_eq!(c.densify.until, 15_000);
+        c.validate().unwrap();
+    }
+
+    #[test]
+    fn scaling_keeps_proportions() {
+        let c = TrainConfig::preset(Preset::Paper).with_iterations(4_000);
+        assert_eq!(c.warm_up, 300);
+        assert_eq!(c.sh_interval, 100);
+        assert_eq!(c.densify.from, 50);
+        assert_eq!(c.densify.until, 1_500);
+        assert_eq!(c.densify.interval, 10);
+        assert_eq!(c.lr.deform_max_steps, 4_000);
+        for p in Preset::ALL {
+            TrainConfig::preset(p).validate().unwrap();
+        }
+    }
+
+    #[test]
+    fn method_and_names_parse() {
+        assert_eq!("baseline".parse::<Method>().unwrap(), Method::Baseline);
+        let e = "evogs".parse::<Method>().unwrap_err().to_string();
+        assert!(e.contains("T2"), "{e}");
+        assert!("cpu".parse::<Preset>().is_ok());
+        assert!("huge".parse::<Preset>().is_err());
+        assert_eq!("white".parse::<Background>().unwrap().rgb(), [1.0; 3]);
+    }
+
+    #[test]
+    fn config_round_trips_through_json() {
+        let c = TrainConfig::preset(Preset::Cpu);
+        let s = serde_json::to_string(&c).unwrap();
+        assert_eq!(serde_json::from_str::<TrainConfig>(&s).unwrap(), c);
+    }
+}

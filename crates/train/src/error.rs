@@ -1,0 +1,87 @@
+//! The one error type of the crate. Every message is one line that names the file (and the field)
+//! it is about when there is one.
+
+use std::path::PathBuf;
+
+use thiserror::Error;
+
+/// An error of training, evaluation, rendering or export.
+#[derive(Debug, Error)]
+pub enum TrainError {
+    /// A file format error from `evogs-io` (names the file and the field).
+    #[error(transparent)]
+    Io(#[from] evogs_io::IoError),
+    /// The rasterizer rejected its input.
+    #[error("rasterizer: {0}")]
+    Raster(#[from] splat_raster::RasterError),
+    /// A network or optimiser error.
+    #[error("network: {0}")]
+    Nn(#[from] tiny_nn::NnError),
+    /// A densification error.
+    #[error(transparent)]
+    Densify(#[from] densify::DensifyError),
+    /// A metric could not be computed.
+    #[error("metrics: {0}")]
+    Metrics(#[from] crate::metrics::MetricsError),
+    /// A file of a run (config, checkpoint, weights) or a dataset is unusable.
+    #[error("{}: {problem}", path.display())]
+    File {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        problem: String,
+    },
+    /// A field of a file has a bad value.
+    #[error("{}: field `{field}`: {problem}", path.display())]
+    Field {
+        /// The file.
+        path: PathBuf,
+        /// The field.
+        field: String,
+        /// What is wrong.
+        problem: String,
+    },
+    /// A setting is out of range or unsupported.
+    #[error("invalid setting `{field}`: {problem}")]
+    Config {
+        /// The setting.
+        field: String,
+        /// What is wrong.
+        problem: String,
+    },
+}
+
+impl TrainError {
+    pub(crate) fn file(path: impl Into<PathBuf>, problem: impl Into<String>) -> Self {
+        Self::File {
+            path: path.into(),
+            problem: problem.into(),
+        }
+    }
+
+    pub(crate) fn field(
+        path: impl Into<PathBuf>,
+        field: impl Into<String>,
+        problem: impl Into<String>,
+    ) -> Self {
+        Self::Field {
+            path: path.into(),
+            field: field.into(),
+            problem: problem.into(),
+        }
+    }
+
+    pub(crate) fn config(field: impl Into<String>, problem: impl Into<String>) -> Self {
+        Self::Config {
+            field: field.into(),
+            problem: problem.into(),
+        }
+    }
+
+    pub(crate) fn io(path: impl Into<PathBuf>, cause: std::io::Error) -> Self {
+        Self::File {
+            path: path.into(),
+            problem: cause.to_string(),
+        }
+    }
+}

@@ -1,0 +1,235 @@
+//! Evaluation of a run on a split: per-image PSNR and SSIM and their means, fixed-camera
+//! flicker and trajectory jitter (SPEC §7), written as JSON and as a markdown table. LPIPS is
+//! not reported (its network weights cannot be fetched here).
+//!
+//! Temporal metrics: the split's distinct times, sorted, are rendered from one fixed camera (the
+//! split's first). Flicker compares consecutive renders; its ground-truth part exists only when
+//! every view of the split shares that camera (then the images are a fixed-camera sequence).
+//! Jitter is the mean norm of the second time difference of the deformed means over the same
+//! times, counted where a Gaussian is drawn in the fixed camera at all three times.
+
+use std::fmt::Write as _;
+
+use evogs_io::{ImageRgb, Split, save_png};
+use serde::{Deserialize, Serialize};
+use splat_raster::{CpuRasterizer, Rasterizer, RenderOptions};
+
+use crate::data::load_split;
+use crate::error::TrainError;
+use crate::metrics::{ImageSize, flicker, psnr, ssim, trajectory_jitter};
+use crate::run::{LoadedRun, write_json, write_text};
+
+/// One evaluated image.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ImageScore {
+    /// Image file name.
+    pub name: String,
+    /// Its time.
+    pub time: f32,
+    /// PSNR in dB.
+    pub psnr: f64,
+    /// SSIM.
+    pub ssim: f64,
+}
+
+/// Temporal consistency over the split's times from a fixed camera.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Temporal {
+    /// Distinct times rendered.
+    pub frames: usize,
+    /// Mean absolute difference of consecutive renders.
+    pub flicker_rendered: f64,
+    /// The same for the ground truth, when the split is a fixed-camera sequence.
+    pub flicker_ground_truth: Option<f64>,
+    /// Rendered minus ground truth (or rendered alone without ground truth).
+    pub flicker_excess: f64,
+    /// Mean norm of the second time difference of visible Gaussians' positions (world units).
+    pub jitter: f64,
+    /// Number of (Gaussian, frame) terms in the jitter mean.
+    pub jitter_terms: usize,
+}
+
+/// `eval_<split>.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EvalReport {
+    /// The split.
+    pub split: String,
+    /// Iterations the run was trained for.
+    pub iteration: u64,
+    /// Network width of the run.
+    pub net_width: usize,
+    /// Every image.
+    pub images: Vec<ImageScore>,
+    /// Mean PSNR.
+    pub mean_psnr: f64,
+    /// Mean SSIM.
+    pub mean_ssim: f64,
+    /// Temporal metrics (absent with fewer than two distinct times).
+    pub temporal: Option<Temporal>,
+}
+
+/// Evaluates `run` on `split`: renders every view (saved under `renders/<split>/`), scores it,
+/// computes the temporal metrics, and writes `eval_<split>.json` and `eval_<split>.md`.
+pub fn evaluate(run: &mut LoadedRun, split: Split) -> Result<EvalReport, TrainError> {
+    let cfg = run.run.train.clone();
+    let views = load_split(&run.run.data, split, cfg.background.rgb(), cfg.downscale)?;
+    let raster = CpuRasterizer::new();
+    let opts = RenderOptions {
+        background: cfg.background.rgb(),
+        sh_degree: None,
+    };
+    let dir = run.paths.renders(split);
+    std::fs::create_dir_all(&dir).map_err(|e| TrainError::io(&dir, e))?;
+    let mut images = Vec::with_capacity(views.views.len());
+    for (k, view) in views.views.iter().enumerate() {
+        let g = run.deformed(view.time)?;
+        let out = raster.forward(g.view(), &view.camera, &opts)?;
+        let size = ImageSize::new(view.image.width as usize, view.image.height as usize);
+        let clamped: Vec<[f32; 3]> = out
+            .color
+            .iter()
+            .map(|c| c.map(|v| v.clamp(0.0, 1.0)))
+            .collect();
+        images.push(ImageScore {
+            name: view
+                .path
+                .file_name()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+            time: view.time,
+            psnr: psnr(size, &clamped, &view.image.pixels)?,
+            ssim: ssim(size, &clamped, &view.image.pixels)?,
+        });
+        save_png(
+            &dir.join(format!("{k:04}.png")),
+            &ImageRgb {
+                width: view.image.width,
+                height: view.image.height,
+                pixels: clamped,
+            },
+        )?;
+    }
+    let count = images.len().max(1) as f64;
+    let mean_psnr = images.iter().map(|s| s.psnr).sum::<f64>() / count;
+    let mean_ssim = images.iter().map(|s| s.ssim).sum::<f64>() / count;
+    let temporal = temporal_metrics(run, &views, &raster, &opts)?;
+    let report = EvalReport {
+        split: split.name().to_string(),
+        iteration: run.summary.iteration,
+        net_width: cfg.net.width,
+        images,
+        mean_psnr,
+        mean_ssim,
+        temporal,
+    };
+    write_json(&run.paths.eval_json(split), &report)?;
+    write_text(&run.paths.eval_markdown(split), &markdown(&report))?;
+    Ok(report)
+}
+
+fn temporal_metrics(
+    run: &mut LoadedRun,
+    views: &crate::data::SplitViews,
+    raster: &CpuRasterizer,
+    opts: &RenderOptions,
+) -> Result<Option<Temporal>, TrainError> {
+    let times = views.times();
+    if times.len() < 2 {
+        return Ok(None);
+    }
+    let camera = &views.views[0].camera;
+    let fixed_camera = views.views.iter().all(|v| v.camera == *camera);
+    let mut renders = Vec::with_capacity(times.len());
+    let mut positions = Vec::with_capacity(times.len());
+    let mut visible = Vec::with_capacity(times.len());
+    for &t in &times {
+        let g = run.deformed(t)?;
+        let out = raster.forward(g.view(), camera, opts)?;
+        visible.push(out.radii().iter().map(|&r| r > 0.0).collect::<Vec<bool>>());
+        renders.push(out.color);
+        positions.push(g.means);
+    }
+    let size = ImageSize::new(camera.width as usize, camera.height as usize);
+    let rendered: Vec<&[[f32; 3]]> = renders.iter().map(Vec::as_slice).collect();
+    let gt_frames: Option<Vec<&[[f32; 3]]>> = fixed_camera.then(|| {
+        times
+            .iter()
+            .map(|&t| {
+                let v = views
+                    .views
+                    .iter()
+                    .find(|v| v.time == t)
+                    .unwrap_or(&views.views[0]);
+                v.image.pixels.as_slice()
+            })
+            .collect()
+    });
+    let f = flicker(size, &rendered, gt_frames.as_deref())?;
+    let pos: Vec<&[[f32; 3]]> = positions.iter().map(Vec::as_slice).collect();
+    let vis: Vec<&[bool]> = visible.iter().map(Vec::as_slice).collect();
+    let j = trajectory_jitter(&pos, &vis)?;
+    Ok(Some(Temporal {
+        frames: times.len(),
+        flicker_rendered: f.rendered,
+        flicker_ground_truth: f.ground_truth,
+        flicker_excess: f.excess,
+        jitter: j.mean,
+        jitter_terms: j.count,
+    }))
+}
+
+/// The markdown table of a report: one row per image, the mean, and the temporal metrics.
+pub fn markdown(report: &EvalReport) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "# Evaluation: split `{}`, {} iterations, network width {}\n",
+        report.split, report.iteration, report.net_width
+    );
+    let _ = writeln!(s, "| image | time | PSNR (dB) | SSIM |");
+    let _ = writeln!(s, "| --- | ---: | ---: | ---: |");
+    for im in &report.images {
+        let _ = writeln!(
+            s,
+            "| {} | {:.3} | {:.2} | {:.4} |",
+            im.name, im.time, im.psnr, im.ssim
+        );
+    }
+    let _ = writeln!(
+        s,
+        "| **mean** ({} images) | | **{:.2}** | **{:.4}** |",
+        report.images.len(),
+        report.mean_psnr,
+        report.mean_ssim
+    );
+    match &report.temporal {
+        Some(t) => {
+            let gt = t.flicker_ground_truth.map_or_else(
+                || "n/a (no fixed-camera ground truth)".to_string(),
+                |g| format!("{g:.5}"),
+            );
+            let _ = writeln!(
+                s,
+                "\nTemporal consistency over {} times from a fixed camera:\n",
+                t.frames
+            );
+            let _ = writeln!(s, "| metric | value |");
+            let _ = writeln!(s, "| --- | ---: |");
+            let _ = writeln!(s, "| flicker (rendered) | {:.5} |", t.flicker_rendered);
+            let _ = writeln!(s, "| flicker (ground truth) | {gt} |");
+            let _ = writeln!(s, "| flicker (excess) | {:.5} |", t.flicker_excess);
+            let _ = writeln!(
+                s,
+                "| trajectory jitter | {:.3e} ({} terms) |",
+                t.jitter, t.jitter_terms
+            );
+        }
+        None => {
+            let _ = writeln!(
+                s,
+                "\nTemporal consistency: n/a (fewer than two distinct times)."
+            );
+        }
+    }
+    s.push_str("\nLPIPS is not reported: its network weights cannot be fetched here.\n");
+    s
+}

@@ -1,0 +1,290 @@
+//! Run directories: what a training run writes and how it is read back.
+//!
+//! Layout of `RUN/`:
+//! - `config.json`: the dataset directory and every setting ([`RunFile`]);
+//! - `checkpoint.safetensors`: everything needed to continue ([`crate::checkpoint`]), rewritten
+//!   every `checkpoint_every` iterations and at the end;
+//! - `canonical.ply`: the canonical Gaussians in the 3DGS PLY layout;
+//! - `deform.safetensors`: the backbone's weights;
+//! - `train_metrics.json`: iterations done, time, iterations/s, last loss and PSNR, Gaussians,
+//!   per-phase times ([`TrainSummary`]);
+//! - `eval_<split>.json`, `eval_<split>.md`, `renders/<split>/*.png`: written by evaluation.
+//!
+//! Every file is written to a temporary file and renamed into place.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use evogs_io::Split;
+use serde::{Deserialize, Serialize};
+use splat_raster::Gaussians;
+
+use crate::backbone::Backbone;
+use crate::checkpoint::{load_checkpoint, save_checkpoint};
+use crate::config::TrainConfig;
+use crate::data::load_split;
+use crate::error::TrainError;
+use crate::state::SceneState;
+use crate::timers::PhaseTimes;
+use crate::trainer::{StepReport, Trainer, deformed_gaussians, make_backbone};
+
+/// The paths of a run directory.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RunPaths {
+    /// The directory.
+    pub root: PathBuf,
+}
+
+impl RunPaths {
+    /// Paths under `root`.
+    pub fn new(root: impl Into<PathBuf>) -> Self {
+        Self { root: root.into() }
+    }
+    /// `config.json`.
+    pub fn config(&self) -> PathBuf {
+        self.root.join("config.json")
+    }
+    /// `checkpoint.safetensors`.
+    pub fn checkpoint(&self) -> PathBuf {
+        self.root.join("checkpoint.safetensors")
+    }
+    /// `canonical.ply`.
+    pub fn canonical(&self) -> PathBuf {
+        self.root.join("canonical.ply")
+    }
+    /// `deform.safetensors`.
+    pub fn weights(&self) -> PathBuf {
+        self.root.join("deform.safetensors")
+    }
+    /// `train_metrics.json`.
+    pub fn train_metrics(&self) -> PathBuf {
+        self.root.join("train_metrics.json")
+    }
+    /// `eval_<split>.json`.
+    pub fn eval_json(&self, split: Split) -> PathBuf {
+        self.root.join(format!("eval_{split}.json"))
+    }
+    /// `eval_<split>.md`.
+    pub fn eval_markdown(&self, split: Split) -> PathBuf {
+        self.root.join(format!("eval_{split}.md"))
+    }
+    /// `renders/<split>/`.
+    pub fn renders(&self, split: Split) -> PathBuf {
+        self.root.join("renders").join(split.name())
+    }
+}
+
+/// `config.json`: where the data is and how the run trains.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunFile {
+    /// The D-NeRF dataset directory.
+    pub data: PathBuf,
+    /// The settings.
+    pub train: TrainConfig,
+}
+
+/// `train_metrics.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TrainSummary {
+    /// Iterations completed.
+    pub iteration: u64,
+    /// Iterations planned.
+    pub iterations: u64,
+    /// Iterations run by the last process (fewer than `iteration` after a resume).
+    pub iterations_this_process: u64,
+    /// Wall-clock seconds of the last process's loop.
+    pub seconds: f64,
+    /// `iterations_this_process / seconds`.
+    pub iterations_per_second: f64,
+    /// Loss of the last iteration.
+    pub last_loss: f64,
+    /// Training-view PSNR of the last iteration.
+    pub last_psnr: f64,
+    /// Gaussians at the end.
+    pub gaussians: usize,
+    /// Network width (results name the width they used).
+    pub net_width: usize,
+    /// Seconds per phase in the last process.
+    pub phases: PhaseTimes,
+}
+
+pub(crate) fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), TrainError> {
+    let text = serde_json::to_string_pretty(value)
+        .map_err(|e| TrainError::file(path, format!("cannot encode JSON: {e}")))?;
+    write_text(path, &text)
+}
+
+pub(crate) fn write_text(path: &Path, text: &str) -> Result<(), TrainError> {
+    evogs_io::atomic::write_atomically(path, |w| {
+        use std::io::Write;
+        w.write_all(text.as_bytes())
+            .map_err(|cause| evogs_io::IoError::Io {
+                path: path.to_path_buf(),
+                cause,
+            })
+    })?;
+    Ok(())
+}
+
+pub(crate) fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T, TrainError> {
+    let text = std::fs::read_to_string(path).map_err(|e| TrainError::io(path, e))?;
+    serde_json::from_str(&text).map_err(|e| TrainError::file(path, format!("invalid JSON: {e}")))
+}
+
+/// What `train` is asked to do.
+#[derive(Clone, Debug)]
+pub struct TrainRequest {
+    /// Dataset directory (ignored when resuming: the run's `config.json` names it).
+    pub data: PathBuf,
+    /// Run directory.
+    pub out: PathBuf,
+    /// Settings (ignored when resuming).
+    pub config: TrainConfig,
+    /// Continue the run in `out` from its checkpoint.
+    pub resume: bool,
+    /// Stop after this many iterations in total even if the run plans more (an interruption;
+    /// outputs and checkpoint are written as usual).
+    pub stop_after: Option<u64>,
+}
+
+/// Trains (or resumes) a run, calling `progress` after every iteration, and writes the run
+/// directory. Returns the summary that `train_metrics.json` holds.
+pub fn train(
+    request: &TrainRequest,
+    progress: &mut dyn FnMut(&StepReport, &Trainer),
+) -> Result<TrainSummary, TrainError> {
+    let paths = RunPaths::new(&request.out);
+    let mut trainer = if request.resume {
+        let run: RunFile = read_json(&paths.config())?;
+        let train = load_split(
+            &run.data,
+            Split::Train,
+            run.train.background.rgb(),
+            run.train.downscale,
+        )?;
+        let backbone = make_backbone(&run.train)?;
+        let init = crate::init::random_gaussians(1, 1.0, run.train.sh_degree, 0);
+        let mut state = SceneState::new(init, backbone.as_ref(), &run.train.lr)?;
+        let mut backbone = backbone;
+        let ckpt = paths.checkpoint();
+        if !ckpt.is_file() {
+            return Err(TrainError::file(
+                &ckpt,
+                "no checkpoint to resume from (train the run first)",
+            ));
+        }
+        let meta = load_checkpoint(&ckpt, &mut state, backbone.as_mut())?;
+        Trainer::from_parts(run.train, train, state, backbone, meta.iteration)?
+    } else {
+        request.config.validate()?;
+        std::fs::create_dir_all(&request.out).map_err(|e| TrainError::io(&request.out, e))?;
+        let data = std::path::absolute(&request.data).unwrap_or_else(|_| request.data.clone());
+        write_json(
+            &paths.config(),
+            &RunFile {
+                data: data.clone(),
+                train: request.config.clone(),
+            },
+        )?;
+        let c = &request.config;
+        let train = load_split(&data, Split::Train, c.background.rgb(), c.downscale)?;
+        Trainer::new(c.clone(), train)?
+    };
+    let end = request.stop_after.map_or(trainer.config.iterations, |s| {
+        s.min(trainer.config.iterations)
+    });
+    let start_iteration = trainer.iteration;
+    let started = Instant::now();
+    let mut last = None;
+    while trainer.iteration < end {
+        let report = trainer.step()?;
+        progress(&report, &trainer);
+        if report
+            .iteration
+            .is_multiple_of(trainer.config.checkpoint_every)
+            && report.iteration < end
+        {
+            save_checkpoint(
+                &paths.checkpoint(),
+                &trainer.state,
+                trainer.backbone.as_ref(),
+                trainer.iteration,
+                trainer.config.seed,
+            )?;
+        }
+        last = Some(report);
+    }
+    let seconds = started.elapsed().as_secs_f64();
+    save_checkpoint(
+        &paths.checkpoint(),
+        &trainer.state,
+        trainer.backbone.as_ref(),
+        trainer.iteration,
+        trainer.config.seed,
+    )?;
+    evogs_io::write_ply(&paths.canonical(), trainer.state.gaussians.view())?;
+    trainer.backbone.save(&paths.weights())?;
+    let done = trainer.iteration - start_iteration;
+    let summary = TrainSummary {
+        iteration: trainer.iteration,
+        iterations: trainer.config.iterations,
+        iterations_this_process: done,
+        seconds,
+        iterations_per_second: done as f64 / seconds.max(1e-9),
+        last_loss: last.map_or(f64::NAN, |r| r.loss),
+        last_psnr: last.map_or(f64::NAN, |r| r.psnr),
+        gaussians: trainer.state.len(),
+        net_width: trainer.config.net.width,
+        phases: trainer.times,
+    };
+    write_json(&paths.train_metrics(), &summary)?;
+    Ok(summary)
+}
+
+/// A trained run read back for evaluation, rendering and export.
+pub struct LoadedRun {
+    /// Its paths.
+    pub paths: RunPaths,
+    /// `config.json`.
+    pub run: RunFile,
+    /// `train_metrics.json`.
+    pub summary: TrainSummary,
+    /// Canonical Gaussians (`canonical.ply`).
+    pub canonical: Gaussians,
+    /// Backbone with the run's weights.
+    pub backbone: Box<dyn Backbone>,
+}
+
+impl LoadedRun {
+    /// Opens a run directory written by [`train`].
+    pub fn open(root: &Path) -> Result<Self, TrainError> {
+        let paths = RunPaths::new(root);
+        if !root.is_dir() {
+            return Err(TrainError::file(root, "not a run directory"));
+        }
+        let run: RunFile = read_json(&paths.config())?;
+        run.train.validate()?;
+        let summary: TrainSummary = read_json(&paths.train_metrics())?;
+        let canonical = evogs_io::read_ply(&paths.canonical())?.gaussians;
+        let mut backbone = make_backbone(&run.train)?;
+        backbone.load(&paths.weights())?;
+        Ok(Self {
+            paths,
+            run,
+            summary,
+            canonical,
+            backbone,
+        })
+    }
+
+    /// Whether the run got past its warm-up (the network is used only then).
+    pub fn deforms(&self) -> bool {
+        self.summary.iteration >= self.run.train.warm_up
+    }
+
+    /// The deformed Gaussians at `time`.
+    pub fn deformed(&mut self, time: f32) -> Result<Gaussians, TrainError> {
+        let deforms = self.deforms();
+        deformed_gaussians(&self.canonical, self.backbone.as_mut(), deforms, time)
+    }
+}

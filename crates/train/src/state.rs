@@ -1,0 +1,396 @@
+//! The training state: canonical Gaussians and every per-Gaussian array that must stay aligned
+//! with them (Adam moments of each parameter group, densification statistics, and the
+//! backbone's own rows), plus the network's optimiser groups.
+//!
+//! Parameter groups follow 3DGS/D-3DGS (`training_setup`): `xyz`, `f_dc`, `f_rest`, `opacity`,
+//! `scaling`, `rotation`, and one group per backbone buffer. The Gaussians keep SH coefficient-
+//! major rows (`splat-raster`); the `f_dc` and `f_rest` groups are gathered from and scattered
+//! back to them around each Adam step, so their moments are rows of 3 and `3·((deg+1)²−1)`.
+
+use densify::{DensifyPlan, DensifyStats, Moments, PerGaussian, apply_plan};
+use splat_raster::{Gaussians, Gradients};
+use tiny_nn::adam::AdamGroup;
+use tiny_nn::{Adam, ExponentialLr, GroupId, LrSchedule, StoreMut};
+
+use crate::backbone::Backbone;
+use crate::config::LrSettings;
+use crate::error::TrainError;
+
+/// Names of the per-Gaussian groups, in order, as 3DGS names them.
+pub const GAUSSIAN_GROUPS: [&str; 6] = ["xyz", "f_dc", "f_rest", "opacity", "scaling", "rotation"];
+
+/// Ids of the per-Gaussian Adam groups, in the order of [`GAUSSIAN_GROUPS`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GaussianGroups {
+    /// Means.
+    pub xyz: GroupId,
+    /// SH DC (3 per Gaussian).
+    pub f_dc: GroupId,
+    /// Higher SH bands.
+    pub f_rest: GroupId,
+    /// Opacity logits.
+    pub opacity: GroupId,
+    /// Log-scales.
+    pub scaling: GroupId,
+    /// Quaternions.
+    pub rotation: GroupId,
+}
+
+impl GaussianGroups {
+    /// The ids in the order of [`GAUSSIAN_GROUPS`].
+    pub fn all(&self) -> [GroupId; 6] {
+        [
+            self.xyz,
+            self.f_dc,
+            self.f_rest,
+            self.opacity,
+            self.scaling,
+            self.rotation,
+        ]
+    }
+}
+
+/// Canonical Gaussians, their optimiser and statistics, and the network's optimiser groups.
+#[derive(Clone, Debug)]
+pub struct SceneState {
+    /// Canonical Gaussians at the maximum SH degree.
+    pub gaussians: Gaussians,
+    /// SH bands in use (raised during training).
+    pub active_sh: u32,
+    /// Densification statistics.
+    pub stats: DensifyStats,
+    /// Adam over every group.
+    pub adam: Adam,
+    /// The per-Gaussian groups.
+    pub groups: GaussianGroups,
+    /// One group per backbone parameter buffer, in the backbone's order.
+    pub net_groups: Vec<GroupId>,
+}
+
+/// Per-Gaussian lr schedules (3DGS `training_setup` with D-3DGS's `spatial_lr_scale`).
+pub fn gaussian_schedules(lr: &LrSettings) -> [LrSchedule; 6] {
+    let s = lr.spatial_lr_scale;
+    [
+        LrSchedule::Exponential(ExponentialLr {
+            lr_init: lr.position_init * s,
+            lr_final: lr.position_final * s,
+            delay_steps: 0,
+            delay_mult: lr.position_delay_mult,
+            max_steps: lr.position_max_steps,
+        }),
+        LrSchedule::Constant(lr.feature),
+        LrSchedule::Constant(lr.feature / 20.0),
+        LrSchedule::Constant(lr.opacity),
+        LrSchedule::Constant(lr.scaling * s),
+        LrSchedule::Constant(lr.rotation),
+    ]
+}
+
+/// The network's schedule (D-3DGS `DeformModel.train_setting`): `position_init · 5` decaying to
+/// `position_final` (not scaled) over `deform_max_steps`.
+pub fn network_schedule(lr: &LrSettings) -> LrSchedule {
+    LrSchedule::Exponential(ExponentialLr {
+        lr_init: lr.position_init * lr.spatial_lr_scale,
+        lr_final: lr.position_final,
+        delay_steps: 0,
+        delay_mult: lr.position_delay_mult,
+        max_steps: lr.deform_max_steps,
+    })
+}
+
+fn rest_width(g: &Gaussians) -> usize {
+    g.sh_stride() - 3
+}
+
+impl SceneState {
+    /// A fresh state: zero moments and statistics, SH degree 0 active.
+    pub fn new(
+        gaussians: Gaussians,
+        backbone: &dyn Backbone,
+        lr: &LrSettings,
+    ) -> Result<Self, TrainError> {
+        let n = gaussians.len();
+        let widths = [3, 3, rest_width(&gaussians), 1, 3, 4];
+        let mut adam = Adam::new();
+        let schedules = gaussian_schedules(lr);
+        let mut ids = Vec::with_capacity(6);
+        for ((name, w), schedule) in GAUSSIAN_GROUPS.iter().zip(widths).zip(schedules) {
+            ids.push(adam.add_group(name, n * w, w.max(1), schedule)?);
+        }
+        let groups = GaussianGroups {
+            xyz: ids[0],
+            f_dc: ids[1],
+            f_rest: ids[2],
+            opacity: ids[3],
+            scaling: ids[4],
+            rotation: ids[5],
+        };
+        let mut net_groups = Vec::new();
+        for (name, buf) in backbone.params() {
+            net_groups.push(adam.add_group(
+                &format!("net.{name}"),
+                buf.len(),
+                1,
+                network_schedule(lr),
+            )?);
+        }
+        Ok(Self {
+            stats: DensifyStats::new(n),
+            gaussians,
+            active_sh: 0,
+            adam,
+            groups,
+            net_groups,
+        })
+    }
+
+    /// Number of Gaussians.
+    pub fn len(&self) -> usize {
+        self.gaussians.len()
+    }
+
+    /// True when there are no Gaussians.
+    pub fn is_empty(&self) -> bool {
+        self.gaussians.is_empty()
+    }
+
+    /// One Adam step of the per-Gaussian groups with the rasterizer's gradients, at the lr of
+    /// `lr_step`. `skip_opacity` leaves the opacity group alone (an opacity reset replaced it
+    /// this iteration, as 3DGS's `replace_tensor_to_optimizer` leaves it without gradient).
+    pub fn step_gaussians(
+        &mut self,
+        grads: &Gradients,
+        lr_step: i64,
+        skip_opacity: bool,
+    ) -> Result<(), TrainError> {
+        let g = &mut self.gaussians;
+        let stride = g.sh_stride();
+        let rest = stride - 3;
+        let ids = self.groups;
+        let adam = &mut self.adam;
+        adam.step(
+            ids.xyz,
+            lr_step,
+            StoreMut::F32(g.means.as_flattened_mut()),
+            grads.means.as_flattened(),
+        )?;
+        let (mut dc, mut dc_grad) = (Vec::new(), Vec::new());
+        let (mut hi, mut hi_grad) = (Vec::new(), Vec::new());
+        for (row, grow) in g.sh.chunks_exact(stride).zip(grads.sh.chunks_exact(stride)) {
+            dc.extend_from_slice(&row[..3]);
+            dc_grad.extend_from_slice(&grow[..3]);
+            hi.extend_from_slice(&row[3..]);
+            hi_grad.extend_from_slice(&grow[3..]);
+        }
+        adam.step(ids.f_dc, lr_step, StoreMut::F32(&mut dc), &dc_grad)?;
+        adam.step(ids.f_rest, lr_step, StoreMut::F32(&mut hi), &hi_grad)?;
+        for (i, row) in g.sh.chunks_exact_mut(stride).enumerate() {
+            row[..3].copy_from_slice(&dc[i * 3..i * 3 + 3]);
+            row[3..].copy_from_slice(&hi[i * rest..(i + 1) * rest]);
+        }
+        if !skip_opacity {
+            adam.step(
+                ids.opacity,
+                lr_step,
+                StoreMut::F32(&mut g.opacity_logits),
+                &grads.opacity_logits,
+            )?;
+        }
+        adam.step(
+            ids.scaling,
+            lr_step,
+            StoreMut::F32(g.log_scales.as_flattened_mut()),
+            grads.log_scales.as_flattened(),
+        )?;
+        adam.step(
+            ids.rotation,
+            lr_step,
+            StoreMut::F32(g.rotations.as_flattened_mut()),
+            grads.rotations.as_flattened(),
+        )?;
+        Ok(())
+    }
+
+    /// One Adam step of the backbone's buffers with their gradients, at the lr of `lr_step`.
+    pub fn step_network(
+        &mut self,
+        backbone: &mut dyn Backbone,
+        grads: &[Vec<f32>],
+        lr_step: i64,
+    ) -> Result<(), TrainError> {
+        let params = backbone.params_mut();
+        if params.len() != grads.len() || params.len() != self.net_groups.len() {
+            return Err(TrainError::config(
+                "backbone",
+                format!(
+                    "{} parameter buffers, {} gradients, {} optimiser groups",
+                    params.len(),
+                    grads.len(),
+                    self.net_groups.len()
+                ),
+            ));
+        }
+        for (((_, p), g), &id) in params.into_iter().zip(grads).zip(&self.net_groups) {
+            self.adam.step(id, lr_step, p, g)?;
+        }
+        Ok(())
+    }
+
+    /// Applies a densification plan to every per-Gaussian array through densify's one
+    /// mechanism: the Gaussians, the moments of the six groups, the statistics and the
+    /// backbone's rows.
+    pub fn apply_plan(
+        &mut self,
+        plan: &DensifyPlan,
+        backbone: &mut dyn Backbone,
+    ) -> Result<(), TrainError> {
+        let ids = self.groups.all();
+        let mut taken: Vec<AdamGroup> = ids
+            .iter()
+            .map(|&id| {
+                std::mem::replace(
+                    self.adam.group_mut(id),
+                    AdamGroup {
+                        name: String::new(),
+                        row_width: 1,
+                        schedule: LrSchedule::Constant(0.0),
+                        step: 0,
+                        m: Vec::new(),
+                        v: Vec::new(),
+                    },
+                )
+            })
+            .collect();
+        let result = {
+            let mut moments: Vec<Moments<'_>> = taken
+                .iter_mut()
+                .enumerate()
+                .map(|(k, group)| Moments {
+                    group,
+                    // Only the opacity group (index 3) holds opacities.
+                    opacity_column: (k == 3).then_some(0),
+                })
+                .collect();
+            let mut arrays: Vec<&mut dyn PerGaussian> = vec![&mut self.gaussians, &mut self.stats];
+            for m in &mut moments {
+                arrays.push(m);
+            }
+            arrays.extend(backbone.rows_mut());
+            apply_plan(plan, &mut arrays)
+        };
+        for (&id, group) in ids.iter().zip(taken) {
+            *self.adam.group_mut(id) = group;
+        }
+        Ok(result?)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::backbone::D3dgsBackbone;
+    use crate::config::{NetSettings, Preset, TrainConfig};
+    use densify::{NewValues, PlanSummary};
+    use evo_state::RowPlan;
+
+    fn state(n: usize) -> (SceneState, D3dgsBackbone) {
+        let c = TrainConfig::preset(Preset::Tiny);
+        let net = NetSettings {
+            width: 8,
+            depth: 2,
+            skip_after: None,
+            ..c.net
+        };
+        let backbone = D3dgsBackbone::new(&net, 1).unwrap();
+        let g = crate::init::random_gaussians(n, 1.0, 3, 5);
+        let mut s = SceneState::new(g, &backbone, &c.lr).unwrap();
+        // Distinct moments per row so that the plan's row movements are visible.
+        for id in s.groups.all() {
+            let group = s.adam.group_mut(id);
+            let w = group.row_width;
+            for (k, m) in group.m.iter_mut().enumerate() {
+                *m = (k / w) as f32 + 1.0;
+            }
+            group.v.clone_from(&group.m);
+        }
+        (s, backbone)
+    }
+
+    #[test]
+    fn a_plan_keeps_every_group_aligned() {
+        let (mut s, mut backbone) = state(5);
+        let parent_from_new = vec![1u32, 4];
+        let plan = DensifyPlan {
+            rows: RowPlan {
+                kept: vec![0, 1, 3, 4],
+                parent_from_new: parent_from_new.clone(),
+            },
+            old_len: 5,
+            new_values: NewValues {
+                means: vec![[0.5; 3]; 2],
+                log_scales: vec![[-3.0; 3]; 2],
+                rotations: vec![[1.0, 0.0, 0.0, 0.0]; 2],
+                opacity_logits: vec![0.0; 2],
+                sh_dc: vec![[0.1; 3]; 2],
+            },
+            reset_rows: vec![2],
+            reset_opacity: 0.01,
+            clears_stats: true,
+            summary: PlanSummary::default(),
+        };
+        let before = s.gaussians.clone();
+        s.apply_plan(&plan, &mut backbone).unwrap();
+        assert_eq!(s.len(), 6);
+        assert_eq!(s.stats.len(), 6);
+        for id in s.groups.all() {
+            let g = s.adam.group(id);
+            assert_eq!(g.m.len(), 6 * g.row_width, "{}", g.name);
+            let w = g.row_width;
+            let row = |r: usize| g.m[r * w];
+            // Kept rows carry their moments, new rows start at zero (3DGS).
+            assert_eq!(row(0), 1.0, "{}", g.name);
+            assert_eq!(row(1), 2.0, "{}", g.name);
+            assert_eq!(row(4), 0.0, "{}", g.name);
+            assert_eq!(row(5), 0.0, "{}", g.name);
+            if g.name == "opacity" {
+                assert_eq!(row(2), 0.0, "reset row's opacity moment");
+            } else {
+                assert_eq!(row(2), 4.0, "{}", g.name);
+            }
+        }
+        assert_eq!(s.gaussians.means[3], before.means[4]);
+        assert_eq!(s.gaussians.means[4], [0.5; 3]);
+        // The SH rest of a new row is its parent's; its DC is the plan's.
+        let st = s.gaussians.sh_stride();
+        assert_eq!(&s.gaussians.sh[4 * st..4 * st + 3], &[0.1; 3]);
+        assert_eq!(
+            &s.gaussians.sh[4 * st + 3..5 * st],
+            &before.sh[st + 3..2 * st]
+        );
+        assert!(s.gaussians.opacity_logits[2] <= (0.01f32 / 0.99).ln() + 1e-6);
+    }
+
+    #[test]
+    fn a_plan_for_the_wrong_row_count_changes_nothing() {
+        let (mut s, mut backbone) = state(4);
+        let plan = DensifyPlan::identity(5);
+        let before = s.gaussians.clone();
+        let err = s.apply_plan(&plan, &mut backbone).unwrap_err().to_string();
+        assert!(err.contains("expected 5"), "{err}");
+        assert_eq!(s.gaussians, before);
+        assert_eq!(s.adam.group(s.groups.xyz).m.len(), 12);
+    }
+
+    #[test]
+    fn schedules_follow_d3dgs() {
+        let lr = LrSettings::default();
+        let s = gaussian_schedules(&lr);
+        assert!((s[0].at(0) - 0.0008).abs() < 1e-9);
+        assert!((s[0].at(30_000) - 0.000008).abs() < 1e-10);
+        assert_eq!(s[2].at(5), 0.0025 / 20.0);
+        assert!((s[4].at(5) - 0.005).abs() < 1e-9);
+        let net = network_schedule(&lr);
+        assert!((net.at(0) - 0.0008).abs() < 1e-9);
+        assert!((net.at(40_000) - 0.0000016).abs() < 1e-11);
+    }
+}

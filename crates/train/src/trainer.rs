@@ -1,0 +1,357 @@
+//! The training loop (D-3DGS `train.py`), one iteration per [`Trainer::step`].
+//!
+//! Iteration `i` (from 1), in D-3DGS's order:
+//! 1. every `sh_interval` iterations the active SH degree goes up by one;
+//! 2. the view is the next of a seeded random permutation of the training views (a new
+//!    permutation per epoch: D-3DGS pops random views from a refilled stack);
+//! 3. before `warm_up` the deformation is zero, afterwards the backbone's output at the view's
+//!    time with the canonical means detached;
+//! 4. render, loss `0.8·L1 + 0.2·(1 − SSIM)`, backward through the rasterizer and the backbone;
+//! 5. while `i < densify.until` the projected-mean gradients and radii are accumulated, and on
+//!    densify's schedule a plan is made (clone/split/prune, opacity reset) and applied to every
+//!    per-Gaussian array;
+//! 6. while `i < iterations`, Adam steps with the lr of step `i − 1` (3DGS updates the lr after
+//!    each step). As in 3DGS, the Gaussians are not stepped on an iteration that densified (the
+//!    replaced tensors carry no gradient), and the opacities not on one that reset them.
+//!
+//! Everything random is a pure function of (seed, iteration): the epoch's permutation is drawn
+//! from a generator seeded by (seed, epoch), densify's split sampling from (seed, iteration),
+//! so the checkpoint's RNG state is the seed and the iteration count.
+
+use std::time::Instant;
+
+use densify::{DensifyConfig, Schedule, make_plan};
+use rand::SeedableRng;
+use rand::seq::SliceRandom;
+use rand_chacha::ChaCha8Rng;
+use splat_raster::{CpuRasterizer, Gaussians, Rasterizer, RenderOptions};
+
+use crate::backbone::{Backbone, D3dgsBackbone};
+use crate::config::{Method, TrainConfig};
+use crate::data::SplitViews;
+use crate::deformed::{DeformedGeometry, deformation_gradient};
+use crate::error::TrainError;
+use crate::init::random_gaussians;
+use crate::metrics::{ImageSize, photometric_loss, psnr};
+use crate::state::SceneState;
+use crate::timers::{Phase, PhaseTimes};
+
+/// What one iteration did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepReport {
+    /// The iteration (from 1).
+    pub iteration: u64,
+    /// Photometric loss.
+    pub loss: f64,
+    /// PSNR of the training view.
+    pub psnr: f64,
+    /// Gaussians after the iteration.
+    pub gaussians: usize,
+    /// Whether densification changed the Gaussian set.
+    pub densified: bool,
+}
+
+/// The backbone a config asks for.
+pub fn make_backbone(config: &TrainConfig) -> Result<Box<dyn Backbone>, TrainError> {
+    match config.method {
+        Method::Baseline => Ok(Box::new(D3dgsBackbone::new(
+            &config.net,
+            config.seed ^ 0xD3D6_5000,
+        )?)),
+    }
+}
+
+/// Densify's configuration from the run's settings (standard 3DGS ADC, EvoGS policies off).
+pub fn densify_config(config: &TrainConfig) -> DensifyConfig {
+    let d = &config.densify;
+    DensifyConfig {
+        schedule: Schedule {
+            from: d.from,
+            until: d.until,
+            interval: d.interval,
+            opacity_reset_interval: d.opacity_reset_interval,
+            white_background: config.background == crate::config::Background::White,
+        },
+        grad_threshold: d.grad_threshold,
+        percent_dense: d.percent_dense,
+        min_opacity: d.min_opacity,
+        max_screen_radius: d.max_screen_radius,
+        max_world_fraction: d.max_world_fraction,
+        seed: config.seed,
+        ..DensifyConfig::default()
+    }
+}
+
+/// A training run in memory.
+pub struct Trainer {
+    /// Settings.
+    pub config: TrainConfig,
+    /// Training views.
+    pub train: SplitViews,
+    /// Scene extent (3DGS: 1.1 × the largest camera distance from the cameras' mean).
+    pub extent: f32,
+    /// Gaussians, optimiser, statistics.
+    pub state: SceneState,
+    /// The deformation backbone.
+    pub backbone: Box<dyn Backbone>,
+    /// Iterations completed.
+    pub iteration: u64,
+    /// Time spent per phase (this process only).
+    pub times: PhaseTimes,
+    raster: CpuRasterizer,
+    densify: DensifyConfig,
+    order: (u64, Vec<usize>),
+}
+
+impl Trainer {
+    /// A new run: random initial Gaussians, fresh network and optimiser.
+    pub fn new(config: TrainConfig, train: SplitViews) -> Result<Self, TrainError> {
+        config.validate()?;
+        let gaussians = random_gaussians(
+            config.init_points,
+            config.init_half_extent,
+            config.sh_degree,
+            config.seed,
+        );
+        let backbone = make_backbone(&config)?;
+        let state = SceneState::new(gaussians, backbone.as_ref(), &config.lr)?;
+        Self::from_parts(config, train, state, backbone, 0)
+    }
+
+    /// A run from its parts (used when resuming from a checkpoint).
+    pub fn from_parts(
+        config: TrainConfig,
+        train: SplitViews,
+        state: SceneState,
+        backbone: Box<dyn Backbone>,
+        iteration: u64,
+    ) -> Result<Self, TrainError> {
+        if train.views.is_empty() {
+            return Err(TrainError::config("train", "no training views"));
+        }
+        let mut extent = densify::scene_extent(&train.cameras())?;
+        if !(extent.is_finite() && extent > 0.0) {
+            // One camera (or coincident centres): fall back to the initial cube's size.
+            extent = 1.1 * config.init_half_extent;
+        }
+        let densify = densify_config(&config);
+        densify.validate()?;
+        Ok(Self {
+            densify,
+            config,
+            train,
+            extent,
+            state,
+            backbone,
+            iteration,
+            times: PhaseTimes::default(),
+            raster: CpuRasterizer::new(),
+            order: (u64::MAX, Vec::new()),
+        })
+    }
+
+    /// Whether the deformation is used at iteration `i` (after the warm-up).
+    pub fn deforms_at(&self, iteration: u64) -> bool {
+        iteration >= self.config.warm_up
+    }
+
+    /// Index of the training view of iteration `i` (from 1).
+    pub fn view_at(&mut self, iteration: u64) -> usize {
+        let n = self.train.views.len() as u64;
+        let epoch = (iteration - 1) / n;
+        if self.order.0 != epoch {
+            let mut rng = ChaCha8Rng::seed_from_u64(self.config.seed);
+            rng.set_stream(epoch);
+            let mut perm: Vec<usize> = (0..n as usize).collect();
+            perm.shuffle(&mut rng);
+            self.order = (epoch, perm);
+        }
+        self.order.1[((iteration - 1) % n) as usize]
+    }
+
+    /// Runs one iteration.
+    pub fn step(&mut self) -> Result<StepReport, TrainError> {
+        let i = self.iteration + 1;
+        let mut t = Instant::now();
+        if i.is_multiple_of(self.config.sh_interval) && self.state.active_sh < self.config.sh_degree
+        {
+            self.state.active_sh += 1;
+        }
+        let vi = self.view_at(i);
+        let deforms = self.deforms_at(i);
+        t = self.times.lap(Phase::Data, t);
+        let d = if deforms {
+            let view = &self.train.views[vi];
+            Some(
+                self.backbone
+                    .forward(self.state.gaussians.view(), view.time, true)?,
+            )
+        } else {
+            None
+        };
+        t = self.times.lap(Phase::NetForward, t);
+        let geometry = DeformedGeometry::new(&self.state.gaussians, d.as_deref());
+        let gview = geometry.view(&self.state.gaussians);
+        let view = &self.train.views[vi];
+        let opts = RenderOptions {
+            background: self.config.background.rgb(),
+            sh_degree: Some(self.state.active_sh),
+        };
+        t = self.times.lap(Phase::Data, t);
+        let fwd = self.raster.forward(gview, &view.camera, &opts)?;
+        t = self.times.lap(Phase::RasterForward, t);
+        let size = ImageSize::new(view.image.width as usize, view.image.height as usize);
+        let loss = photometric_loss(size, &fwd.color, &view.image.pixels)?;
+        let train_psnr = psnr(size, &fwd.color, &view.image.pixels)?;
+        t = self.times.lap(Phase::Loss, t);
+        let grads = self.raster.backward(
+            gview,
+            &view.camera,
+            &opts,
+            &fwd,
+            &loss.d_rendered,
+            None,
+            None,
+        )?;
+        t = self.times.lap(Phase::RasterBackward, t);
+        let net_grads = if deforms {
+            let dd = deformation_gradient(&grads.means, &grads.rotations, &grads.log_scales);
+            Some(self.backbone.backward(&dd)?)
+        } else {
+            None
+        };
+        t = self.times.lap(Phase::NetBackward, t);
+        let (w, h) = (view.camera.width, view.camera.height);
+        drop(geometry);
+        let schedule = self.densify.schedule;
+        if schedule.accumulates(i) {
+            self.state
+                .stats
+                .add_view(&grads.means2d, &grads.radii, w, h)?;
+        }
+        let mut densified = false;
+        if schedule.acts(i) {
+            let plan = make_plan(
+                &self.densify,
+                &densify::PlanInput {
+                    gaussians: self.state.gaussians.view(),
+                    stats: &self.state.stats,
+                    extent: self.extent,
+                    iteration: i,
+                    deformation: None,
+                },
+            )?;
+            densified = plan.summary.after != plan.summary.before || plan.new_len() != plan.old_len;
+            self.state.apply_plan(&plan, self.backbone.as_mut())?;
+        }
+        t = self.times.lap(Phase::Densify, t);
+        if i < self.config.iterations {
+            let lr_step = i as i64 - 1;
+            if !schedule.densifies(i) {
+                self.state
+                    .step_gaussians(&grads, lr_step, schedule.resets_opacity(i))?;
+            }
+            if let Some(g) = &net_grads {
+                self.state
+                    .step_network(self.backbone.as_mut(), g, lr_step)?;
+            }
+        }
+        self.times.lap(Phase::Optimizer, t);
+        self.iteration = i;
+        Ok(StepReport {
+            iteration: i,
+            loss: loss.loss,
+            psnr: train_psnr,
+            gaussians: self.state.len(),
+            densified,
+        })
+    }
+
+    /// The deformed Gaussians at `time` (canonical ones when the run has not reached the end of
+    /// its warm-up: the network is not used then).
+    pub fn deformed_at(&mut self, time: f32) -> Result<Gaussians, TrainError> {
+        let deforms = self.deforms_at(self.iteration.max(1));
+        deformed_gaussians(&self.state.gaussians, self.backbone.as_mut(), deforms, time)
+    }
+}
+
+/// The deformed Gaussians of a canonical set at `time`; `use_network = false` returns the
+/// canonical set.
+pub fn deformed_gaussians(
+    canonical: &Gaussians,
+    backbone: &mut dyn Backbone,
+    use_network: bool,
+    time: f32,
+) -> Result<Gaussians, TrainError> {
+    let d = if use_network {
+        Some(backbone.forward(canonical.view(), time, false)?)
+    } else {
+        None
+    };
+    Ok(DeformedGeometry::new(canonical, d.as_deref()).into_gaussians(canonical))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Preset;
+    use crate::data::View;
+    use evogs_io::{ImageRgb, Split};
+    use glam::Vec3;
+    use splat_raster::Camera;
+
+    fn views(n: usize) -> SplitViews {
+        SplitViews {
+            split: Split::Train,
+            views: (0..n)
+                .map(|k| View {
+                    path: format!("r_{k}.png").into(),
+                    image: ImageRgb::filled(8, 8, [0.5; 3]),
+                    camera: Camera::look_at(
+                        8,
+                        8,
+                        0.8,
+                        Vec3::new(3.0 * (k as f32).cos(), 3.0 * (k as f32).sin(), 1.0),
+                        Vec3::ZERO,
+                        Vec3::Z,
+                    ),
+                    time: k as f32 / n.max(2) as f32,
+                })
+                .collect(),
+        }
+    }
+
+    fn trainer(n: usize, seed: u64) -> Result<Trainer, TrainError> {
+        let mut c = TrainConfig::preset(Preset::Tiny);
+        c.init_points = 20;
+        c.seed = seed;
+        Trainer::new(c, views(n))
+    }
+
+    #[test]
+    fn every_epoch_is_a_seeded_permutation_of_the_views() {
+        let mut t = trainer(7, 1).unwrap();
+        let epochs: Vec<Vec<usize>> = (0..4)
+            .map(|e| (1..=7).map(|k| t.view_at(e * 7 + k)).collect())
+            .collect();
+        for e in &epochs {
+            let mut sorted = e.clone();
+            sorted.sort_unstable();
+            assert_eq!(sorted, (0..7).collect::<Vec<_>>());
+        }
+        assert!(epochs.windows(2).any(|w| w[0] != w[1]), "epochs reshuffle");
+        // A pure function of (seed, iteration): asking out of order gives the same views.
+        let mut u = trainer(7, 1).unwrap();
+        assert_eq!(u.view_at(20), epochs[2][5]);
+        assert_eq!(u.view_at(3), epochs[0][2]);
+        let mut other = trainer(7, 2).unwrap();
+        let o: Vec<usize> = (1..=7).map(|k| other.view_at(k)).collect();
+        assert_ne!(o, epochs[0]);
+    }
+
+    #[test]
+    fn no_views_is_an_error() {
+        let e = trainer(0, 0).err().unwrap().to_string();
+        assert!(e.contains("no training views"), "{e}");
+    }
+}
