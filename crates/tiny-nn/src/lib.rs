@@ -81,6 +81,7 @@ pub mod linalg;
 pub mod mlp;
 pub mod nets;
 pub mod precision;
+mod reduce;
 pub mod weights;
 
 pub use activation::Activation;

@@ -17,6 +17,8 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
+use crate::reduce::{add_into, fold_in_order};
+
 use crate::activation::Activation;
 use crate::error::{NnError, check_len};
 use crate::linalg::{matmul, matmul_a_bt, matmul_at_b};
@@ -508,32 +510,20 @@ impl Mlp {
         M: Fn(A, A) -> A + Sync + Send,
     {
         let rows = cache.rows;
-        let n_blocks = dsts.len();
-        let min_len = n_blocks.div_ceil(2 * rayon::current_num_threads()).max(1);
         let n_params = self.params.len();
-        dsts.into_par_iter()
-            .enumerate()
-            .with_min_len(min_len)
-            .fold(
-                || (vec![0f32; n_params], init(), Scratch::default()),
-                |(mut grads, mut acc, mut scr), (b, dst)| {
-                    let r0 = b * BACKWARD_BLOCK;
-                    let nr = BACKWARD_BLOCK.min(rows - r0);
-                    self.backward_block(
-                        weights, cache, d_out, r0, nr, &mut grads, want_dx, &mut scr,
-                    );
-                    sink(&mut acc, r0, dst, want_dx.then_some(&scr.dx[..]));
-                    (grads, acc, scr)
-                },
-            )
-            .map(|(g, a, _)| (g, a))
-            .reduce(
-                || (vec![0f32; n_params], init()),
-                |(mut ga, aa), (gb, ab)| {
-                    ga.iter_mut().zip(&gb).for_each(|(x, y)| *x += y);
-                    (ga, merge(aa, ab))
-                },
-            )
+        let (grads, acc, _) = fold_in_order(
+            dsts,
+            || (vec![0f32; n_params], init(), Scratch::default()),
+            |(mut grads, mut acc, mut scr), (b, dst)| {
+                let r0 = b * BACKWARD_BLOCK;
+                let nr = BACKWARD_BLOCK.min(rows - r0);
+                self.backward_block(weights, cache, d_out, r0, nr, &mut grads, want_dx, &mut scr);
+                sink(&mut acc, r0, dst, want_dx.then_some(&scr.dx[..]));
+                (grads, acc, scr)
+            },
+            |(ga, aa, scr), (gb, ab, _)| (add_into(ga, gb), merge(aa, ab), scr),
+        );
+        (grads, acc)
     }
 
     /// Backward over one block; accumulates dL/dθ into `grads` and, when `want_dx`, leaves

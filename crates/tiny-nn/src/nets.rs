@@ -2,10 +2,11 @@
 
 use crate::encoding::bspline::{BSplineConfig, BSplineTime};
 use crate::encoding::sinusoidal::Sinusoidal;
-use crate::encoding::triplane::{TriPlane, TriPlaneConfig, add_into};
+use crate::encoding::triplane::{TriPlane, TriPlaneConfig};
 use crate::error::{NnError, check_len};
 use crate::mlp::{Mlp, MlpCache, MlpConfig};
 use crate::precision::{Precision, StoreMut, StoreRef};
+use crate::reduce::add_into;
 use crate::weights::Parameters;
 
 /// Settings of the EvoGS observation network Φ: `[tri-plane(x), B-spline(t)] → MLP → D`.

@@ -285,3 +285,34 @@ fn observation_net_f16_saturates_huge_features_without_inf() {
         .unwrap();
     assert!(g.mlp.iter().chain(&g.triplane).all(|v| v.is_finite()));
 }
+
+/// Parameter gradients are reduced over row blocks in a fixed grouping, so they are bit-identical
+/// for any thread count and any scheduling (training is reproducible for a seed).
+#[test]
+fn observation_net_gradients_are_bit_identical_for_any_thread_count() {
+    let mut net = phi(Precision::F32);
+    let n = net.mlp.param_count();
+    net.mlp.set_params(&vals(n, 42, 0.5)).unwrap();
+    // Many rows, so that several blocks (and groups) take part.
+    let rows = 20_000;
+    let (p, t) = inputs(rows);
+    let c = vals(rows * 4, 43, 1.0);
+    let grads_with = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let (_, cache) = net.forward(&p, &t, rows).unwrap();
+            let g = net.backward(&cache, &c, true).unwrap();
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            (bits(&g.triplane), bits(&g.bspline), bits(&g.mlp))
+        })
+    };
+    let one = grads_with(1);
+    for threads in [2, 3] {
+        for _ in 0..3 {
+            assert!(grads_with(threads) == one, "{threads} threads differ");
+        }
+    }
+}

@@ -11,6 +11,8 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
+use crate::reduce::{add_into, fold_in_order};
+
 use super::ENC_ROWS;
 use crate::error::{NnError, check_len};
 use crate::precision::{Precision, Store, StoreMut, StoreRef};
@@ -254,27 +256,23 @@ impl BSplineTime {
             Some(v) => v.chunks_mut(ENC_ROWS).map(Some).collect(),
             None => (0..n_blocks).map(|_| None).collect(),
         };
-        let min_len = n_blocks.div_ceil(2 * rayon::current_num_threads()).max(1);
-        let params = blocks
-            .into_par_iter()
-            .enumerate()
-            .with_min_len(min_len)
-            .fold(
-                || vec![0f32; n_params],
-                |mut acc, (blk, mut dt)| {
-                    let r0 = blk * ENC_ROWS;
-                    for i in 0..ENC_ROWS.min(rows - r0) {
-                        let row = r0 + i;
-                        let g = &d_out[row * e..(row + 1) * e];
-                        let gt = self.backward_row(&p, cache.times[row], g, &mut acc);
-                        if let Some(dt) = dt.as_mut() {
-                            dt[i] = gt;
-                        }
+        let params = fold_in_order(
+            blocks,
+            || vec![0f32; n_params],
+            |mut acc, (blk, mut dt)| {
+                let r0 = blk * ENC_ROWS;
+                for i in 0..ENC_ROWS.min(rows - r0) {
+                    let row = r0 + i;
+                    let g = &d_out[row * e..(row + 1) * e];
+                    let gt = self.backward_row(&p, cache.times[row], g, &mut acc);
+                    if let Some(dt) = dt.as_mut() {
+                        dt[i] = gt;
                     }
-                    acc
-                },
-            )
-            .reduce(|| vec![0f32; n_params], super::triplane::add_into);
+                }
+                acc
+            },
+            add_into,
+        );
         Ok(BSplineGrads { params, times: d_t })
     }
 }

@@ -17,6 +17,8 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
+use crate::reduce::{add_into, fold_in_order};
+
 use super::ENC_ROWS;
 use crate::error::{NnError, check_len};
 use crate::precision::{Precision, Store, StoreMut, StoreRef};
@@ -397,36 +399,32 @@ impl TriPlane {
             Some(v) => v.chunks_mut(ENC_ROWS * 3).map(Some).collect(),
             None => (0..n_blocks).map(|_| None).collect(),
         };
-        let min_len = n_blocks.div_ceil(2 * rayon::current_num_threads()).max(1);
-        let params = dp_blocks
-            .into_par_iter()
-            .enumerate()
-            .with_min_len(min_len)
-            .fold(
-                || vec![0f32; n_params],
-                |mut acc, (blk, mut dp)| {
-                    let r0 = blk * ENC_ROWS;
-                    let nr = ENC_ROWS.min(rows - r0);
-                    let mut feat = vec![0f32; 3 * c];
-                    let mut dfeat = vec![0f32; 3 * c];
-                    for i in 0..nr {
-                        let row = r0 + i;
-                        let g = self.backward_row(
-                            &planes,
-                            &cache.positions[row * 3..row * 3 + 3],
-                            &d_out[row * w..(row + 1) * w],
-                            &mut acc,
-                            &mut feat,
-                            &mut dfeat,
-                        );
-                        if let Some(dp) = dp.as_mut() {
-                            dp[i * 3..i * 3 + 3].copy_from_slice(&g);
-                        }
+        let params = fold_in_order(
+            dp_blocks,
+            || vec![0f32; n_params],
+            |mut acc, (blk, mut dp)| {
+                let r0 = blk * ENC_ROWS;
+                let nr = ENC_ROWS.min(rows - r0);
+                let mut feat = vec![0f32; 3 * c];
+                let mut dfeat = vec![0f32; 3 * c];
+                for i in 0..nr {
+                    let row = r0 + i;
+                    let g = self.backward_row(
+                        &planes,
+                        &cache.positions[row * 3..row * 3 + 3],
+                        &d_out[row * w..(row + 1) * w],
+                        &mut acc,
+                        &mut feat,
+                        &mut dfeat,
+                    );
+                    if let Some(dp) = dp.as_mut() {
+                        dp[i * 3..i * 3 + 3].copy_from_slice(&g);
                     }
-                    acc
-                },
-            )
-            .reduce(|| vec![0f32; n_params], add_into);
+                }
+                acc
+            },
+            add_into,
+        );
         Ok(TriPlaneGrads {
             params,
             positions: d_pos,
@@ -435,11 +433,6 @@ impl TriPlane {
 }
 
 /// `a += b`, returning `a` (a reduction step).
-pub(crate) fn add_into(mut a: Vec<f32>, b: Vec<f32>) -> Vec<f32> {
-    a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
-    a
-}
-
 /// Bilinear sample of `c = out.len()` channels.
 fn sample(planes: &[f32], off: usize, lk: &Lookup, out: &mut [f32]) {
     out.fill(0.0);
