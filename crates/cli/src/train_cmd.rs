@@ -45,6 +45,15 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
         resume: args.resume,
         stop_after: args.stop_after,
     };
+    if !args.resume {
+        // Say which layout was detected (reading the cameras again inside `train` is cheap: no
+        // images are loaded here).
+        let dataset = evogs_train::data::open_dataset(&request.data)?;
+        println!("dataset: {}", dataset.summary());
+        if let Some(warning) = dataset.camera_warning() {
+            eprintln!("warning: {warning}");
+        }
+    }
     let terminal = std::io::stderr().is_terminal();
     let bar = if terminal {
         ProgressBar::new(0)

@@ -82,6 +82,8 @@ fn trains_evaluates_renders_and_exports_a_tiny_scene() {
     assert!(out.contains("rasterizer backward"), "{out}");
     // Not a terminal: plain progress lines instead of a bar.
     assert!(stderr(&o).contains("iteration 300/300"), "{}", stderr(&o));
+    // The detected dataset layout is said.
+    assert!(out.contains("dataset: dnerf: 16 train"), "{out}");
     for f in [
         "config.json",
         "checkpoint.safetensors",

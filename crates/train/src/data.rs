@@ -1,9 +1,10 @@
-//! Datasets: the views of a D-NeRF split (image, camera, time) loaded through `evogs-io`, resized
-//! by the run's factor, and checked (no empty split, every image the size of the first).
+//! Datasets: the views of a split (image, camera, time) of any layout `evogs-io` reads (D-NeRF,
+//! nerfies, Neu3D, COLMAP; detected from the directory), resized by the run's factor, and checked
+//! (no empty split, every image the size of the first).
 
 use std::path::{Path, PathBuf};
 
-use evogs_io::{ImageRgb, Split, load_view, read_dnerf_split};
+use evogs_io::{Dataset, Format, ImageRgb, LoadOptions, Split, load_view};
 use splat_raster::Camera;
 
 use crate::error::TrainError;
@@ -45,21 +46,41 @@ impl SplitViews {
     }
 }
 
-/// Loads a split of a D-NeRF dataset directory: images composited over `background` and resized
-/// by `factor`. Errors name the file: a missing or malformed `transforms_*.json`, a missing
-/// image, an empty frame list, an image whose size differs from the split's first image.
+/// Reads a dataset directory's cameras, times and point cloud (not its images), detecting the
+/// layout (`evogs_io::detect_format`); `Dataset::summary` says which layout was chosen.
+pub fn open_dataset(root: &Path) -> Result<Dataset, TrainError> {
+    Ok(evogs_io::load_dataset(root, &LoadOptions::default())?)
+}
+
+/// Loads a split of the dataset directory `root` (any layout, see [`open_dataset`]).
 pub fn load_split(
     root: &Path,
     split: Split,
     background: [f32; 3],
     factor: f32,
 ) -> Result<SplitViews, TrainError> {
-    let transforms = split.transforms_path(root);
-    let frames = read_dnerf_split(root, split)?;
+    load_dataset_split(&open_dataset(root)?, root, split, background, factor)
+}
+
+/// Loads a split of an opened dataset: images composited over `background` and resized by
+/// `factor`. Errors name the file: an empty split (D-NeRF: its `transforms_*.json`), a missing
+/// image, an image whose size differs from the split's first image.
+pub fn load_dataset_split(
+    dataset: &Dataset,
+    root: &Path,
+    split: Split,
+    background: [f32; 3],
+    factor: f32,
+) -> Result<SplitViews, TrainError> {
+    let frames = dataset.split(split);
     if frames.is_empty() {
+        let (file, field) = match dataset.format {
+            Format::Dnerf => (split.transforms_path(root), "frames"),
+            _ => (root.to_path_buf(), split.name()),
+        };
         return Err(TrainError::field(
-            transforms,
-            "frames",
+            file,
+            field,
             "the split is empty: no frames to use",
         ));
     }
@@ -68,7 +89,8 @@ pub fn load_split(
         frames
             .par_iter()
             .map(|f| {
-                let (image, camera) = load_view(&f.image_path, &f.camera, background, factor)?;
+                let (image, camera) =
+                    load_view(&f.image_path, &f.camera.camera, background, factor)?;
                 Ok(View {
                     path: f.image_path.clone(),
                     image,

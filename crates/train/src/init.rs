@@ -15,13 +15,34 @@ pub fn random_gaussians(count: usize, half: f32, sh_degree: u32, seed: u64) -> G
     let means: Vec<[f32; 3]> = (0..count)
         .map(|_| std::array::from_fn(|_| rng.random_range(-half..half)))
         .collect();
+    // 3DGS: `shs = rand / 255`, used directly as SH DC after SH2RGB/RGB2SH round trip.
+    let dc: Vec<[f32; 3]> = (0..count)
+        .map(|_| std::array::from_fn(|_| rng.random::<f32>() / 255.0))
+        .collect();
+    from_points(means, &dc, sh_degree)
+}
+
+/// Gaussians from a dataset's point cloud (3DGS `create_from_pcd`): one per point, SH DC
+/// `RGB2SH(colour) = (colour − 0.5) / C0`, higher bands zero.
+pub fn gaussians_from_point_cloud(points: &evogs_io::PointCloud, sh_degree: u32) -> Gaussians {
+    const SH_C0: f32 = 0.282_094_8;
+    let means = points.positions.iter().map(|p| p.to_array()).collect();
+    let dc: Vec<[f32; 3]> = points
+        .colours
+        .iter()
+        .map(|c| ((*c - 0.5) / SH_C0).to_array())
+        .collect();
+    from_points(means, &dc, sh_degree)
+}
+
+/// Gaussians at `means` with SH DC `dc` (higher bands zero), initialised as 3DGS's
+/// `create_from_pcd` (see the module doc).
+fn from_points(means: Vec<[f32; 3]>, dc: &[[f32; 3]], sh_degree: u32) -> Gaussians {
+    let count = means.len();
     let stride = sh_coeff_count(sh_degree) * 3;
     let mut sh = vec![0.0f32; count * stride];
-    for row in sh.chunks_exact_mut(stride) {
-        for c in &mut row[..3] {
-            // 3DGS: `shs = rand / 255`, used directly as SH DC after SH2RGB/RGB2SH round trip.
-            *c = rng.random::<f32>() / 255.0;
-        }
+    for (row, dc) in sh.chunks_exact_mut(stride).zip(dc) {
+        row[..3].copy_from_slice(dc);
     }
     let log_scales = mean_knn_sq_dist(&means, 3)
         .into_iter()

@@ -22,7 +22,7 @@ use splat_raster::Gaussians;
 use crate::backbone::Backbone;
 use crate::checkpoint::{load_checkpoint, save_checkpoint};
 use crate::config::TrainConfig;
-use crate::data::load_split;
+use crate::data::{load_dataset_split, load_split, open_dataset};
 use crate::error::TrainError;
 use crate::state::SceneState;
 use crate::timers::PhaseTimes;
@@ -187,8 +187,24 @@ pub fn train(
             },
         )?;
         let c = &request.config;
-        let train = load_split(&data, Split::Train, c.background.rgb(), c.downscale)?;
-        Trainer::new(c.clone(), train)?
+        let dataset = open_dataset(&data)?;
+        let train = load_dataset_split(
+            &dataset,
+            &data,
+            Split::Train,
+            c.background.rgb(),
+            c.downscale,
+        )?;
+        // Initial points: the dataset's point cloud where it brings one (COLMAP, nerfies),
+        // random in the scene box otherwise (D-NeRF practice).
+        match dataset.points.as_ref().filter(|p| !p.positions.is_empty()) {
+            Some(points) => Trainer::with_gaussians(
+                c.clone(),
+                train,
+                crate::init::gaussians_from_point_cloud(points, c.sh_degree),
+            )?,
+            None => Trainer::new(c.clone(), train)?,
+        }
     };
     let end = request.stop_after.map_or(trainer.config.iterations, |s| {
         s.min(trainer.config.iterations)

@@ -106,13 +106,23 @@ pub struct Trainer {
 impl Trainer {
     /// A new run: random initial Gaussians, fresh network and optimiser.
     pub fn new(config: TrainConfig, train: SplitViews) -> Result<Self, TrainError> {
-        config.validate()?;
         let gaussians = random_gaussians(
             config.init_points,
             config.init_half_extent,
             config.sh_degree,
             config.seed,
         );
+        Self::with_gaussians(config, train, gaussians)
+    }
+
+    /// A new run from given initial Gaussians (e.g. a dataset's point cloud, see
+    /// [`crate::init::gaussians_from_point_cloud`]) at iteration 0.
+    pub fn with_gaussians(
+        config: TrainConfig,
+        train: SplitViews,
+        gaussians: splat_raster::Gaussians,
+    ) -> Result<Self, TrainError> {
+        config.validate()?;
         let backbone = make_backbone(&config)?;
         let state = SceneState::new(gaussians, backbone.as_ref(), &config.lr)?;
         Self::from_parts(config, train, state, backbone, 0)
