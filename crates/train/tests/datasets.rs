@@ -11,7 +11,7 @@ use evogs_io::colmap::{
 };
 use evogs_io::{Format, LoadOptions, Split};
 use evogs_train::{Preset, TrainConfig, TrainRequest, train};
-use glam::{Mat3, Quat};
+use glam::Quat;
 
 /// Writes the common test scene's training views as a static COLMAP text model (one PINHOLE
 /// camera per image, `images/` beside `sparse/`), with the scene's Gaussians at t = 0.5 as its
@@ -35,7 +35,7 @@ fn write_colmap_from(dnerf: &Path, out: &Path) -> usize {
             height: cam.height,
             params: [cam.fx, cam.fy, cam.cx, cam.cy].map(f64::from).to_vec(),
         });
-        let q = Quat::from_mat3(&Mat3::from(cam.rotation));
+        let q = Quat::from_mat3(&cam.rotation);
         images.push(ColmapImage {
             id,
             qvec: [q.w, q.x, q.y, q.z].map(f64::from),
