@@ -9,7 +9,10 @@ use crate::args::EvalArgs;
 
 /// Runs `evogs eval`.
 pub fn run_eval(args: &EvalArgs) -> Result<EvalReport> {
-    let split: Split = args.split.parse().map_err(|e: String| anyhow!("--split: {e}"))?;
+    let split: Split = args
+        .split
+        .parse()
+        .map_err(|e: String| anyhow!("--split: {e}"))?;
     let mut run = LoadedRun::open(&args.run)?;
     Ok(evaluate(&mut run, split)?)
 }

@@ -4,18 +4,15 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use evogs_io::read_nerfies_camera;
-use evogs_train::render::{render_at, sweep};
 use evogs_train::LoadedRun;
+use evogs_train::render::{render_at, sweep};
 
 use crate::args::RenderArgs;
 use crate::render::{RenderReport, check_output_name, resize_camera};
 
 /// Renders `run` as `args` ask: one image at `--time`, or `--sweep N` frames into a folder.
 pub fn render_run(run: &Path, args: &RenderArgs) -> Result<RenderReport> {
-    let camera_path = args
-        .camera
-        .as_ref()
-        .context("--run needs --camera")?;
+    let camera_path = args.camera.as_ref().context("--run needs --camera")?;
     let mut loaded = LoadedRun::open(run)?;
     let info = read_nerfies_camera(camera_path)?;
     let mut warnings = Vec::new();

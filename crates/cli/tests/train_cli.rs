@@ -36,16 +36,33 @@ fn trains_evaluates_renders_and_exports_a_tiny_scene() {
     // An untrained run (0 optimiser steps: one iteration, which never steps) is the floor.
     let untrained = dir.path().join("untrained");
     let o = evogs(&[
-        "train", "--data", s(&data), "--out", s(&untrained), "--preset", "tiny",
-        "--iterations", "1",
+        "train",
+        "--data",
+        s(&data),
+        "--out",
+        s(&untrained),
+        "--preset",
+        "tiny",
+        "--iterations",
+        "1",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let o = evogs(&["eval", "--run", s(&untrained), "--split", "test"]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let floor = json(&untrained.join("eval_test.json"))["mean_psnr"].as_f64().unwrap();
+    let floor = json(&untrained.join("eval_test.json"))["mean_psnr"]
+        .as_f64()
+        .unwrap();
 
     let o = evogs(&[
-        "train", "--data", s(&data), "--out", s(&run), "--preset", "tiny", "--seed", "3",
+        "train",
+        "--data",
+        s(&data),
+        "--out",
+        s(&run),
+        "--preset",
+        "tiny",
+        "--seed",
+        "3",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = String::from_utf8_lossy(&o.stdout);
@@ -53,7 +70,13 @@ fn trains_evaluates_renders_and_exports_a_tiny_scene() {
     assert!(out.contains("rasterizer backward"), "{out}");
     // Not a terminal: plain progress lines instead of a bar.
     assert!(stderr(&o).contains("iteration 300/300"), "{}", stderr(&o));
-    for f in ["config.json", "checkpoint.safetensors", "canonical.ply", "deform.safetensors", "train_metrics.json"] {
+    for f in [
+        "config.json",
+        "checkpoint.safetensors",
+        "canonical.ply",
+        "deform.safetensors",
+        "train_metrics.json",
+    ] {
         assert!(run.join(f).is_file(), "{f} missing");
     }
 
@@ -61,7 +84,10 @@ fn trains_evaluates_renders_and_exports_a_tiny_scene() {
     assert!(o.status.success(), "{}", stderr(&o));
     let report = json(&run.join("eval_test.json"));
     let psnr = report["mean_psnr"].as_f64().unwrap();
-    assert!(psnr > floor + 5.0 && psnr > 20.0, "trained {psnr} dB vs untrained {floor} dB");
+    assert!(
+        psnr > floor + 5.0 && psnr > 20.0,
+        "trained {psnr} dB vs untrained {floor} dB"
+    );
     assert_eq!(report["images"].as_array().unwrap().len(), 4);
     assert!(report["temporal"]["jitter"].as_f64().unwrap().is_finite());
     assert!(run.join("eval_test.md").is_file());
@@ -69,7 +95,15 @@ fn trains_evaluates_renders_and_exports_a_tiny_scene() {
 
     // Export at t = 0.5 and read it back with the io reader.
     let ply = dir.path().join("frame.ply");
-    let o = evogs(&["export", "--run", s(&run), "--time", "0.5", "--out", s(&ply)]);
+    let o = evogs(&[
+        "export",
+        "--run",
+        s(&run),
+        "--time",
+        "0.5",
+        "--out",
+        s(&ply),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let loaded = evogs_io::read_ply(&ply).unwrap();
     let canonical = evogs_io::read_ply(&run.join("canonical.ply")).unwrap();
@@ -90,19 +124,46 @@ fn trains_evaluates_renders_and_exports_a_tiny_scene() {
     evogs_io::write_nerfies_camera(&cam, &evogs_io::CameraInfo::pinhole(camera)).unwrap();
     let img = dir.path().join("t.png");
     let o = evogs(&[
-        "render", "--run", s(&run), "--camera", s(&cam), "--time", "0.25", "--out", s(&img),
+        "render",
+        "--run",
+        s(&run),
+        "--camera",
+        s(&cam),
+        "--time",
+        "0.25",
+        "--out",
+        s(&img),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(image::image_dimensions(&img).unwrap(), (24, 20));
     let sweep = dir.path().join("sweep");
     let o = evogs(&[
-        "render", "--run", s(&run), "--camera", s(&cam), "--sweep", "3", "--out", s(&sweep),
+        "render",
+        "--run",
+        s(&run),
+        "--camera",
+        s(&cam),
+        "--sweep",
+        "3",
+        "--out",
+        s(&sweep),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(sweep.join("frame_0002.png").is_file());
-    assert_eq!(image::image_dimensions(sweep.join("strip.png")).unwrap(), (72, 20));
+    assert_eq!(
+        image::image_dimensions(sweep.join("strip.png")).unwrap(),
+        (72, 20)
+    );
     let o = evogs(&[
-        "render", "--run", s(&run), "--camera", s(&cam), "--time", "1.5", "--out", s(&img),
+        "render",
+        "--run",
+        s(&run),
+        "--camera",
+        s(&cam),
+        "--time",
+        "1.5",
+        "--out",
+        s(&img),
     ]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("outside [0, 1]"), "{}", stderr(&o));
@@ -122,7 +183,15 @@ fn bad_input_gives_one_line_errors_naming_the_file() {
     common::write_scene(&data);
     let train = |data: &Path, out: &Path| {
         evogs(&[
-            "train", "--data", s(data), "--out", s(out), "--preset", "tiny", "--iterations", "2",
+            "train",
+            "--data",
+            s(data),
+            "--out",
+            s(out),
+            "--preset",
+            "tiny",
+            "--iterations",
+            "2",
         ])
     };
 
@@ -131,14 +200,20 @@ fn bad_input_gives_one_line_errors_naming_the_file() {
     copy_dir(&data, &broken);
     std::fs::remove_file(broken.join("train/r_003.png")).unwrap();
     let e = one_line_error(&train(&broken, &dir.path().join("o1")));
-    assert!(e.contains("transforms_train.json") && e.contains("r_003"), "{e}");
+    assert!(
+        e.contains("transforms_train.json") && e.contains("r_003"),
+        "{e}"
+    );
 
     // Malformed JSON.
     let bad_json = dir.path().join("json");
     copy_dir(&data, &bad_json);
     std::fs::write(bad_json.join("transforms_train.json"), "{\"frames\": [").unwrap();
     let e = one_line_error(&train(&bad_json, &dir.path().join("o2")));
-    assert!(e.contains("transforms_train.json") && e.contains("JSON"), "{e}");
+    assert!(
+        e.contains("transforms_train.json") && e.contains("JSON"),
+        "{e}"
+    );
 
     // An image of the wrong size.
     let wrong = dir.path().join("wrong");
@@ -160,7 +235,10 @@ fn bad_input_gives_one_line_errors_naming_the_file() {
     )
     .unwrap();
     let e = one_line_error(&train(&empty, &dir.path().join("o4")));
-    assert!(e.contains("transforms_train.json") && e.contains("empty"), "{e}");
+    assert!(
+        e.contains("transforms_train.json") && e.contains("empty"),
+        "{e}"
+    );
 
     // An unwritable output folder (a file stands where the folder should be).
     let blocker = dir.path().join("blocker");
@@ -170,7 +248,13 @@ fn bad_input_gives_one_line_errors_naming_the_file() {
 
     // Unknown method, and a run directory that is not one.
     let o = evogs(&[
-        "train", "--data", s(&data), "--out", s(&dir.path().join("o5")), "--method", "evogs",
+        "train",
+        "--data",
+        s(&data),
+        "--out",
+        s(&dir.path().join("o5")),
+        "--method",
+        "evo",
     ]);
     let e = one_line_error(&o);
     assert!(e.contains("evogs") && e.contains("baseline"), "{e}");

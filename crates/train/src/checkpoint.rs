@@ -54,25 +54,69 @@ pub fn save_checkpoint(
 ) -> Result<(), TrainError> {
     let g = &state.gaussians;
     let mut tensors: Vec<(String, Dtype, Vec<u8>)> = vec![
-        ("gaussians.means".into(), Dtype::F32, f32_bytes(g.means.as_flattened())),
-        ("gaussians.log_scales".into(), Dtype::F32, f32_bytes(g.log_scales.as_flattened())),
-        ("gaussians.rotations".into(), Dtype::F32, f32_bytes(g.rotations.as_flattened())),
-        ("gaussians.opacity_logits".into(), Dtype::F32, f32_bytes(&g.opacity_logits)),
+        (
+            "gaussians.means".into(),
+            Dtype::F32,
+            f32_bytes(g.means.as_flattened()),
+        ),
+        (
+            "gaussians.log_scales".into(),
+            Dtype::F32,
+            f32_bytes(g.log_scales.as_flattened()),
+        ),
+        (
+            "gaussians.rotations".into(),
+            Dtype::F32,
+            f32_bytes(g.rotations.as_flattened()),
+        ),
+        (
+            "gaussians.opacity_logits".into(),
+            Dtype::F32,
+            f32_bytes(&g.opacity_logits),
+        ),
         ("gaussians.sh".into(), Dtype::F32, f32_bytes(&g.sh)),
     ];
     let s = &state.stats;
     tensors.extend([
         ("stats.grad_sum".into(), Dtype::F32, f32_bytes(&s.grad_sum)),
         ("stats.visible".into(), Dtype::U32, u32_bytes(&s.visible)),
-        ("stats.max_radius".into(), Dtype::F32, f32_bytes(&s.max_radius)),
-        ("stats.residual_sum".into(), Dtype::F32, f32_bytes(&s.residual_sum)),
-        ("stats.residual_count".into(), Dtype::U32, u32_bytes(&s.residual_count)),
-        ("stats.theta_sum".into(), Dtype::F32, f32_bytes(&s.theta_sum)),
-        ("stats.theta_count".into(), Dtype::U32, u32_bytes(&s.theta_count)),
+        (
+            "stats.max_radius".into(),
+            Dtype::F32,
+            f32_bytes(&s.max_radius),
+        ),
+        (
+            "stats.residual_sum".into(),
+            Dtype::F32,
+            f32_bytes(&s.residual_sum),
+        ),
+        (
+            "stats.residual_count".into(),
+            Dtype::U32,
+            u32_bytes(&s.residual_count),
+        ),
+        (
+            "stats.theta_sum".into(),
+            Dtype::F32,
+            f32_bytes(&s.theta_sum),
+        ),
+        (
+            "stats.theta_count".into(),
+            Dtype::U32,
+            u32_bytes(&s.theta_count),
+        ),
     ]);
     for group in state.adam.groups() {
-        tensors.push((format!("adam.{}.m", group.name), Dtype::F32, f32_bytes(&group.m)));
-        tensors.push((format!("adam.{}.v", group.name), Dtype::F32, f32_bytes(&group.v)));
+        tensors.push((
+            format!("adam.{}.m", group.name),
+            Dtype::F32,
+            f32_bytes(&group.m),
+        ));
+        tensors.push((
+            format!("adam.{}.v", group.name),
+            Dtype::F32,
+            f32_bytes(&group.v),
+        ));
     }
     for (name, buf) in backbone.params() {
         let (dt, bytes) = match buf {
@@ -103,12 +147,17 @@ pub fn save_checkpoint(
             .map_err(|e| TrainError::field(path, name, format!("cannot describe tensor: {e}")))?;
         views.push((name.clone(), view));
     }
-    let data = safetensors::serialize(views, Some(HashMap::from([(META_KEY.to_string(), meta_json)])))
-        .map_err(|e| TrainError::file(path, format!("cannot serialise: {e}")))?;
+    let data = safetensors::serialize(
+        views,
+        Some(HashMap::from([(META_KEY.to_string(), meta_json)])),
+    )
+    .map_err(|e| TrainError::file(path, format!("cannot serialise: {e}")))?;
     evogs_io::atomic::write_atomically(path, |w| {
         use std::io::Write;
-        w.write_all(&data)
-            .map_err(|e| evogs_io::IoError::Io { path: path.to_path_buf(), cause: e })
+        w.write_all(&data).map_err(|e| evogs_io::IoError::Io {
+            path: path.to_path_buf(),
+            cause: e,
+        })
     })?;
     Ok(())
 }
@@ -185,7 +234,10 @@ pub fn load_checkpoint(
         return Err(TrainError::field(
             path,
             "sh_degree",
-            format!("{}, but the run's config says {}", meta.sh_degree, state.gaussians.sh_degree),
+            format!(
+                "{}, but the run's config says {}",
+                meta.sh_degree, state.gaussians.sh_degree
+            ),
         ));
     }
     let st = SafeTensors::deserialize(&bytes)
@@ -214,7 +266,9 @@ pub fn load_checkpoint(
         .iter()
         .map(|(k, v)| (k.as_str(), *v))
         .collect();
-    let ids: Vec<tiny_nn::GroupId> = (0..state.adam.groups().len()).map(tiny_nn::GroupId).collect();
+    let ids: Vec<tiny_nn::GroupId> = (0..state.adam.groups().len())
+        .map(tiny_nn::GroupId)
+        .collect();
     for id in ids {
         let group = state.adam.group_mut(id);
         let per_gaussian = !group.name.starts_with("net.");

@@ -154,7 +154,11 @@ fn temporal_metrics(
         times
             .iter()
             .map(|&t| {
-                let v = views.views.iter().find(|v| v.time == t).unwrap_or(&views.views[0]);
+                let v = views
+                    .views
+                    .iter()
+                    .find(|v| v.time == t)
+                    .unwrap_or(&views.views[0]);
                 v.image.pixels.as_slice()
             })
             .collect()
@@ -199,19 +203,31 @@ pub fn markdown(report: &EvalReport) -> String {
     );
     match &report.temporal {
         Some(t) => {
-            let gt = t
-                .flicker_ground_truth
-                .map_or_else(|| "n/a (no fixed-camera ground truth)".to_string(), |g| format!("{g:.5}"));
-            let _ = writeln!(s, "\nTemporal consistency over {} times from a fixed camera:\n", t.frames);
+            let gt = t.flicker_ground_truth.map_or_else(
+                || "n/a (no fixed-camera ground truth)".to_string(),
+                |g| format!("{g:.5}"),
+            );
+            let _ = writeln!(
+                s,
+                "\nTemporal consistency over {} times from a fixed camera:\n",
+                t.frames
+            );
             let _ = writeln!(s, "| metric | value |");
             let _ = writeln!(s, "| --- | ---: |");
             let _ = writeln!(s, "| flicker (rendered) | {:.5} |", t.flicker_rendered);
             let _ = writeln!(s, "| flicker (ground truth) | {gt} |");
             let _ = writeln!(s, "| flicker (excess) | {:.5} |", t.flicker_excess);
-            let _ = writeln!(s, "| trajectory jitter | {:.3e} ({} terms) |", t.jitter, t.jitter_terms);
+            let _ = writeln!(
+                s,
+                "| trajectory jitter | {:.3e} ({} terms) |",
+                t.jitter, t.jitter_terms
+            );
         }
         None => {
-            let _ = writeln!(s, "\nTemporal consistency: n/a (fewer than two distinct times).");
+            let _ = writeln!(
+                s,
+                "\nTemporal consistency: n/a (fewer than two distinct times)."
+            );
         }
     }
     s.push_str("\nLPIPS is not reported: its network weights cannot be fetched here.\n");

@@ -55,7 +55,10 @@ pub fn mean_knn_sq_dist(points: &[[f32; 3]], k: usize) -> Vec<f32> {
             hi[a] = hi[a].max(p[a]);
         }
     }
-    let span = (0..3).map(|a| hi[a] - lo[a]).fold(0.0f32, f32::max).max(1e-6);
+    let span = (0..3)
+        .map(|a| hi[a] - lo[a])
+        .fold(0.0f32, f32::max)
+        .max(1e-6);
     // About two points per cell for a uniform cloud.
     let cells_per_axis = ((n as f32 / 2.0).cbrt().ceil() as usize).clamp(1, 256);
     let cell = span / cells_per_axis as f32 * 1.0001;

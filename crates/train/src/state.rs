@@ -295,7 +295,12 @@ mod tests {
 
     fn state(n: usize) -> (SceneState, D3dgsBackbone) {
         let c = TrainConfig::preset(Preset::Tiny);
-        let net = NetSettings { width: 8, depth: 2, skip_after: None, ..c.net };
+        let net = NetSettings {
+            width: 8,
+            depth: 2,
+            skip_after: None,
+            ..c.net
+        };
         let backbone = D3dgsBackbone::new(&net, 1).unwrap();
         let g = crate::init::random_gaussians(n, 1.0, 3, 5);
         let mut s = SceneState::new(g, &backbone, &c.lr).unwrap();
@@ -358,7 +363,10 @@ mod tests {
         // The SH rest of a new row is its parent's; its DC is the plan's.
         let st = s.gaussians.sh_stride();
         assert_eq!(&s.gaussians.sh[4 * st..4 * st + 3], &[0.1; 3]);
-        assert_eq!(&s.gaussians.sh[4 * st + 3..5 * st], &before.sh[st + 3..2 * st]);
+        assert_eq!(
+            &s.gaussians.sh[4 * st + 3..5 * st],
+            &before.sh[st + 3..2 * st]
+        );
         assert!(s.gaussians.opacity_logits[2] <= (0.01f32 / 0.99).ln() + 1e-6);
     }
 

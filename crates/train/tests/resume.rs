@@ -29,8 +29,12 @@ fn final_state(root: &std::path::Path) -> (SceneState, Vec<f32>, u64) {
     let mut backbone = make_backbone(&c).unwrap();
     let init = evogs_train::init::random_gaussians(1, 1.0, c.sh_degree, 0);
     let mut state = SceneState::new(init, backbone.as_ref(), &c.lr).unwrap();
-    let meta =
-        load_checkpoint(&RunPaths::new(root).checkpoint(), &mut state, backbone.as_mut()).unwrap();
+    let meta = load_checkpoint(
+        &RunPaths::new(root).checkpoint(),
+        &mut state,
+        backbone.as_mut(),
+    )
+    .unwrap();
     let weights = backbone
         .params()
         .into_iter()
@@ -66,8 +70,10 @@ fn resumed_run_matches_uninterrupted_run_bit_for_bit() {
         let half = train(&request("resumed", false, Some(30)), &mut |_, _| {}).unwrap();
         assert_eq!(half.iteration, 30);
         let mut seen = Vec::new();
-        let rest = train(&request("resumed", true, None), &mut |r, _| seen.push(r.iteration))
-            .unwrap();
+        let rest = train(&request("resumed", true, None), &mut |r, _| {
+            seen.push(r.iteration)
+        })
+        .unwrap();
         assert_eq!(seen.first(), Some(&31));
         assert_eq!(rest.iteration, 60);
         assert_eq!(rest.iterations_this_process, 30);
@@ -79,8 +85,14 @@ fn resumed_run_matches_uninterrupted_run_bit_for_bit() {
     let ga = &a.gaussians;
     let gb = &b.gaussians;
     assert_eq!(bits(ga.means.as_flattened()), bits(gb.means.as_flattened()));
-    assert_eq!(bits(ga.log_scales.as_flattened()), bits(gb.log_scales.as_flattened()));
-    assert_eq!(bits(ga.rotations.as_flattened()), bits(gb.rotations.as_flattened()));
+    assert_eq!(
+        bits(ga.log_scales.as_flattened()),
+        bits(gb.log_scales.as_flattened())
+    );
+    assert_eq!(
+        bits(ga.rotations.as_flattened()),
+        bits(gb.rotations.as_flattened())
+    );
     assert_eq!(bits(&ga.opacity_logits), bits(&gb.opacity_logits));
     assert_eq!(bits(&ga.sh), bits(&gb.sh));
     assert_eq!(bits(&wa), bits(&wb));
@@ -94,7 +106,12 @@ fn resumed_run_matches_uninterrupted_run_bit_for_bit() {
     assert_eq!(a.stats.visible, b.stats.visible);
     // The run did train the network (past the warm-up) and densify.
     assert!(config().warm_up < 30);
-    assert!(a.adam.groups().iter().any(|g| g.name.starts_with("net.") && g.step > 0));
+    assert!(
+        a.adam
+            .groups()
+            .iter()
+            .any(|g| g.name.starts_with("net.") && g.step > 0)
+    );
 }
 
 #[test]
@@ -124,5 +141,8 @@ fn resume_without_checkpoint_names_the_file() {
     .err()
     .unwrap()
     .to_string();
-    assert!(err.contains("nowhere") || err.contains("checkpoint"), "{err}");
+    assert!(
+        err.contains("nowhere") || err.contains("checkpoint"),
+        "{err}"
+    );
 }

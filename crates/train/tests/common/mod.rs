@@ -67,12 +67,20 @@ fn c2w_opengl(cam: &Camera) -> [[f32; 4]; 4] {
 pub fn write_scene(root: &Path) {
     let raster = CpuRasterizer::new();
     let opts = RenderOptions::default();
-    for (split, count, offset) in [("train", 16usize, 0.0f32), ("val", 4, 0.37), ("test", 4, 0.71)] {
+    for (split, count, offset) in [
+        ("train", 16usize, 0.0f32),
+        ("val", 4, 0.37),
+        ("test", 4, 0.71),
+    ] {
         std::fs::create_dir_all(root.join(split)).unwrap();
         let mut frames = Vec::new();
         let mut fov = 0.0;
         for k in 0..count {
-            let t = if count > 1 { k as f32 / (count - 1) as f32 } else { 0.0 };
+            let t = if count > 1 {
+                k as f32 / (count - 1) as f32
+            } else {
+                0.0
+            };
             let cam = camera(offset + k as f32 * 2.4, 0.3 + 0.2 * (k % 3) as f32);
             fov = 2.0 * (0.5 * SIDE as f32 / cam.fx).atan();
             let out = raster.forward(scene_at(t).view(), &cam, &opts).unwrap();
