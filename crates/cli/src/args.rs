@@ -88,7 +88,10 @@ pub struct TrainArgs {
     pub seed: u64,
 
     /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
-    #[arg(long)]
+    #[arg(
+        long,
+        conflicts_with_all = ["data", "method", "preset", "iterations", "downscale", "seed", "background"]
+    )]
     pub resume: bool,
 
     /// Background behind the Gaussians and the images' alpha [D-3DGS default for D-NeRF: black].

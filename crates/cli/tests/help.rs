@@ -34,3 +34,12 @@ fn no_subcommand_shows_usage_and_fails() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("Usage: evogs"));
 }
+
+#[test]
+fn train_eval_export_help() {
+    for name in ["train", "eval", "export"] {
+        let text = help(&[name, "--help"]);
+        assert_eq!(text, help(&["help", name]));
+        insta::assert_snapshot!(format!("evogs_{name}_help"), text);
+    }
+}
