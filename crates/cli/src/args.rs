@@ -90,7 +90,7 @@ pub struct TrainArgs {
     /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
     #[arg(
         long,
-        conflicts_with_all = ["data", "method", "preset", "iterations", "downscale", "seed", "background"]
+        conflicts_with_all = ["data", "method", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components"]
     )]
     pub resume: bool,
 
