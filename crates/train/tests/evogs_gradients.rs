@@ -58,7 +58,7 @@ fn sigmoid(x: f32) -> f64 {
 fn loss(b: &mut EvoBackbone, g: &Gaussians, w: &[f32], t: f32) -> f64 {
     let d = b.forward(g.view(), t, false).unwrap();
     let pos: Vec<f32> = g.means.as_flattened().to_vec();
-    let (z, _) = b.phi().forward(&pos, &vec![t; N], N).unwrap();
+    let (z, _) = b.phi().forward(&pos, &[t; N], N).unwrap();
     let step = b.evo().forward(t, &z).unwrap();
     let (prior, corrected) = (step.prior().unwrap(), step.corrected());
     let dim = z.len() / N;
@@ -89,7 +89,7 @@ fn setup(gain: GainSetting, seed: u64) -> (EvoBackbone, Gaussians, Vec<f32>) {
     let g = gaussians(&mut rng);
     for &t in &TIMES[..3] {
         b.forward(g.view(), t, true).unwrap();
-        b.backward(&vec![0.0; N * 10]).unwrap();
+        b.backward(&[0.0; N * 10]).unwrap();
     }
     let w: Vec<f32> = (0..N * 10).map(|_| rng.next()).collect();
     (b, g, w)
