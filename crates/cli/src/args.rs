@@ -22,6 +22,8 @@ pub enum Command {
     Eval(EvalArgs),
     /// Render Gaussians (a trained run at a time, a 3DGS PLY, or the built-in demo scene) to PNG.
     Render(RenderArgs),
+    /// Generate a procedural dynamic scene (D-NeRF layout) with its ground truth.
+    Synth(crate::synth_cmd::SynthArgs),
     /// Export a run's deformed Gaussians at a time as a standard 3DGS PLY.
     Export(ExportArgs),
 }

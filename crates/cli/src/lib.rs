@@ -4,10 +4,10 @@
 //! ([`train_cmd`]: settings from the flags, progress bar), `eval` ([`eval_cmd`]), `export`
 //! ([`export_cmd`]), and `render` ([`render`]: a 3DGS PLY from a nerfies camera, the built-in
 //! procedural scene of [`demo_scene`], or a trained run at a time or a time sweep via
-//! [`render_run`]).
+//! [`render_run`]), and `synth` ([`synth_cmd`]: procedural scenes in the D-NeRF layout).
 //!
-//! What it is not: a trainer or a dataset tool; training, evaluation and export live in
-//! `evogs-train`, file formats in `evogs-io`, rendering in `splat-raster`. Errors are `anyhow`
+//! What it is not: a trainer or a scene generator; training, evaluation, export and synthetic
+//! scenes live in `evogs-train`, file formats in `evogs-io`, rendering in `splat-raster`. Errors are `anyhow`
 //! here and are shown as one line.
 
 pub mod args;
@@ -16,6 +16,7 @@ pub mod eval_cmd;
 pub mod export_cmd;
 pub mod render;
 pub mod render_run;
+pub mod synth_cmd;
 pub mod train_cmd;
 
 pub use args::{Cli, Command, EvalArgs, ExportArgs, RenderArgs, TrainArgs};

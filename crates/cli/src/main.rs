@@ -90,6 +90,8 @@ fn main() -> ExitCode {
                 report.height
             );
         }),
+        Command::Synth(args) => evogs_cli::synth_cmd::run_synth(args)
+            .map(|summary| println!("{}", evogs_cli::synth_cmd::report_line(args, &summary))),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -30,7 +30,19 @@ fn json(path: &Path) -> serde_json::Value {
 fn trains_evaluates_renders_and_exports_a_tiny_scene() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("scene");
-    common::write_scene(&data);
+    // A small synthetic scene from the synth module (rigid motion, 16 training frames, 32×32).
+    let o = evogs(&[
+        "synth",
+        "--preset",
+        "rigid",
+        "--out",
+        s(&data),
+        "--size",
+        "32",
+        "--frames",
+        "16",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
     let run = dir.path().join("run");
 
     // An untrained run (0 optimiser steps: one iteration, which never steps) is the floor.
@@ -84,11 +96,12 @@ fn trains_evaluates_renders_and_exports_a_tiny_scene() {
     assert!(o.status.success(), "{}", stderr(&o));
     let report = json(&run.join("eval_test.json"));
     let psnr = report["mean_psnr"].as_f64().unwrap();
+    // Measured: untrained 7.5 dB, trained 16.5 dB.
     assert!(
-        psnr > floor + 5.0 && psnr > 20.0,
+        psnr > floor + 5.0 && psnr > 14.0,
         "trained {psnr} dB vs untrained {floor} dB"
     );
-    assert_eq!(report["images"].as_array().unwrap().len(), 4);
+    assert_eq!(report["images"].as_array().unwrap().len(), 3);
     assert!(report["temporal"]["jitter"].as_f64().unwrap().is_finite());
     assert!(run.join("eval_test.md").is_file());
     assert!(run.join("renders/test/0000.png").is_file());

@@ -2,53 +2,13 @@
 //! gain (Ψ forward included), losses and backward (Ψ backward included), commit. f32 and f16
 //! buffer storage; plus the parts, to show where the time goes.
 
-use criterion::measurement::{Measurement, ValueFormatter, WallTime};
+use bench_support::{CpuTime, clock_prefix};
+use criterion::measurement::{Measurement, WallTime};
 use criterion::{Criterion, criterion_group, criterion_main};
 use evo_state::{EvoConfig, EvoState, Frames, Storage};
 use std::hint::black_box;
 
 const N: usize = 100_000;
-
-/// CPU time of the whole process (all threads, from `/proc/self/task/*/schedstat`, ns) divided
-/// by the rayon thread count: the wall time on idle cores with perfect scaling. Less disturbed
-/// than wall time when other jobs share the machine (Linux only; elsewhere 0). As in tiny-nn's
-/// benches.
-struct CpuTime;
-
-static WALL: WallTime = WallTime;
-
-fn process_cpu_ns() -> u64 {
-    let Ok(dir) = std::fs::read_dir("/proc/self/task") else {
-        return 0;
-    };
-    dir.filter_map(|e| e.ok())
-        .filter_map(|e| std::fs::read_to_string(e.path().join("schedstat")).ok())
-        .filter_map(|s| s.split_whitespace().next()?.parse::<u64>().ok())
-        .sum()
-}
-
-impl Measurement for CpuTime {
-    type Intermediate = u64;
-    type Value = f64;
-    fn start(&self) -> u64 {
-        process_cpu_ns()
-    }
-    fn end(&self, i: u64) -> f64 {
-        process_cpu_ns().saturating_sub(i) as f64 / rayon::current_num_threads() as f64
-    }
-    fn add(&self, a: &f64, b: &f64) -> f64 {
-        a + b
-    }
-    fn zero(&self) -> f64 {
-        0.0
-    }
-    fn to_f64(&self, v: &f64) -> f64 {
-        *v
-    }
-    fn formatter(&self) -> &dyn ValueFormatter {
-        WALL.formatter()
-    }
-}
 
 fn observations(k: usize, d: usize) -> Vec<f32> {
     (0..N * d)
@@ -73,7 +33,7 @@ fn warmed(storage: Storage) -> EvoState {
 }
 
 fn bench<M: Measurement>(c: &mut Criterion<M>) {
-    let cpu = std::any::type_name::<M>().ends_with("CpuTime");
+    let cpu = !clock_prefix::<M>().is_empty();
     let mut group = c.benchmark_group(if cpu {
         "cpu/evo_state_100k_d10"
     } else {
@@ -138,7 +98,7 @@ fn bench<M: Measurement>(c: &mut Criterion<M>) {
 criterion_group!(benches, bench::<WallTime>);
 criterion_group! {
     name = cpu_benches;
-    config = Criterion::default().with_measurement(CpuTime);
+    config = Criterion::default().with_measurement(CpuTime::wall_equivalent());
     targets = bench::<CpuTime>
 }
 criterion_main!(benches, cpu_benches);

@@ -9,9 +9,9 @@
 //! by other processes competing for the cores than wall-clock time.
 
 use std::hint::black_box;
-use std::time::Instant;
 
-use criterion::measurement::{Measurement, ValueFormatter, WallTime};
+use bench_support::CpuTime;
+use criterion::measurement::{Measurement, WallTime};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::Vec3;
 use rand::{RngExt, SeedableRng};
@@ -50,71 +50,11 @@ fn scene(n: usize, size: u32, seed: u64) -> (Gaussians, Camera) {
     (g, cam)
 }
 
-/// Process CPU time in nanoseconds, summed over threads; wall-clock time where `/proc` is absent.
-struct ProcessCpuTime;
-
-fn cpu_ns() -> Option<u64> {
-    let mut total = 0u64;
-    for entry in std::fs::read_dir("/proc/self/task").ok()? {
-        let path = entry.ok()?.path().join("schedstat");
-        let text = std::fs::read_to_string(path).ok()?;
-        total += text.split_whitespace().next()?.parse::<u64>().ok()?;
-    }
-    Some(total)
-}
-
-impl Measurement for ProcessCpuTime {
-    type Intermediate = (Option<u64>, Instant);
-    type Value = f64;
-
-    fn start(&self) -> Self::Intermediate {
-        (cpu_ns(), Instant::now())
-    }
-    fn end(&self, (cpu, wall): Self::Intermediate) -> f64 {
-        match (cpu, cpu_ns()) {
-            (Some(a), Some(b)) => b.saturating_sub(a) as f64,
-            _ => wall.elapsed().as_nanos() as f64,
-        }
-    }
-    fn add(&self, a: &f64, b: &f64) -> f64 {
-        a + b
-    }
-    fn zero(&self) -> f64 {
-        0.0
-    }
-    fn to_f64(&self, v: &f64) -> f64 {
-        *v
-    }
-    fn formatter(&self) -> &dyn ValueFormatter {
-        &CpuFormatter
-    }
-}
-
-struct CpuFormatter;
-
-impl ValueFormatter for CpuFormatter {
-    fn scale_values(&self, _typical: f64, values: &mut [f64]) -> &'static str {
-        values.iter_mut().for_each(|v| *v *= 1e-6);
-        "cpu-ms"
-    }
-    fn scale_throughputs(&self, _typical: f64, t: &Throughput, values: &mut [f64]) -> &'static str {
-        let n = match *t {
-            Throughput::Elements(n) => n as f64,
-            _ => 0.0,
-        };
-        values.iter_mut().for_each(|v| *v = n / (*v * 1e-9) * 1e-6);
-        "Melem/cpu-s"
-    }
-    fn scale_for_machines(&self, _values: &mut [f64]) -> &'static str {
-        "cpu-ns"
-    }
-}
-
 fn bench_wall(c: &mut Criterion<WallTime>) {
     bench(c, "wall");
 }
 
-fn bench_cpu(c: &mut Criterion<ProcessCpuTime>) {
+fn bench_cpu(c: &mut Criterion<CpuTime>) {
     bench(c, "cpu");
 }
 
@@ -157,7 +97,7 @@ fn bench<M: Measurement>(c: &mut Criterion<M>, clock: &str) {
 criterion_group!(wall, bench_wall);
 criterion_group! {
     name = cpu;
-    config = Criterion::default().with_measurement(ProcessCpuTime);
+    config = Criterion::default().with_measurement(CpuTime::total());
     targets = bench_cpu
 }
 criterion_main!(wall, cpu);

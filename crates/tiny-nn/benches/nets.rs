@@ -7,53 +7,14 @@
 
 use std::hint::black_box;
 
-use criterion::measurement::{Measurement, ValueFormatter, WallTime};
+use bench_support::{CpuTime, clock_prefix};
+use criterion::measurement::Measurement;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use tiny_nn::linalg::{matmul, parallelism};
 use tiny_nn::{
     BSplineConfig, DeformConfig, DeformNet, ObservationConfig, ObservationNet, PlaneCombine,
     Precision, TriPlaneConfig,
 };
-
-/// CPU time of the whole process (all threads, from `/proc/self/task/*/schedstat`, ns), divided
-/// by the rayon thread count: what the wall time would be on idle cores with perfect scaling.
-/// Less disturbed than wall time when other jobs share the machine (Linux only; elsewhere 0).
-struct CpuTime;
-
-static WALL: WallTime = WallTime;
-
-fn process_cpu_ns() -> u64 {
-    let Ok(dir) = std::fs::read_dir("/proc/self/task") else {
-        return 0;
-    };
-    dir.filter_map(|e| e.ok())
-        .filter_map(|e| std::fs::read_to_string(e.path().join("schedstat")).ok())
-        .filter_map(|s| s.split_whitespace().next()?.parse::<u64>().ok())
-        .sum()
-}
-
-impl Measurement for CpuTime {
-    type Intermediate = u64;
-    type Value = f64;
-    fn start(&self) -> u64 {
-        process_cpu_ns()
-    }
-    fn end(&self, i: u64) -> f64 {
-        process_cpu_ns().saturating_sub(i) as f64 / rayon::current_num_threads() as f64
-    }
-    fn add(&self, a: &f64, b: &f64) -> f64 {
-        a + b
-    }
-    fn zero(&self) -> f64 {
-        0.0
-    }
-    fn to_f64(&self, v: &f64) -> f64 {
-        *v
-    }
-    fn formatter(&self) -> &dyn ValueFormatter {
-        WALL.formatter()
-    }
-}
 
 fn vals(n: usize, seed: u64, s: f32) -> Vec<f32> {
     let mut x = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(1);
@@ -151,7 +112,7 @@ fn gemm_peak<M: Measurement>(c: &mut Criterion<M>) {
     let a = vals(n * n, 1, 1.0);
     let b = vals(n * n, 2, 1.0);
     let mut out = vec![0f32; n * n];
-    let mut g = c.benchmark_group(format!("{}gemm_f32", prefix::<M>()));
+    let mut g = c.benchmark_group(format!("{}gemm_f32", clock_prefix::<M>()));
     g.throughput(Throughput::Elements((2 * n * n * n) as u64)); // FLOPs
     g.bench_function(BenchmarkId::new("square", n), |bch| {
         bch.iter(|| {
@@ -170,7 +131,7 @@ fn gemm_peak<M: Measurement>(c: &mut Criterion<M>) {
 
 /// Steady state of a training loop: the cache is kept between steps (`forward_reusing`).
 fn phi_benches<M: Measurement>(c: &mut Criterion<M>) {
-    let mut g = c.benchmark_group(format!("{}phi", prefix::<M>()));
+    let mut g = c.benchmark_group(format!("{}phi", clock_prefix::<M>()));
     for (combine, sizes) in [
         (PlaneCombine::Product, &[10_000usize, 100_000][..]),
         (PlaneCombine::Concat, &[100_000usize][..]),
@@ -204,7 +165,7 @@ fn phi_benches<M: Measurement>(c: &mut Criterion<M>) {
 
 /// The Φ decoder alone (product tri-plane: 32 + 16 inputs → 64 → 64 → 10): the matrix work.
 fn decoder_benches<M: Measurement>(c: &mut Criterion<M>) {
-    let mut g = c.benchmark_group(format!("{}phi_decoder", prefix::<M>()));
+    let mut g = c.benchmark_group(format!("{}phi_decoder", clock_prefix::<M>()));
     let rows = 100_000;
     let mlp = phi(Precision::F32, PlaneCombine::Product).mlp;
     let ni = mlp.input_width();
@@ -227,7 +188,7 @@ fn decoder_benches<M: Measurement>(c: &mut Criterion<M>) {
 }
 
 fn d3dgs_benches<M: Measurement>(c: &mut Criterion<M>) {
-    let mut g = c.benchmark_group(format!("{}d3dgs", prefix::<M>()));
+    let mut g = c.benchmark_group(format!("{}d3dgs", clock_prefix::<M>()));
     for rows in [10_000usize, 100_000] {
         let (p, t) = inputs(rows);
         let d = vals(rows * 10, 9, 1.0);
@@ -253,15 +214,6 @@ fn d3dgs_benches<M: Measurement>(c: &mut Criterion<M>) {
     g.finish();
 }
 
-/// Group-name prefix: "" for wall time, "cpu/" for [`CpuTime`].
-fn prefix<M: Measurement>() -> &'static str {
-    if std::any::type_name::<M>().ends_with("CpuTime") {
-        "cpu/"
-    } else {
-        ""
-    }
-}
-
 fn accuracy(_: &mut Criterion) {
     report_accuracy();
 }
@@ -276,7 +228,7 @@ criterion_group!(
 );
 criterion_group! {
     name = cpu_benches;
-    config = Criterion::default().with_measurement(CpuTime);
+    config = Criterion::default().with_measurement(CpuTime::wall_equivalent());
     targets = gemm_peak, decoder_benches, phi_benches, d3dgs_benches
 }
 criterion_main!(benches, cpu_benches);

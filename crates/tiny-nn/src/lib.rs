@@ -40,7 +40,8 @@
 //!
 //! # Parallelism
 //!
-//! Rows are cut into blocks of [`mlp::ROW_BLOCK`] (MLP) or 1024 (encoders) processed in parallel
+//! Rows are cut into blocks of [`mlp::ROW_BLOCK`] (MLP forward), [`mlp::BACKWARD_BLOCK`] (MLP
+//! backward) or 1024 (encoders) processed in parallel
 //! with rayon; inside a block each product is one single-threaded gemm call, fused with bias,
 //! activation and storage conversion. Parameter gradients are accumulated per rayon task and
 //! summed. Results do not depend on the thread count up to f32 summation order.

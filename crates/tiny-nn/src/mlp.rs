@@ -8,7 +8,8 @@
 //! next layer's input is the concatenation `[x, h_s]` (network input first, as D-3DGS's
 //! `torch.cat([x_emb, h])`).
 //!
-//! Rows are processed in blocks of [`ROW_BLOCK`] in parallel (rayon); each block runs the whole
+//! Rows are processed in blocks of [`ROW_BLOCK`] ([`BACKWARD_BLOCK`] backward) in parallel
+//! (rayon); each block runs the whole
 //! network with single-threaded `gemm` calls on f32 scratch, so the matrix work is fused with the
 //! bias, the activation and the conversion to storage precision.
 
@@ -24,6 +25,10 @@ use gemm::Parallelism;
 
 /// Rows per parallel block.
 pub const ROW_BLOCK: usize = 256;
+
+/// Rows per parallel block in the backward pass (longer blocks give the weight-gradient
+/// products a longer inner dimension).
+pub const BACKWARD_BLOCK: usize = 1024;
 
 /// Shape and settings of an [`Mlp`]. Build with [`MlpConfig::new`] and the chained setters.
 #[derive(Clone, Debug, PartialEq)]
@@ -419,9 +424,9 @@ impl Mlp {
         let ni = self.config.input;
         let weights = self.params.as_f32();
         let mut d_input = want_input_grad.then(|| vec![0f32; rows * ni]);
-        let n_blocks = rows.div_ceil(ROW_BLOCK);
+        let n_blocks = rows.div_ceil(BACKWARD_BLOCK);
         let dx_blocks: Vec<Option<&mut [f32]>> = match d_input.as_mut() {
-            Some(v) => v.chunks_mut(ROW_BLOCK * ni).map(Some).collect(),
+            Some(v) => v.chunks_mut(BACKWARD_BLOCK * ni).map(Some).collect(),
             None => (0..n_blocks).map(|_| None).collect(),
         };
         let params = self.backward_blocks(
@@ -464,7 +469,7 @@ impl Mlp {
     {
         self.check_backward(cache, d_out)?;
         let weights = self.params.as_f32();
-        let n_blocks = cache.rows.div_ceil(ROW_BLOCK);
+        let n_blocks = cache.rows.div_ceil(BACKWARD_BLOCK);
         let blocks: Vec<Option<&mut [f32]>> = (0..n_blocks).map(|_| None).collect();
         Ok(self.backward_blocks(
             &weights,
@@ -512,8 +517,8 @@ impl Mlp {
             .fold(
                 || (vec![0f32; n_params], init(), Scratch::default()),
                 |(mut grads, mut acc, mut scr), (b, dst)| {
-                    let r0 = b * ROW_BLOCK;
-                    let nr = ROW_BLOCK.min(rows - r0);
+                    let r0 = b * BACKWARD_BLOCK;
+                    let nr = BACKWARD_BLOCK.min(rows - r0);
                     self.backward_block(
                         weights, cache, d_out, r0, nr, &mut grads, want_dx, &mut scr,
                     );

@@ -357,6 +357,17 @@ impl DeformNet {
     ) -> Result<Vec<f32>, NnError> {
         check_len("deformation positions", rows * 3, positions.len())?;
         check_len("deformation times", rows, times.len())?;
+        if let Some(i) = positions.iter().position(|v| !v.is_finite()) {
+            return Err(NnError::Config(format!(
+                "deformation positions: row {} has a non-finite coordinate",
+                i / 3
+            )));
+        }
+        if let Some(i) = times.iter().position(|v| !v.is_finite()) {
+            return Err(NnError::Config(format!(
+                "deformation times: row {i} is not finite"
+            )));
+        }
         let (wx, wt) = (self.xyz.output_width(), self.t.output_width());
         let out = self.mlp.forward_reusing(
             rows,

@@ -101,3 +101,45 @@ fn f16_parameters_saturate_and_count() -> Result<(), NnError> {
     assert_eq!(v[1], -100.0);
     Ok(())
 }
+
+#[test]
+fn adam_trains_the_gain_network_towards_a_target() -> Result<(), NnError> {
+    use tiny_nn::{Activation, MlpConfig};
+    let (d, n) = (10, 64);
+    let mut psi = MlpConfig::new(d + 3, 32, 2, 1)
+        .output_activation(Activation::Sigmoid)
+        .seed(3)
+        .build()?;
+    let x: Vec<f32> = (0..n * (d + 3))
+        .map(|i| ((i * 37 % 101) as f32 / 50.0) - 1.0)
+        .collect();
+    // Target K = 0.9 for rows with x[0] > 0, 0.1 otherwise.
+    let target: Vec<f32> = (0..n)
+        .map(|r| if x[r * (d + 3)] > 0.0 { 0.9 } else { 0.1 })
+        .collect();
+    let loss = |k: &[f32]| -> f32 {
+        k.iter()
+            .zip(&target)
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum::<f32>()
+            / n as f32
+    };
+    let mut adam = Adam::new();
+    let g = adam.add_group("psi", psi.param_count(), 1, LrSchedule::Constant(1e-2))?;
+    let (k0, _) = psi.forward(&x, n)?;
+    let l0 = loss(&k0);
+    for it in 0..300 {
+        let (k, cache) = psi.forward(&x, n)?;
+        let dk: Vec<f32> = k
+            .iter()
+            .zip(&target)
+            .map(|(a, b)| 2.0 * (a - b) / n as f32)
+            .collect();
+        let grads = psi.backward(&cache, &dk, false)?;
+        adam.step(g, it, psi.params_mut(), &grads.params)?;
+    }
+    let (k1, _) = psi.forward(&x, n)?;
+    let l1 = loss(&k1);
+    assert!(l1 < 0.05 * l0, "loss {l0} -> {l1}");
+    Ok(())
+}

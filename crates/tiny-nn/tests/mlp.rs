@@ -139,13 +139,14 @@ fn gradients_match_with_identity_output_no_hidden_layers() {
 
 #[test]
 fn gradients_match_across_row_blocks() {
-    // 300 rows: more than one block of 256, not a multiple of it.
+    // 1100 rows: more than one forward block (256) and backward block (1024), a multiple of
+    // neither.
     let mlp = MlpConfig::new(3, 4, 1, 2)
         .hidden_activation(Activation::Sigmoid)
         .seed(2)
         .build()
         .unwrap();
-    check_grads(&mlp, 300);
+    check_grads(&mlp, 1100);
 }
 
 #[test]

@@ -134,6 +134,16 @@ fn deform_net_gradients_match_finite_differences() {
         5e-3,
         |pp| dot(&net.forward(pp, &t, rows).unwrap().0, &c),
     );
+    let e = net
+        .forward(&[0.0, f32::NAN, 0.0], &[0.5], 1)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("positions") && e.contains("row 0"), "{e}");
+    let e = net
+        .forward(&[0.0; 6], &[0.5, f32::INFINITY], 2)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("times") && e.contains("row 1"), "{e}");
     let reference = DeformNet::new(DeformConfig::d3dgs()).unwrap();
     assert_eq!(reference.mlp.input_width(), 63 + 13);
     assert_eq!(reference.mlp.layers()[5].input, 256 + 76);
@@ -204,7 +214,7 @@ fn fused_paths_match_the_separate_modules_over_many_blocks() {
     let mut net = phi(Precision::F32);
     let n = net.mlp.param_count();
     net.mlp.set_params(&vals(n, 80, 0.5)).unwrap();
-    let rows = 700; // three MLP blocks of 256, the last partial
+    let rows = 2100; // 9 forward blocks of 256 and 3 backward blocks of 1024, the last partial
     let (p, t) = inputs(rows);
     let d = vals(rows * 4, 81, 1.0);
     let (y, cache) = net.forward(&p, &t, rows).unwrap();
@@ -244,11 +254,34 @@ fn fused_paths_match_the_separate_modules_over_many_blocks() {
     let (y, cache) = dn.forward(&p, &t, rows).unwrap();
     let d10 = vals(rows * 10, 82, 1.0);
     let g = dn.backward(&cache, &d10, true).unwrap();
-    for r in [0usize, 255, 256, 699] {
+    for r in [0usize, 255, 256, 1023, 1024, 2099] {
         let (y1, c1) = dn.forward(&p[r * 3..r * 3 + 3], &t[r..r + 1], 1).unwrap();
         assert_eq!(&y[r * 10..r * 10 + 10], &y1[..]);
         let g1 = dn.backward(&c1, &d10[r * 10..r * 10 + 10], true).unwrap();
         let gp = g.positions.as_ref().unwrap();
         assert!(close(&gp[r * 3..r * 3 + 3], &g1.positions.unwrap()));
     }
+}
+
+#[test]
+fn observation_net_f16_saturates_huge_features_without_inf() {
+    let mut net = phi(Precision::F16);
+    let n = net.triplane.param_count();
+    net.triplane.set_params(&vec![1000.0; n]).unwrap(); // product of three planes: 1e9
+    let m = net.mlp.param_count();
+    net.mlp.set_params(&vals(m, 90, 0.5)).unwrap();
+    let rows = 10;
+    let (p, t) = inputs(rows);
+    let (y, cache) = net.forward(&p, &t, rows).unwrap();
+    assert!(y.iter().all(|v| v.is_finite()), "{y:?}");
+    // 2 channels × 2 resolutions of product features per row saturate in the stored input.
+    assert!(
+        cache.saturations() >= (rows * 4) as u64,
+        "{}",
+        cache.saturations()
+    );
+    let g = net
+        .backward(&cache, &vals(rows * 4, 91, 1.0), true)
+        .unwrap();
+    assert!(g.mlp.iter().chain(&g.triplane).all(|v| v.is_finite()));
 }

@@ -9,7 +9,9 @@
 //! - [`evo_backbone`], [`evo_settings`]: EvoGS (Φ + evo-state + Ψ) and its switches;
 //! - [`state`]: canonical Gaussians, Adam groups and statistics, aligned through densify's plans;
 //! - [`trainer`]: the training loop; [`run`]: run directories, `train` and resume;
-//! - [`checkpoint`]: exact checkpoints; [`eval`], [`render`]: evaluation, rendering, export.
+//! - [`checkpoint`]: exact checkpoints; [`eval`], [`render`]: evaluation, rendering, export;
+//! - [`metrics`]: PSNR, SSIM, the loss with its gradient, flicker, jitter; [`synth`]: synthetic
+//!   scenes in the D-NeRF layout.
 //!
 //! The recipe follows Deformable-3D-Gaussians (`ingra14m/Deformable-3D-Gaussians`: `train.py`,
 //! `arguments/__init__.py`, `scene/deform_model.py`, `utils/time_utils.py`) and 3DGS's
@@ -32,6 +34,7 @@ pub mod metrics;
 pub mod render;
 pub mod run;
 pub mod state;
+pub mod synth;
 pub mod timers;
 pub mod trainer;
 

@@ -138,6 +138,9 @@ impl Trainer {
         backbone: Box<dyn Backbone>,
         iteration: u64,
     ) -> Result<Self, TrainError> {
+        if train.views.is_empty() {
+            return Err(TrainError::config("train", "no training views"));
+        }
         let mut extent = densify::scene_extent(&train.cameras())?;
         if !(extent.is_finite() && extent > 0.0) {
             // One camera (or coincident centres): fall back to the initial cube's size.
@@ -315,4 +318,69 @@ pub fn deformed_gaussians(
         None
     };
     Ok(DeformedGeometry::new(canonical, d.as_deref()).into_gaussians(canonical))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Preset;
+    use crate::data::View;
+    use evogs_io::{ImageRgb, Split};
+    use glam::Vec3;
+    use splat_raster::Camera;
+
+    fn views(n: usize) -> SplitViews {
+        SplitViews {
+            split: Split::Train,
+            views: (0..n)
+                .map(|k| View {
+                    path: format!("r_{k}.png").into(),
+                    image: ImageRgb::filled(8, 8, [0.5; 3]),
+                    camera: Camera::look_at(
+                        8,
+                        8,
+                        0.8,
+                        Vec3::new(3.0 * (k as f32).cos(), 3.0 * (k as f32).sin(), 1.0),
+                        Vec3::ZERO,
+                        Vec3::Z,
+                    ),
+                    time: k as f32 / n.max(2) as f32,
+                })
+                .collect(),
+        }
+    }
+
+    fn trainer(n: usize, seed: u64) -> Result<Trainer, TrainError> {
+        let mut c = TrainConfig::preset(Preset::Tiny);
+        c.init_points = 20;
+        c.seed = seed;
+        Trainer::new(c, views(n))
+    }
+
+    #[test]
+    fn every_epoch_is_a_seeded_permutation_of_the_views() {
+        let mut t = trainer(7, 1).unwrap();
+        let epochs: Vec<Vec<usize>> = (0..4)
+            .map(|e| (1..=7).map(|k| t.view_at(e * 7 + k)).collect())
+            .collect();
+        for e in &epochs {
+            let mut sorted = e.clone();
+            sorted.sort_unstable();
+            assert_eq!(sorted, (0..7).collect::<Vec<_>>());
+        }
+        assert!(epochs.windows(2).any(|w| w[0] != w[1]), "epochs reshuffle");
+        // A pure function of (seed, iteration): asking out of order gives the same views.
+        let mut u = trainer(7, 1).unwrap();
+        assert_eq!(u.view_at(20), epochs[2][5]);
+        assert_eq!(u.view_at(3), epochs[0][2]);
+        let mut other = trainer(7, 2).unwrap();
+        let o: Vec<usize> = (1..=7).map(|k| other.view_at(k)).collect();
+        assert_ne!(o, epochs[0]);
+    }
+
+    #[test]
+    fn no_views_is_an_error() {
+        let e = trainer(0, 0).err().unwrap().to_string();
+        assert!(e.contains("no training views"), "{e}");
+    }
 }

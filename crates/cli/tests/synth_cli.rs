@@ -1,0 +1,73 @@
+//! `evogs synth`: help snapshot, a small run read back by the D-NeRF reader, and bad arguments.
+
+use std::process::Command;
+
+fn evogs(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_evogs"))
+        .args(args)
+        .env("COLUMNS", "100")
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn synth_help() {
+    let out = evogs(&["synth", "--help"]);
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    let again = String::from_utf8(evogs(&["help", "synth"]).stdout).unwrap();
+    assert_eq!(text, again);
+    insta::assert_snapshot!("evogs_synth_help", text);
+}
+
+#[test]
+fn synth_writes_a_readable_dataset() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("scene");
+    let out = evogs(&[
+        "synth",
+        "--preset",
+        "jump",
+        "--out",
+        out_dir.to_str().unwrap(),
+        "--seed",
+        "9",
+        "--size",
+        "24",
+        "--frames",
+        "6",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        stdout.contains("3000 Gaussians, 6/2/2 frames (train/test/val) at 24x24, effects: jump"),
+        "{stdout}"
+    );
+    for split in evogs_io::Split::ALL {
+        let frames = evogs_io::read_dnerf_split(&out_dir, split).unwrap();
+        assert!(!frames.is_empty());
+        assert!(frames.iter().all(|f| f.camera.width == 24));
+    }
+    let index: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("scene.json")).unwrap()).unwrap();
+    assert_eq!(index["summary"]["effects"], serde_json::json!(["jump"]));
+    assert_eq!(index["seed"], 9);
+}
+
+#[test]
+fn unknown_preset_and_bad_size_are_one_line_errors() {
+    let out = evogs(&["synth", "--preset", "nope", "--out", "x"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        err.contains("invalid value 'nope' for '--preset <NAME>'"),
+        "{err}"
+    );
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    let out = evogs(&["synth", "--preset", "rigid", "--out", "x", "--size", "4"]);
+    assert_eq!(out.status.code(), Some(2));
+}
