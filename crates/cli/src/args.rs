@@ -26,6 +26,9 @@ pub enum Command {
     Synth(crate::synth_cmd::SynthArgs),
     /// Export a run's deformed Gaussians at a time as a standard 3DGS PLY.
     Export(ExportArgs),
+    /// Train the baseline and EvoGS on the built-in synthetic scene and compare them (no files
+    /// needed).
+    Demo(crate::demo_cmd::DemoArgs),
 }
 
 /// Arguments of `evogs train`.
