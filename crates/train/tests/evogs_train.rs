@@ -114,3 +114,58 @@ fn evogs_run_directory_resumes_bit_for_bit_and_reloads() {
     let e = LoadedRun::open(&a.root).err().unwrap().to_string();
     assert!(e.contains("evo_state.safetensors"), "{e}");
 }
+
+#[test]
+fn every_switch_combination_trains_finitely_and_stays_aligned() {
+    use evogs_train::{Bits, DensifyPolicy, GainSetting, HistorySetting};
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("scene");
+    common::write_scene(&data);
+    let base = config(80);
+    let views = load_split(&data, Split::Train, base.background.rgb(), base.downscale).unwrap();
+    let cases: [(&str, fn(&mut TrainConfig)); 5] = [
+        ("requery", |c| c.evogs.history = HistorySetting::Requery),
+        ("gain 0", |c| c.evogs.gain = GainSetting::Fixed(0.0)),
+        ("gain 1, standard densify", |c| {
+            c.evogs.gain = GainSetting::Fixed(1.0);
+            c.evogs.densify = DensifyPolicy::Standard;
+        }),
+        ("f16 buffer and network", |c| {
+            c.evogs.buffer = Bits::F16;
+            c.evogs.net_precision = Bits::F16;
+        }),
+        ("position only", |c| {
+            c.evogs.components = "pos".parse().unwrap()
+        }),
+    ];
+    for (name, edit) in cases {
+        let mut c = base.clone();
+        edit(&mut c);
+        let mut trainer = Trainer::new(c.clone(), views.clone()).unwrap();
+        while trainer.iteration < c.iterations {
+            let r = trainer.step().unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert!(r.loss.is_finite(), "{name}: iteration {}", r.iteration);
+            assert_eq!(
+                trainer.backbone.state_rows(),
+                Some(trainer.state.len()),
+                "{name}"
+            );
+        }
+        let dim = c.evogs.components.layout().dim();
+        let bytes_per = match (c.evogs.history, c.evogs.buffer) {
+            (HistorySetting::Requery, _) => 0,
+            (_, Bits::F32) => 4,
+            (_, Bits::F16) => 2,
+        };
+        assert_eq!(
+            trainer.backbone.state_bytes(),
+            16 * trainer.state.len() * dim * bytes_per,
+            "{name}"
+        );
+        let g = trainer.deformed_at(0.45).unwrap();
+        assert!(
+            g.means.as_flattened().iter().all(|v| v.is_finite()),
+            "{name}"
+        );
+    }
+}
