@@ -123,7 +123,8 @@ fn every_switch_combination_trains_finitely_and_stays_aligned() {
     common::write_scene(&data);
     let base = config(80);
     let views = load_split(&data, Split::Train, base.background.rgb(), base.downscale).unwrap();
-    let cases: [(&str, fn(&mut TrainConfig)); 5] = [
+    type Edit = fn(&mut TrainConfig);
+    let cases: [(&str, Edit); 5] = [
         ("requery", |c| c.evogs.history = HistorySetting::Requery),
         ("gain 0", |c| c.evogs.gain = GainSetting::Fixed(0.0)),
         ("gain 1, standard densify", |c| {
