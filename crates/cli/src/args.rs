@@ -26,6 +26,9 @@ pub enum Command {
     Synth(crate::synth_cmd::SynthArgs),
     /// Export a run's deformed Gaussians at a time as a standard 3DGS PLY.
     Export(ExportArgs),
+    /// Train the baseline and EvoGS on the built-in synthetic scene and compare them (no files
+    /// needed).
+    Demo(crate::demo_cmd::DemoArgs),
 }
 
 /// Arguments of `evogs train`.
@@ -39,9 +42,38 @@ pub struct TrainArgs {
     #[arg(long, value_name = "RUN")]
     pub out: PathBuf,
 
-    /// Deformation method; only `baseline` (D-3DGS) for now.
-    #[arg(long, default_value = "baseline")]
+    /// Deformation method: baseline (D-3DGS) or evogs (EvoGS(D-3DGS): observation network Φ
+    /// at half the width, evolution state, gain network Ψ).
+    #[arg(long, default_value = "baseline", value_name = "baseline|evogs")]
     pub method: String,
+
+    /// EvoGS gain K: learned (Ψ), or fixed at a number in [0, 1] (0 = prior only, 1 =
+    /// observation only) [default: learned].
+    #[arg(long, value_name = "learned|0|0.5|1")]
+    pub gain: Option<String>,
+
+    /// EvoGS history: from the buffer of corrected states, or re-queried from Φ ("without
+    /// buffer") [default: buffer].
+    #[arg(long, value_name = "buffer|requery")]
+    pub history: Option<String>,
+
+    /// EvoGS densification: standard 3DGS, + uncertainty trigger, + deformation-aware
+    /// clone/split [default: trigger+deform].
+    #[arg(long, value_name = "standard|trigger|trigger+deform")]
+    pub densify: Option<String>,
+
+    /// EvoGS buffer storage [default: f32].
+    #[arg(long, value_name = "f32|f16")]
+    pub buffer: Option<String>,
+
+    /// EvoGS Φ storage precision [default: f32].
+    #[arg(long, value_name = "f32|f16")]
+    pub net_precision: Option<String>,
+
+    /// EvoGS deformation components, comma-separated [default: pos,rot,scale]; opacity and
+    /// colour are parsed but not yet supported by the trainer.
+    #[arg(long, value_name = "pos,rot,scale[,opacity,colour]")]
+    pub components: Option<String>,
 
     /// Settings preset: paper (D-3DGS reference, width 256, 40K iterations), cpu (400×400 on
     /// 2 cores, width 64, 3K iterations), tiny (CI, width 32, 300 iterations).
@@ -63,7 +95,7 @@ pub struct TrainArgs {
     /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
     #[arg(
         long,
-        conflicts_with_all = ["data", "method", "preset", "iterations", "downscale", "seed", "background"]
+        conflicts_with_all = ["data", "method", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components"]
     )]
     pub resume: bool,
 

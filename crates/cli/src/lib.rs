@@ -2,7 +2,7 @@
 //!
 //! What it is: argument parsing ([`args`]) and one thin module per subcommand: `train`
 //! ([`train_cmd`]: settings from the flags, progress bar), `eval` ([`eval_cmd`]), `export`
-//! ([`export_cmd`]), and `render` ([`render`]: a 3DGS PLY from a nerfies camera, the built-in
+//! ([`export_cmd`]), `demo` ([`demo_cmd`]: baseline vs EvoGS on the embedded synthetic scene), and `render` ([`render`]: a 3DGS PLY from a nerfies camera, the built-in
 //! procedural scene of [`demo_scene`], or a trained run at a time or a time sweep via
 //! [`render_run`]), and `synth` ([`synth_cmd`]: procedural scenes in the D-NeRF layout).
 //!
@@ -11,6 +11,7 @@
 //! here and are shown as one line.
 
 pub mod args;
+pub mod demo_cmd;
 pub mod demo_scene;
 pub mod eval_cmd;
 pub mod export_cmd;

@@ -90,6 +90,10 @@ fn main() -> ExitCode {
                 report.height
             );
         }),
+        Command::Demo(args) => evogs_cli::demo_cmd::run_demo(args).map(|(n, rows)| {
+            print!("{}", evogs_cli::demo_cmd::table(n, &rows));
+            println!("wrote {}", args.out.display());
+        }),
         Command::Synth(args) => evogs_cli::synth_cmd::run_synth(args)
             .map(|summary| println!("{}", evogs_cli::synth_cmd::report_line(args, &summary))),
     };

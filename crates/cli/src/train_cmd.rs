@@ -30,6 +30,25 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
         config.background = b.parse::<Background>()?;
     }
     config.method = method;
+    let e = &mut config.evogs;
+    if let Some(v) = &args.gain {
+        e.gain = v.parse()?;
+    }
+    if let Some(v) = &args.history {
+        e.history = v.parse()?;
+    }
+    if let Some(v) = &args.densify {
+        e.densify = v.parse()?;
+    }
+    if let Some(v) = &args.buffer {
+        e.buffer = v.parse()?;
+    }
+    if let Some(v) = &args.net_precision {
+        e.net_precision = v.parse()?;
+    }
+    if let Some(v) = &args.components {
+        e.components = v.parse()?;
+    }
     config.seed = args.seed;
     config.validate()?;
     Ok(config)

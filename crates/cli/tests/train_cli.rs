@@ -269,7 +269,7 @@ fn bad_input_gives_one_line_errors_naming_the_file() {
         "--out",
         s(&dir.path().join("o5")),
         "--method",
-        "evogs",
+        "evo",
     ]);
     let e = one_line_error(&o);
     assert!(e.contains("evogs") && e.contains("baseline"), "{e}");

@@ -49,11 +49,70 @@ pub trait Backbone: Send {
         Vec::new()
     }
 
+    /// Sizes the backbone's per-Gaussian state for a run (training frame times, Gaussian count,
+    /// scene extent); called when a trainer is built. Nothing to do for D-3DGS.
+    fn prepare(
+        &mut self,
+        _frame_times: &[f32],
+        _rows: usize,
+        _extent: f32,
+    ) -> Result<(), TrainError> {
+        Ok(())
+    }
+
+    /// The backbone's own weighted loss terms of the last backward (EvoGS: λ1 L_sup + λ2 L_prior;
+    /// 0 for D-3DGS).
+    fn loss_terms(&self) -> f64 {
+        0.0
+    }
+
+    /// Uncertainty cues of the last training step for densification's trigger (none for D-3DGS).
+    fn densify_cues(&self, _extent: f32) -> Result<DensifyCues, TrainError> {
+        Ok(DensifyCues::default())
+    }
+
+    /// The latest training step's deformation for deformation-aware densification (none for
+    /// D-3DGS).
+    fn latest_deformation(&self) -> Option<densify::Deformation<'_>> {
+        None
+    }
+
+    /// Bytes of per-Gaussian state the backbone stores (EvoGS's buffer; 0 for D-3DGS).
+    fn state_bytes(&self) -> usize {
+        0
+    }
+
+    /// Rows of the backbone's per-Gaussian state (EvoGS: the evolution state's; `None` for
+    /// D-3DGS), to check alignment with the Gaussians.
+    fn state_rows(&self) -> Option<usize> {
+        None
+    }
+
+    /// Writes the backbone's non-parameter state (EvoGS's evolution state) to `path`; returns
+    /// whether there was any (D-3DGS: none, nothing written).
+    fn save_state(&self, _path: &Path) -> Result<bool, TrainError> {
+        Ok(false)
+    }
+
+    /// Reads the state written by [`Backbone::save_state`] (nothing for D-3DGS).
+    fn load_state(&mut self, _path: &Path) -> Result<(), TrainError> {
+        Ok(())
+    }
+
     /// Writes the weights to a safetensors file (atomically).
     fn save(&self, path: &Path) -> Result<(), TrainError>;
 
     /// Reads weights written by [`Backbone::save`] (same names, dtypes and sizes).
     fn load(&mut self, path: &Path) -> Result<(), TrainError>;
+}
+
+/// Per-Gaussian uncertainty cues of a training step, for densify's trigger.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DensifyCues {
+    /// Residual norm relative to the extent (when the step had a prior).
+    pub residual_norm: Option<Vec<f32>>,
+    /// Angular deviation θ (when the step had statistics).
+    pub theta: Option<Vec<f32>>,
 }
 
 /// D-3DGS's deformation network (`utils/time_utils.py` `DeformNetwork`: sinusoidal encodings of

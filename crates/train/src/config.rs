@@ -32,6 +32,8 @@ use crate::error::TrainError;
 pub enum Method {
     /// D-3DGS: the deformation MLP alone.
     Baseline,
+    /// EvoGS(D-3DGS): Φ + evolution state + Ψ (settings in [`TrainConfig::evogs`]).
+    Evogs,
 }
 
 impl FromStr for Method {
@@ -40,13 +42,10 @@ impl FromStr for Method {
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "baseline" => Ok(Self::Baseline),
-            "evogs" => Err(TrainError::config(
-                "method",
-                "`evogs` is not available yet (issue T2); only `baseline` is",
-            )),
+            "evogs" => Ok(Self::Evogs),
             other => Err(TrainError::config(
                 "method",
-                format!("unknown method `{other}`; only `baseline` is available"),
+                format!("unknown method `{other}`; expected baseline or evogs"),
             )),
         }
     }
@@ -54,7 +53,10 @@ impl FromStr for Method {
 
 impl fmt::Display for Method {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str("baseline")
+        f.write_str(match self {
+            Self::Baseline => "baseline",
+            Self::Evogs => "evogs",
+        })
     }
 }
 
@@ -269,6 +271,9 @@ pub struct TrainConfig {
     pub densify: DensifySettings,
     /// A checkpoint is written every this many iterations (and at the end).
     pub checkpoint_every: u64,
+    /// EvoGS's switches and Φ's shape (used by `method = evogs`; recorded for every run).
+    #[serde(default)]
+    pub evogs: crate::evo_settings::EvoSettings,
 }
 
 impl TrainConfig {
@@ -297,6 +302,7 @@ impl TrainConfig {
             lr: LrSettings::default(),
             densify: DensifySettings::default(),
             checkpoint_every: 5_000,
+            evogs: crate::evo_settings::EvoSettings::default(),
         };
         match preset {
             Preset::Paper => paper,
@@ -404,6 +410,9 @@ impl TrainConfig {
         if self.net.width == 0 || self.net.depth == 0 {
             return bad("net", "width and depth must be at least 1");
         }
+        if self.method == Method::Evogs {
+            self.evogs.validate()?;
+        }
         let lr = &self.lr;
         for (field, v) in [
             ("lr.position_init", lr.position_init),
@@ -452,8 +461,9 @@ mod tests {
     #[test]
     fn method_and_names_parse() {
         assert_eq!("baseline".parse::<Method>().unwrap(), Method::Baseline);
-        let e = "evogs".parse::<Method>().unwrap_err().to_string();
-        assert!(e.contains("T2"), "{e}");
+        assert_eq!("evogs".parse::<Method>().unwrap(), Method::Evogs);
+        let e = "evo".parse::<Method>().unwrap_err().to_string();
+        assert!(e.contains("baseline or evogs"), "{e}");
         assert!("cpu".parse::<Preset>().is_ok());
         assert!("huge".parse::<Preset>().is_err());
         assert_eq!("white".parse::<Background>().unwrap().rgb(), [1.0; 3]);

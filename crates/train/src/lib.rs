@@ -6,6 +6,7 @@
 //!
 //! - [`config`]: the D-3DGS recipe and the presets (`paper`, `cpu`, `tiny`);
 //! - [`backbone`]: the deformation-backbone trait and the D-3DGS backbone;
+//! - [`evo_backbone`], [`evo_settings`]: EvoGS (Φ + evo-state + Ψ) and its switches;
 //! - [`state`]: canonical Gaussians, Adam groups and statistics, aligned through densify's plans;
 //! - [`trainer`]: the training loop; [`run`]: run directories, `train` and resume;
 //! - [`checkpoint`]: exact checkpoints; [`eval`], [`render`]: evaluation, rendering, export;
@@ -26,6 +27,8 @@ pub mod data;
 pub mod deformed;
 pub mod error;
 pub mod eval;
+pub mod evo_backbone;
+pub mod evo_settings;
 pub mod init;
 pub mod metrics;
 pub mod render;
@@ -35,8 +38,10 @@ pub mod synth;
 pub mod timers;
 pub mod trainer;
 
-pub use backbone::{Backbone, D3dgsBackbone, DEFORM_DIM};
+pub use backbone::{Backbone, D3dgsBackbone, DEFORM_DIM, DensifyCues};
 pub use config::{Background, Method, Preset, TrainConfig};
 pub use error::TrainError;
+pub use evo_backbone::EvoBackbone;
+pub use evo_settings::{Bits, Components, DensifyPolicy, EvoSettings, GainSetting, HistorySetting};
 pub use run::{LoadedRun, RunPaths, TrainRequest, TrainSummary, train};
 pub use trainer::{StepReport, Trainer};

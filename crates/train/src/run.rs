@@ -5,7 +5,9 @@
 //! - `checkpoint.safetensors`: everything needed to continue ([`crate::checkpoint`]), rewritten
 //!   every `checkpoint_every` iterations and at the end;
 //! - `canonical.ply`: the canonical Gaussians in the 3DGS PLY layout;
-//! - `deform.safetensors`: the backbone's weights;
+//! - `deform.safetensors`: the backbone's weights (EvoGS: Φ as `phi.*` and Ψ as `psi`);
+//! - `evo_state.safetensors` (EvoGS only): the evolution state (buffer, valid frames, memory, Ψ),
+//!   evo-state's own format, written together with every checkpoint;
 //! - `train_metrics.json`: iterations done, time, iterations/s, last loss and PSNR, Gaussians,
 //!   per-phase times ([`TrainSummary`]);
 //! - `eval_<split>.json`, `eval_<split>.md`, `renders/<split>/*.png`: written by evaluation.
@@ -55,6 +57,10 @@ impl RunPaths {
     /// `deform.safetensors`.
     pub fn weights(&self) -> PathBuf {
         self.root.join("deform.safetensors")
+    }
+    /// `evo_state.safetensors` (EvoGS runs): the evolution state, written with every checkpoint.
+    pub fn evo_state(&self) -> PathBuf {
+        self.root.join("evo_state.safetensors")
     }
     /// `train_metrics.json`.
     pub fn train_metrics(&self) -> PathBuf {
@@ -174,6 +180,7 @@ pub fn train(
             ));
         }
         let meta = load_checkpoint(&ckpt, &mut state, backbone.as_mut())?;
+        backbone.load_state(&paths.evo_state())?;
         Trainer::from_parts(run.train, train, state, backbone, meta.iteration)?
     } else {
         request.config.validate()?;
@@ -227,6 +234,7 @@ pub fn train(
                 trainer.iteration,
                 trainer.config.seed,
             )?;
+            trainer.backbone.save_state(&paths.evo_state())?;
         }
         last = Some(report);
     }
@@ -238,6 +246,7 @@ pub fn train(
         trainer.iteration,
         trainer.config.seed,
     )?;
+    trainer.backbone.save_state(&paths.evo_state())?;
     evogs_io::write_ply(&paths.canonical(), trainer.state.gaussians.view())?;
     trainer.backbone.save(&paths.weights())?;
     let done = trainer.iteration - start_iteration;
@@ -284,6 +293,7 @@ impl LoadedRun {
         let canonical = evogs_io::read_ply(&paths.canonical())?.gaussians;
         let mut backbone = make_backbone(&run.train)?;
         backbone.load(&paths.weights())?;
+        backbone.load_state(&paths.evo_state())?;
         Ok(Self {
             paths,
             run,

@@ -31,6 +31,7 @@ use crate::config::{Method, TrainConfig};
 use crate::data::SplitViews;
 use crate::deformed::{DeformedGeometry, deformation_gradient};
 use crate::error::TrainError;
+use crate::evo_settings::DensifyPolicy;
 use crate::init::random_gaussians;
 use crate::metrics::{ImageSize, photometric_loss, psnr};
 use crate::state::SceneState;
@@ -41,7 +42,7 @@ use crate::timers::{Phase, PhaseTimes};
 pub struct StepReport {
     /// The iteration (from 1).
     pub iteration: u64,
-    /// Photometric loss.
+    /// Photometric loss plus the backbone's own terms (EvoGS: λ1 L_sup + λ2 L_prior).
     pub loss: f64,
     /// PSNR of the training view.
     pub psnr: f64,
@@ -58,12 +59,21 @@ pub fn make_backbone(config: &TrainConfig) -> Result<Box<dyn Backbone>, TrainErr
             &config.net,
             config.seed ^ 0xD3D6_5000,
         )?)),
+        Method::Evogs => Ok(Box::new(crate::evo_backbone::EvoBackbone::new(config)?)),
     }
 }
 
-/// Densify's configuration from the run's settings (standard 3DGS ADC, EvoGS policies off).
+/// Densify's configuration from the run's settings: standard 3DGS ADC for the baseline; for
+/// EvoGS the policy of `evogs.densify` (trigger with densify's default τ_r, τ_θ; deformation-aware
+/// clone/split with α = 0.5, as [`DensifyConfig::evogs`]).
 pub fn densify_config(config: &TrainConfig) -> DensifyConfig {
     let d = &config.densify;
+    let evogs = DensifyConfig::evogs();
+    let (trigger, deformation_alpha) = match (config.method, config.evogs.densify) {
+        (Method::Baseline, _) | (_, DensifyPolicy::Standard) => (None, None),
+        (Method::Evogs, DensifyPolicy::Trigger) => (evogs.trigger, None),
+        (Method::Evogs, DensifyPolicy::TriggerDeform) => (evogs.trigger, evogs.deformation_alpha),
+    };
     DensifyConfig {
         schedule: Schedule {
             from: d.from,
@@ -78,6 +88,8 @@ pub fn densify_config(config: &TrainConfig) -> DensifyConfig {
         max_screen_radius: d.max_screen_radius,
         max_world_fraction: d.max_world_fraction,
         seed: config.seed,
+        trigger,
+        deformation_alpha,
         ..DensifyConfig::default()
     }
 }
@@ -146,6 +158,8 @@ impl Trainer {
         }
         let densify = densify_config(&config);
         densify.validate()?;
+        let mut backbone = backbone;
+        backbone.prepare(&train.times(), state.len(), extent)?;
         Ok(Self {
             densify,
             config,
@@ -238,6 +252,12 @@ impl Trainer {
             self.state
                 .stats
                 .add_view(&grads.means2d, &grads.radii, w, h)?;
+            if deforms {
+                let cues = self.backbone.densify_cues(self.extent)?;
+                self.state
+                    .stats
+                    .add_evolution(cues.residual_norm.as_deref(), cues.theta.as_deref())?;
+            }
         }
         let mut densified = false;
         if schedule.acts(i) {
@@ -248,7 +268,11 @@ impl Trainer {
                     stats: &self.state.stats,
                     extent: self.extent,
                     iteration: i,
-                    deformation: None,
+                    deformation: if deforms {
+                        self.backbone.latest_deformation()
+                    } else {
+                        None
+                    },
                 },
             )?;
             densified = plan.summary.after != plan.summary.before || plan.new_len() != plan.old_len;
@@ -270,7 +294,12 @@ impl Trainer {
         self.iteration = i;
         Ok(StepReport {
             iteration: i,
-            loss: loss.loss,
+            loss: loss.loss
+                + if deforms {
+                    self.backbone.loss_terms()
+                } else {
+                    0.0
+                },
             psnr: train_psnr,
             gaussians: self.state.len(),
             densified,

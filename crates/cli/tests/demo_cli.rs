@@ -1,0 +1,54 @@
+//! `evogs demo` with a tiny iteration budget: both methods are trained, evaluated and swept, the
+//! table names both with finite metrics, and only EvoGS holds an evolution buffer.
+
+use std::process::Command;
+
+#[test]
+fn demo_compares_both_methods_and_writes_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo");
+    let o = Command::new(env!("CARGO_BIN_EXE_evogs"))
+        .args(["demo", "--iterations", "40", "--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let rows: Vec<Vec<&str>> = text
+        .lines()
+        .filter(|l| l.starts_with("| baseline") || l.starts_with("| evogs"))
+        .map(|l| {
+            l.split('|')
+                .map(str::trim)
+                .filter(|c| !c.is_empty())
+                .collect()
+        })
+        .collect();
+    assert_eq!(rows.len(), 2, "{text}");
+    for row in &rows {
+        assert_eq!(row.len(), 8, "{row:?}");
+        for cell in &row[1..] {
+            let v: f64 = cell.parse().unwrap_or_else(|_| panic!("{cell} in {row:?}"));
+            assert!(v.is_finite() && v >= 0.0, "{row:?}");
+        }
+    }
+    assert_eq!(rows[0][7], "0.0", "the baseline keeps no buffer");
+    assert!(
+        rows[1][7].parse::<f64>().unwrap() > 0.0,
+        "EvoGS keeps a buffer"
+    );
+    for m in ["baseline", "evogs"] {
+        assert!(out.join(m).join("sweep/strip.png").is_file(), "{m} strip");
+        assert!(
+            out.join(m).join("renders/test/0000.png").is_file(),
+            "{m} renders"
+        );
+    }
+    assert_eq!(
+        std::fs::read_to_string(out.join("demo.md")).unwrap().trim(),
+        text.lines()
+            .take_while(|l| !l.starts_with("wrote"))
+            .collect::<Vec<_>>()
+            .join("\n")
+            .trim()
+    );
+}

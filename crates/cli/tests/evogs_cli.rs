@@ -1,0 +1,119 @@
+//! `evogs train --method evogs` (with non-default switches), then `eval`, `render --run`,
+//! `export` and `--resume` on the run, through the binary on the tiny moving-block scene.
+
+#[path = "../../train/tests/common/mod.rs"]
+mod common;
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn evogs(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_evogs"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn ok(o: &Output) {
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+#[test]
+fn evogs_run_trains_evaluates_renders_exports_and_resumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("scene");
+    common::write_scene(&data);
+    let run = dir.path().join("run");
+    ok(&evogs(&[
+        "train",
+        "--data",
+        s(&data),
+        "--out",
+        s(&run),
+        "--preset",
+        "tiny",
+        "--iterations",
+        "120",
+        "--method",
+        "evogs",
+        "--gain",
+        "0.5",
+        "--buffer",
+        "f16",
+        "--densify",
+        "trigger",
+        "--stop-after",
+        "80",
+    ]));
+    for f in [
+        "config.json",
+        "checkpoint.safetensors",
+        "deform.safetensors",
+        "evo_state.safetensors",
+    ] {
+        assert!(run.join(f).is_file(), "{f} missing");
+    }
+    let config: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("config.json")).unwrap()).unwrap();
+    assert_eq!(config["train"]["method"], "evogs");
+    assert_eq!(config["train"]["evogs"]["buffer"], "f16");
+    assert_eq!(config["train"]["evogs"]["densify"], "trigger");
+    assert_eq!(config["train"]["evogs"]["gain"]["fixed"], 0.5);
+    ok(&evogs(&["train", "--out", s(&run), "--resume"]));
+    let metrics: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("train_metrics.json")).unwrap())
+            .unwrap();
+    assert_eq!(metrics["iteration"], 120);
+
+    ok(&evogs(&["eval", "--run", s(&run), "--split", "test"]));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("eval_test.json")).unwrap())
+            .unwrap();
+    assert!(report["mean_psnr"].as_f64().unwrap() > 15.0, "{report}");
+
+    let ply = dir.path().join("frame.ply");
+    ok(&evogs(&[
+        "export",
+        "--run",
+        s(&run),
+        "--time",
+        "0.6",
+        "--out",
+        s(&ply),
+    ]));
+    let loaded = evogs_io::read_ply(&ply).unwrap();
+    let canonical = evogs_io::read_ply(&run.join("canonical.ply")).unwrap();
+    assert_eq!(loaded.gaussians.len(), canonical.gaussians.len());
+    assert_ne!(loaded.gaussians.means, canonical.gaussians.means);
+
+    let cam = dir.path().join("cam.json");
+    let camera = splat_raster::Camera::look_at(
+        24,
+        20,
+        0.8,
+        glam::Vec3::new(3.0, 0.5, 1.0),
+        glam::Vec3::ZERO,
+        glam::Vec3::Z,
+    );
+    evogs_io::write_nerfies_camera(&cam, &evogs_io::CameraInfo::pinhole(camera)).unwrap();
+    let img = dir.path().join("t.png");
+    // Times between training frames (the CLI takes times in [0, 1]).
+    for t in ["0.41", "0.99"] {
+        ok(&evogs(&[
+            "render",
+            "--run",
+            s(&run),
+            "--camera",
+            s(&cam),
+            "--time",
+            t,
+            "--out",
+            s(&img),
+        ]));
+        assert_eq!(image::image_dimensions(&img).unwrap(), (24, 20));
+    }
+}

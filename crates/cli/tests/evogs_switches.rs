@@ -1,0 +1,151 @@
+//! Every EvoGS switch of `evogs train` parses and reaches the run config (table-driven), bad
+//! values are refused naming the setting, and the flags cannot be mixed with `--resume`.
+
+use clap::Parser;
+use evogs_cli::train_cmd::config_from_args;
+use evogs_cli::{Cli, Command};
+use evogs_train::{
+    Bits, Components, DensifyPolicy, EvoSettings, GainSetting, HistorySetting, Method, TrainConfig,
+};
+
+fn config(flags: &[&str]) -> anyhow::Result<TrainConfig> {
+    let mut argv = vec![
+        "evogs", "train", "--data", "d", "--out", "o", "--method", "evogs",
+    ];
+    argv.extend_from_slice(flags);
+    let cli = Cli::try_parse_from(argv)?;
+    match cli.command {
+        Command::Train(args) => config_from_args(&args),
+        _ => unreachable!("parsed a train command"),
+    }
+}
+
+#[test]
+fn each_switch_reaches_the_config() {
+    let comps = |pos, rot, scale| Components {
+        position: pos,
+        rotation: rot,
+        scale,
+        opacity: false,
+        colour: false,
+    };
+    type Check = fn(&EvoSettings) -> String;
+    let table: Vec<(&[&str], Check, String)> = vec![
+        (
+            &["--gain", "learned"],
+            |e| format!("{:?}", e.gain),
+            format!("{:?}", GainSetting::Learned),
+        ),
+        (
+            &["--gain", "0"],
+            |e| format!("{:?}", e.gain),
+            format!("{:?}", GainSetting::Fixed(0.0)),
+        ),
+        (
+            &["--gain", "0.5"],
+            |e| format!("{:?}", e.gain),
+            format!("{:?}", GainSetting::Fixed(0.5)),
+        ),
+        (
+            &["--gain", "1"],
+            |e| format!("{:?}", e.gain),
+            format!("{:?}", GainSetting::Fixed(1.0)),
+        ),
+        (
+            &["--history", "buffer"],
+            |e| e.history.to_string(),
+            HistorySetting::Buffer.to_string(),
+        ),
+        (
+            &["--history", "requery"],
+            |e| e.history.to_string(),
+            HistorySetting::Requery.to_string(),
+        ),
+        (
+            &["--densify", "standard"],
+            |e| e.densify.to_string(),
+            DensifyPolicy::Standard.to_string(),
+        ),
+        (
+            &["--densify", "trigger"],
+            |e| e.densify.to_string(),
+            DensifyPolicy::Trigger.to_string(),
+        ),
+        (
+            &["--densify", "trigger+deform"],
+            |e| e.densify.to_string(),
+            DensifyPolicy::TriggerDeform.to_string(),
+        ),
+        (
+            &["--buffer", "f32"],
+            |e| e.buffer.to_string(),
+            Bits::F32.to_string(),
+        ),
+        (
+            &["--buffer", "f16"],
+            |e| e.buffer.to_string(),
+            Bits::F16.to_string(),
+        ),
+        (
+            &["--net-precision", "f32"],
+            |e| e.net_precision.to_string(),
+            Bits::F32.to_string(),
+        ),
+        (
+            &["--net-precision", "f16"],
+            |e| e.net_precision.to_string(),
+            Bits::F16.to_string(),
+        ),
+        (
+            &["--components", "pos,rot,scale"],
+            |e| format!("{:?}", e.components),
+            format!("{:?}", comps(true, true, true)),
+        ),
+        (
+            &["--components", "pos"],
+            |e| format!("{:?}", e.components),
+            format!("{:?}", comps(true, false, false)),
+        ),
+        (
+            &["--components", "rotation,scale"],
+            |e| format!("{:?}", e.components),
+            format!("{:?}", comps(false, true, true)),
+        ),
+    ];
+    for (flags, get, want) in table {
+        let c = config(flags).unwrap_or_else(|e| panic!("{flags:?}: {e:#}"));
+        assert_eq!(c.method, Method::Evogs);
+        assert_eq!(get(&c.evogs), want, "{flags:?}");
+        // The run's config.json records it and reads it back.
+        let back: TrainConfig = serde_json::from_str(&serde_json::to_string(&c).unwrap()).unwrap();
+        assert_eq!(back, c, "{flags:?}");
+    }
+    // Without flags: the method's defaults.
+    assert_eq!(config(&[]).unwrap().evogs, EvoSettings::default());
+}
+
+#[test]
+fn bad_switch_values_name_the_setting() {
+    for (flags, field) in [
+        (&["--gain", "2"][..], "gain"),
+        (&["--gain", "fast"][..], "gain"),
+        (&["--history", "cache"][..], "history"),
+        (&["--densify", "deform"][..], "densify"),
+        (&["--buffer", "f8"][..], "precision"),
+        (&["--net-precision", "bf16"][..], "precision"),
+        (&["--components", "pos,pos"][..], "components"),
+        (&["--components", "velocity"][..], "components"),
+        // Parsed, but the trainer deforms geometry only.
+        (
+            &["--components", "pos,rot,scale,opacity"][..],
+            "evogs.components",
+        ),
+    ] {
+        let e = format!("{:#}", config(flags).unwrap_err());
+        assert!(e.contains(&format!("`{field}`")), "{flags:?}: {e}");
+    }
+    let e = Cli::try_parse_from(["evogs", "train", "--out", "o", "--resume", "--gain", "0"])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("--gain"), "{e}");
+}

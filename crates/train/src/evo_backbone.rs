@@ -1,0 +1,478 @@
+//! The EvoGS backbone (SPEC §4–5): the observation network Φ (tri-plane + cubic B-spline + MLP at
+//! half the baseline's width) wrapped by evo-state's [`EvoState`] with its gain network Ψ.
+//!
+//! - Training forward (`training = true`): z = Φ(canonical means, t), then evo-state's forward at
+//!   t; the corrected d̃ is the deformation. The step, z, Φ's cache and the stop-gradient
+//!   opacities are kept for the backward.
+//! - Backward: evo-state's backward gives dL/dz (L_render + λ1 L_sup + λ2 L_prior) and dL/dΨ;
+//!   Φ's backward turns dL/dz into parameter gradients. The step is then committed (its frame's
+//!   buffer block, valid flag and residual memory): "commit after the step".
+//! - Evaluation forward (`training = false`): the same read-only query at any time, nothing kept,
+//!   nothing written.
+//!
+//! Parameter buffers: Φ's (`phi.*`), then Ψ's (`psi`), each its own Adam group. The evolution
+//! state is a per-Gaussian container for densification ([`Backbone::rows_mut`]) and is saved and
+//! loaded whole with evo-state's safetensors format ([`Backbone::save_state`]).
+//!
+//! The trainer deforms position, rotation and scale (N × 10); the evolution layout holds any
+//! subset of them (D <= 10) and [`EvoBackbone`] maps its columns into the 10.
+
+use std::path::Path;
+
+use densify::{Deformation, PerGaussian, residual_norms, thetas};
+use evo_state::{Backward, EvoConfig, EvoError, EvoState, Frames, Step};
+use splat_raster::GaussiansView;
+use tiny_nn::{
+    BSplineConfig, ObservationCache, ObservationConfig, ObservationNet, Parameters, PlaneCombine,
+    StoreMut, StoreRef, TriPlaneConfig,
+};
+
+use crate::backbone::{Backbone, DEFORM_DIM, DensifyCues};
+use crate::config::TrainConfig;
+use crate::error::TrainError;
+use crate::evo_settings::EvoSettings;
+
+/// evo-state's errors as the trainer's (the message names the Gaussian and component).
+fn evo_err(e: EvoError) -> TrainError {
+    TrainError::config("evolution state", e.to_string())
+}
+
+/// evo-state's configuration for `settings` in a scene of the given extent.
+pub fn evo_config(settings: &EvoSettings, extent: f32) -> EvoConfig {
+    EvoConfig {
+        layout: settings.components.layout(),
+        storage: settings.buffer.storage(),
+        extent,
+        gain: settings.gain.to_gain(),
+        history: settings.history.to_mode(),
+        lambda_sup: settings.lambda_sup,
+        lambda_prior: settings.lambda_prior,
+        ..EvoConfig::default()
+    }
+}
+
+/// Φ's configuration for a run: half the baseline width, scene box `[-h, h]³` of the initial
+/// cube, output D.
+pub fn observation_config(config: &TrainConfig) -> ObservationConfig {
+    let s = &config.evogs;
+    let h = config.init_half_extent;
+    let mut triplane = TriPlaneConfig::new(
+        s.triplane_channels,
+        &s.triplane_resolutions,
+        PlaneCombine::Concat,
+    );
+    triplane.box_min = [-h; 3];
+    triplane.box_max = [h; 3];
+    ObservationConfig {
+        triplane,
+        bspline: BSplineConfig::new(s.bspline_controls, s.bspline_width),
+        width: (config.net.width / 2).max(1),
+        hidden_layers: s.hidden_layers,
+        output: s.components.layout().dim(),
+        precision: s.net_precision.precision(),
+        seed: config.seed ^ 0xE70_6500,
+    }
+}
+
+/// What the last training forward kept for its backward.
+struct Training {
+    step: Step,
+    z: Vec<f32>,
+    cache: ObservationCache,
+    opacity: Vec<f32>,
+    committed: bool,
+}
+
+/// Φ with the evolution state and Ψ.
+pub struct EvoBackbone {
+    settings: EvoSettings,
+    phi: ObservationNet,
+    evo: EvoState,
+    /// Whether `evo` was built for the run's frames and Gaussians (or loaded).
+    ready: bool,
+    /// Column of the N × 10 deformation of each evolution column.
+    deform_from_evo: Vec<usize>,
+    training: Option<Training>,
+    backward: Option<Backward>,
+    positions: Vec<f32>,
+    times: Vec<f32>,
+}
+
+impl EvoBackbone {
+    /// Φ and Ψ for a run, initialised from its seed. The evolution state is sized by
+    /// [`Backbone::prepare`] (or replaced by [`Backbone::load_state`]).
+    pub fn new(config: &TrainConfig) -> Result<Self, TrainError> {
+        let settings = config.evogs.clone();
+        settings.validate()?;
+        let phi = ObservationNet::new(observation_config(config))?;
+        let placeholder = Frames::from_timestamps([0.0])
+            .map_err(|e| TrainError::config("frames", e.to_string()))?;
+        let evo = EvoState::new(
+            evo_config(&settings, 1.0),
+            placeholder,
+            0,
+            config.seed ^ 0x9A1_0000,
+        )
+        .map_err(evo_err)?;
+        let layout = settings.components.layout();
+        let mut deform_from_evo = Vec::with_capacity(layout.dim());
+        for (component, range) in layout.components() {
+            let base = match component {
+                evo_state::Component::Position => 0,
+                evo_state::Component::Rotation => 3,
+                evo_state::Component::Scale => 7,
+                other => {
+                    return Err(TrainError::config(
+                        "evogs.components",
+                        format!("{other:?} is not a geometric component the trainer deforms"),
+                    ));
+                }
+            };
+            deform_from_evo.extend((0..range.len()).map(|j| base + j));
+        }
+        Ok(Self {
+            settings,
+            phi,
+            evo,
+            ready: false,
+            deform_from_evo,
+            training: None,
+            backward: None,
+            positions: Vec::new(),
+            times: Vec::new(),
+        })
+    }
+
+    /// The evolution state.
+    pub fn evo(&self) -> &EvoState {
+        &self.evo
+    }
+
+    /// The observation network Φ.
+    pub fn phi(&self) -> &ObservationNet {
+        &self.phi
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &EvoSettings {
+        &self.settings
+    }
+
+    /// The EvoGS loss terms of the last backward (unweighted `L_sup`, `L_prior`).
+    pub fn last_losses(&self) -> Option<evo_state::Losses> {
+        self.backward.as_ref().map(|b| b.losses)
+    }
+
+    fn check_ready(&self, rows: usize) -> Result<(), TrainError> {
+        if !self.ready {
+            return Err(TrainError::config(
+                "evolution state",
+                "not initialised: train the run, or load its evo_state.safetensors",
+            ));
+        }
+        if self.evo.rows() != rows {
+            return Err(TrainError::config(
+                "evolution state",
+                format!(
+                    "holds {} Gaussians but the scene has {rows} (not aligned)",
+                    self.evo.rows()
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Φ's observation at every Gaussian for one time.
+    fn observe(
+        phi: &ObservationNet,
+        positions: &[f32],
+        time: f32,
+        out: &mut [f32],
+    ) -> Result<(), tiny_nn::NnError> {
+        let n = positions.len() / 3;
+        let times = vec![time; n];
+        let (z, _) = phi.forward(positions, &times, n)?;
+        out.copy_from_slice(&z);
+        Ok(())
+    }
+
+    /// evo-state's forward at `time` with observations `z`.
+    fn evolve(&self, time: f32, z: &[f32], step: &mut Step) -> Result<(), TrainError> {
+        let result = match self.settings.history {
+            crate::evo_settings::HistorySetting::Buffer => {
+                self.evo.forward_into(time, z, None, step)
+            }
+            crate::evo_settings::HistorySetting::Requery => {
+                let phi = &self.phi;
+                let positions = &self.positions;
+                let mut source =
+                    |t: f32,
+                     out: &mut [f32]|
+                     -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+                        Ok(Self::observe(phi, positions, t, out)?)
+                    };
+                self.evo.forward_into(time, z, Some(&mut source), step)
+            }
+        };
+        result.map_err(evo_err)
+    }
+
+    fn widen(&self, corrected: &[f32]) -> Vec<f32> {
+        let d = self.deform_from_evo.len();
+        let n = corrected.len() / d.max(1);
+        let mut out = vec![0.0f32; n * DEFORM_DIM];
+        for (row, src) in out
+            .chunks_exact_mut(DEFORM_DIM)
+            .zip(corrected.chunks_exact(d))
+        {
+            for (&col, &v) in self.deform_from_evo.iter().zip(src) {
+                row[col] = v;
+            }
+        }
+        out
+    }
+}
+
+fn sigmoid(x: f32) -> f32 {
+    1.0 / (1.0 + (-x).exp())
+}
+
+impl Parameters for EvoBackbone {
+    fn named_params(&self) -> Vec<(String, StoreRef<'_>)> {
+        let mut out: Vec<(String, StoreRef<'_>)> = self
+            .phi
+            .named_params()
+            .into_iter()
+            .map(|(n, s)| (format!("phi.{n}"), s))
+            .collect();
+        out.push(("psi".to_string(), self.evo.psi().mlp().params()));
+        out
+    }
+
+    fn named_params_mut(&mut self) -> Vec<(String, StoreMut<'_>)> {
+        let Self { phi, evo, .. } = self;
+        let mut out: Vec<(String, StoreMut<'_>)> = phi
+            .named_params_mut()
+            .into_iter()
+            .map(|(n, s)| (format!("phi.{n}"), s))
+            .collect();
+        out.push(("psi".to_string(), evo.psi_mut().mlp_mut().params_mut()));
+        out
+    }
+}
+
+impl Backbone for EvoBackbone {
+    fn name(&self) -> &'static str {
+        "evogs"
+    }
+
+    fn prepare(&mut self, frame_times: &[f32], rows: usize, extent: f32) -> Result<(), TrainError> {
+        if self.ready {
+            return self.check_ready(rows);
+        }
+        let frames = Frames::from_timestamps(frame_times.iter().copied())
+            .map_err(|e| TrainError::config("frames", e.to_string()))?;
+        let psi = self.evo.psi().params();
+        let mut evo =
+            EvoState::new(evo_config(&self.settings, extent), frames, rows, 0).map_err(evo_err)?;
+        evo.psi_mut().set_params(&psi).map_err(evo_err)?;
+        self.evo = evo;
+        self.ready = true;
+        Ok(())
+    }
+
+    fn forward(
+        &mut self,
+        canonical: GaussiansView<'_>,
+        time: f32,
+        training: bool,
+    ) -> Result<Vec<f32>, TrainError> {
+        let n = canonical.len();
+        self.check_ready(n)?;
+        self.positions.clear();
+        self.positions
+            .extend(canonical.means.iter().flat_map(|m| m.iter().copied()));
+        self.times.clear();
+        self.times.resize(n, time);
+        let mut kept = self.training.take();
+        let mut cache = kept
+            .as_mut()
+            .map(|t| std::mem::take(&mut t.cache))
+            .unwrap_or_default();
+        let z = self
+            .phi
+            .forward_reusing(&self.positions, &self.times, n, &mut cache)?;
+        let mut step = kept.map_or_else(Step::empty, |t| t.step);
+        self.evolve(time, &z, &mut step)?;
+        let out = self.widen(step.corrected());
+        if training {
+            let opacity = canonical
+                .opacity_logits
+                .iter()
+                .map(|&o| sigmoid(o))
+                .collect();
+            self.training = Some(Training {
+                step,
+                z,
+                cache,
+                opacity,
+                committed: false,
+            });
+        }
+        Ok(out)
+    }
+
+    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, TrainError> {
+        let t = self.training.as_mut().ok_or_else(|| {
+            TrainError::config("backbone", "backward called without a training forward")
+        })?;
+        if t.committed {
+            return Err(TrainError::config(
+                "backbone",
+                "backward called twice for one training forward",
+            ));
+        }
+        let d = self.deform_from_evo.len();
+        let n = t.step.rows();
+        if d_deform.len() != n * DEFORM_DIM {
+            return Err(TrainError::config(
+                "backbone",
+                format!(
+                    "deformation gradient has {} values, expected {n} × {DEFORM_DIM}",
+                    d_deform.len()
+                ),
+            ));
+        }
+        let mut dl_dd = vec![0.0f32; n * d];
+        for (dst, src) in dl_dd
+            .chunks_exact_mut(d)
+            .zip(d_deform.chunks_exact(DEFORM_DIM))
+        {
+            for (o, &col) in dst.iter_mut().zip(&self.deform_from_evo) {
+                *o = src[col];
+            }
+        }
+        let mut bw = self.backward.take().unwrap_or(Backward {
+            dz: Vec::new(),
+            dpsi: None,
+            losses: evo_state::Losses::default(),
+        });
+        self.evo
+            .backward_into(&t.step, &t.z, &dl_dd, &t.opacity, &mut bw)
+            .map_err(evo_err)?;
+        let g = self.phi.backward(&t.cache, &bw.dz, false)?;
+        let flat: Vec<f32> = g
+            .triplane
+            .into_iter()
+            .chain(g.bspline)
+            .chain(g.mlp)
+            .collect();
+        let mut grads = Vec::new();
+        let mut at = 0;
+        for (name, buf) in self.phi.named_params() {
+            let len = buf.len();
+            let part = flat.get(at..at + len).ok_or_else(|| {
+                TrainError::config("backbone", format!("Φ gradient too short at `{name}`"))
+            })?;
+            grads.push(part.to_vec());
+            at += len;
+        }
+        let psi_len = self.evo.psi().param_count();
+        grads.push(bw.dpsi.clone().unwrap_or_else(|| vec![0.0f32; psi_len]));
+        self.evo.commit(&t.step).map_err(evo_err)?;
+        t.committed = true;
+        self.backward = Some(bw);
+        Ok(grads)
+    }
+
+    fn params(&self) -> Vec<(String, StoreRef<'_>)> {
+        self.named_params()
+    }
+
+    fn params_mut(&mut self) -> Vec<(String, StoreMut<'_>)> {
+        self.named_params_mut()
+    }
+
+    fn rows_mut(&mut self) -> Vec<&mut dyn PerGaussian> {
+        // The kept step becomes stale once rows change.
+        self.training = None;
+        vec![&mut self.evo]
+    }
+
+    fn loss_terms(&self) -> f64 {
+        self.backward.as_ref().map_or(0.0, |b| {
+            self.settings.lambda_sup as f64 * b.losses.sup
+                + self.settings.lambda_prior as f64 * b.losses.prior
+        })
+    }
+
+    fn densify_cues(&self, extent: f32) -> Result<DensifyCues, TrainError> {
+        let Some(t) = &self.training else {
+            return Ok(DensifyCues::default());
+        };
+        let layout = self.settings.components.layout();
+        Ok(DensifyCues {
+            residual_norm: residual_norms(&t.step, &t.z, &layout, extent)?,
+            theta: thetas(&t.step),
+        })
+    }
+
+    fn latest_deformation(&self) -> Option<Deformation<'_>> {
+        self.training.as_ref().map(|t| Deformation {
+            corrected: t.step.corrected(),
+            layout: self.settings.components.layout(),
+        })
+    }
+
+    fn state_bytes(&self) -> usize {
+        self.evo.buffer_bytes()
+    }
+
+    fn state_rows(&self) -> Option<usize> {
+        Some(self.evo.rows())
+    }
+
+    fn save_state(&self, path: &Path) -> Result<bool, TrainError> {
+        self.evo
+            .save(path)
+            .map_err(|e| TrainError::file(path, e.to_string()))?;
+        Ok(true)
+    }
+
+    fn load_state(&mut self, path: &Path) -> Result<(), TrainError> {
+        if !path.is_file() {
+            return Err(TrainError::file(
+                path,
+                "missing: an evogs run keeps its evolution state here",
+            ));
+        }
+        let evo = EvoState::load(path).map_err(|e| TrainError::file(path, e.to_string()))?;
+        let want = evo_config(&self.settings, evo.config().extent);
+        if *evo.config() != want {
+            return Err(TrainError::field(
+                path,
+                "config",
+                format!(
+                    "evolution settings {:?} differ from the run's {:?}",
+                    evo.config(),
+                    want
+                ),
+            ));
+        }
+        if evo.psi().param_count() != self.evo.psi().param_count() {
+            return Err(TrainError::field(path, "psi", "Ψ has another shape"));
+        }
+        self.evo = evo;
+        self.ready = true;
+        self.training = None;
+        Ok(())
+    }
+
+    fn save(&self, path: &Path) -> Result<(), TrainError> {
+        Ok(tiny_nn::weights::save(path, self)?)
+    }
+
+    fn load(&mut self, path: &Path) -> Result<(), TrainError> {
+        Ok(tiny_nn::weights::load(path, self)?)
+    }
+}

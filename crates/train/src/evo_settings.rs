@@ -1,0 +1,393 @@
+//! EvoGS's settings in a run's config (SPEC §4–6): the ablation switches and the shape of the
+//! observation network Φ. Every switch has a command-line spelling (its `FromStr`/`Display`):
+//!
+//! | setting | spellings | meaning |
+//! |---|---|---|
+//! | [`GainSetting`] | `learned`, or a number in \[0, 1\] (`0`, `0.5`, `1`) | K = Ψ(·), or fixed |
+//! | [`HistorySetting`] | `buffer`, `requery` | history from the buffer, or re-queried from Φ |
+//! | [`DensifyPolicy`] | `standard`, `trigger`, `trigger+deform` | 3DGS ADC, + EvoGS trigger, + deformation-aware clone/split |
+//! | [`Bits`] | `f32`, `f16` | buffer storage (`--buffer`) and Φ's storage (`--net-precision`) |
+//! | [`Components`] | `pos,rot,scale[,opacity,colour]` | the deformation components |
+//!
+//! The settings are recorded in `config.json` for every method; only `--method evogs` uses them
+//! (the baseline ignores them). Opacity and colour components parse and are recorded, but the
+//! trainer's deformed geometry holds position, rotation and scale only, so [`EvoSettings::validate`]
+//! refuses them for training (a clear error, not a silent drop).
+
+use std::fmt;
+use std::str::FromStr;
+
+use evo_state::{Gain, HistoryMode, Layout, Storage};
+use serde::{Deserialize, Serialize};
+use tiny_nn::Precision;
+
+use crate::error::TrainError;
+
+/// How the gain K is chosen once three history frames exist.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GainSetting {
+    /// K = Ψ([m, |v2|, |v1|, θ]), the method.
+    Learned,
+    /// K fixed (0 = prior only, 1 = observation only).
+    Fixed(f32),
+}
+
+impl GainSetting {
+    /// evo-state's value.
+    pub fn to_gain(self) -> Gain {
+        match self {
+            Self::Learned => Gain::Learned,
+            Self::Fixed(k) => Gain::Fixed(k),
+        }
+    }
+}
+
+impl FromStr for GainSetting {
+    type Err = TrainError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        if s == "learned" {
+            return Ok(Self::Learned);
+        }
+        match s.parse::<f32>() {
+            Ok(k) if (0.0..=1.0).contains(&k) => Ok(Self::Fixed(k)),
+            _ => Err(TrainError::config(
+                "gain",
+                format!("`{s}`: expected `learned` or a number in [0, 1] such as 0, 0.5 or 1"),
+            )),
+        }
+    }
+}
+
+impl fmt::Display for GainSetting {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Learned => f.write_str("learned"),
+            Self::Fixed(k) => write!(f, "{k}"),
+        }
+    }
+}
+
+macro_rules! named_enum {
+    ($ty:ident, $field:literal, $( $variant:ident = $name:literal ),+ $(,)?) => {
+        impl $ty {
+            /// Every value, in declaration order.
+            pub const ALL: &'static [$ty] = &[$($ty::$variant),+];
+
+            /// The command-line spelling.
+            pub fn name(self) -> &'static str {
+                match self { $($ty::$variant => $name),+ }
+            }
+        }
+
+        impl FromStr for $ty {
+            type Err = TrainError;
+
+            fn from_str(s: &str) -> Result<Self, Self::Err> {
+                Self::ALL.iter().copied().find(|v| v.name() == s).ok_or_else(|| {
+                    let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
+                    TrainError::config(
+                        $field,
+                        format!("unknown value `{s}`; expected one of {}", names.join(", ")),
+                    )
+                })
+            }
+        }
+
+        impl fmt::Display for $ty {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str(self.name())
+            }
+        }
+    };
+}
+
+/// Where the history states come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum HistorySetting {
+    /// The persistent buffer of corrected states (EvoGS).
+    Buffer,
+    /// Re-queried from Φ at the history times ("without buffer").
+    Requery,
+}
+named_enum!(
+    HistorySetting,
+    "history",
+    Buffer = "buffer",
+    Requery = "requery"
+);
+
+impl HistorySetting {
+    /// evo-state's value.
+    pub fn to_mode(self) -> HistoryMode {
+        match self {
+            Self::Buffer => HistoryMode::Buffer,
+            Self::Requery => HistoryMode::Requery,
+        }
+    }
+}
+
+/// Densification policy (SPEC §6).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum DensifyPolicy {
+    /// 3DGS adaptive density control.
+    #[serde(rename = "standard")]
+    Standard,
+    /// ADC gated by EvoGS's uncertainty-aware trigger.
+    #[serde(rename = "trigger")]
+    Trigger,
+    /// The trigger plus deformation-aware clone/split (α = 0.5), EvoGS's full policy.
+    #[serde(rename = "trigger+deform")]
+    TriggerDeform,
+}
+named_enum!(
+    DensifyPolicy,
+    "densify",
+    Standard = "standard",
+    Trigger = "trigger",
+    TriggerDeform = "trigger+deform",
+);
+
+/// A storage precision.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Bits {
+    /// 32-bit floats.
+    F32,
+    /// 16-bit floats (saturating at ±65504, counted).
+    F16,
+}
+named_enum!(Bits, "precision", F32 = "f32", F16 = "f16");
+
+impl Bits {
+    /// As evo-state's buffer storage.
+    pub fn storage(self) -> Storage {
+        match self {
+            Self::F32 => Storage::F32,
+            Self::F16 => Storage::F16,
+        }
+    }
+
+    /// As tiny-nn's network precision.
+    pub fn precision(self) -> Precision {
+        match self {
+            Self::F32 => Precision::F32,
+            Self::F16 => Precision::F16,
+        }
+    }
+}
+
+/// Which deformation components exist.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Components {
+    /// Mean offset (3).
+    pub position: bool,
+    /// Raw quaternion offset (4).
+    pub rotation: bool,
+    /// Log-scale offset (3).
+    pub scale: bool,
+    /// Opacity logit offset (1).
+    pub opacity: bool,
+    /// SH DC offset (3).
+    pub colour: bool,
+}
+
+impl Default for Components {
+    /// Position, rotation, scale (as D-3DGS).
+    fn default() -> Self {
+        Self::from_layout(Layout::default())
+    }
+}
+
+impl Components {
+    /// evo-state's layout.
+    pub fn layout(self) -> Layout {
+        Layout {
+            position: self.position,
+            rotation: self.rotation,
+            scale: self.scale,
+            opacity: self.opacity,
+            colour: self.colour,
+        }
+    }
+
+    /// From evo-state's layout.
+    pub fn from_layout(l: Layout) -> Self {
+        Self {
+            position: l.position,
+            rotation: l.rotation,
+            scale: l.scale,
+            opacity: l.opacity,
+            colour: l.colour,
+        }
+    }
+}
+
+impl FromStr for Components {
+    type Err = TrainError;
+
+    /// A comma-separated list of `pos`/`position`, `rot`/`rotation`, `scale`, `opacity`,
+    /// `colour`/`color`; at least one, none twice.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let mut c = Self {
+            position: false,
+            rotation: false,
+            scale: false,
+            opacity: false,
+            colour: false,
+        };
+        for part in s.split(',').map(str::trim) {
+            let slot = match part {
+                "pos" | "position" => &mut c.position,
+                "rot" | "rotation" => &mut c.rotation,
+                "scale" => &mut c.scale,
+                "opacity" => &mut c.opacity,
+                "colour" | "color" => &mut c.colour,
+                other => {
+                    return Err(TrainError::config(
+                        "components",
+                        format!(
+                            "unknown component `{other}`; expected a list of pos, rot, scale, \
+                             opacity, colour"
+                        ),
+                    ));
+                }
+            };
+            if *slot {
+                return Err(TrainError::config(
+                    "components",
+                    format!("`{part}` is listed twice"),
+                ));
+            }
+            *slot = true;
+        }
+        Ok(c)
+    }
+}
+
+impl fmt::Display for Components {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let names = [
+            (self.position, "pos"),
+            (self.rotation, "rot"),
+            (self.scale, "scale"),
+            (self.opacity, "opacity"),
+            (self.colour, "colour"),
+        ];
+        let on: Vec<&str> = names.iter().filter(|(b, _)| *b).map(|(_, n)| *n).collect();
+        f.write_str(&on.join(","))
+    }
+}
+
+/// EvoGS's settings: the switches and Φ's shape.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EvoSettings {
+    /// `--gain`.
+    pub gain: GainSetting,
+    /// `--history`.
+    pub history: HistorySetting,
+    /// `--densify`.
+    pub densify: DensifyPolicy,
+    /// `--buffer`: storage of the buffer of corrected states.
+    pub buffer: Bits,
+    /// `--net-precision`: storage of Φ's parameters and activations.
+    pub net_precision: Bits,
+    /// `--components`.
+    pub components: Components,
+    /// Φ's tri-plane channels per plane.
+    pub triplane_channels: usize,
+    /// Φ's tri-plane resolutions.
+    pub triplane_resolutions: Vec<usize>,
+    /// Φ's B-spline control vectors (M >= 4).
+    pub bspline_controls: usize,
+    /// Width of each B-spline control vector.
+    pub bspline_width: usize,
+    /// Hidden layers of Φ's decoder (its width is half the baseline network's width).
+    pub hidden_layers: usize,
+    /// λ1, weight of L_sup (0.5).
+    pub lambda_sup: f32,
+    /// λ2, weight of L_prior (0.5).
+    pub lambda_prior: f32,
+}
+
+impl Default for EvoSettings {
+    /// The method: learned gain, buffer history, trigger + deformation-aware densification, f32
+    /// storage, position + rotation + scale; Φ with 8 channels at resolutions 32 and 64 (concatenated),
+    /// 16 control vectors of width 8 and 2 hidden layers.
+    fn default() -> Self {
+        Self {
+            gain: GainSetting::Learned,
+            history: HistorySetting::Buffer,
+            densify: DensifyPolicy::TriggerDeform,
+            buffer: Bits::F32,
+            net_precision: Bits::F32,
+            components: Components::default(),
+            triplane_channels: 8,
+            triplane_resolutions: vec![32, 64],
+            bspline_controls: 16,
+            bspline_width: 8,
+            hidden_layers: 2,
+            lambda_sup: 0.5,
+            lambda_prior: 0.5,
+        }
+    }
+}
+
+impl EvoSettings {
+    /// Checks the settings a training run with `--method evogs` needs.
+    pub fn validate(&self) -> Result<(), TrainError> {
+        let c = self.components;
+        if !(c.position || c.rotation || c.scale || c.opacity || c.colour) {
+            return Err(TrainError::config(
+                "evogs.components",
+                "at least one component is needed",
+            ));
+        }
+        if c.opacity || c.colour {
+            return Err(TrainError::config(
+                "evogs.components",
+                format!(
+                    "`{c}`: the trainer deforms position, rotation and scale only; opacity and \
+                     colour components are not supported yet"
+                ),
+            ));
+        }
+        if let GainSetting::Fixed(k) = self.gain
+            && !(0.0..=1.0).contains(&k)
+        {
+            return Err(TrainError::config(
+                "evogs.gain",
+                format!("{k}: must lie in [0, 1]"),
+            ));
+        }
+        if self.triplane_channels == 0 || self.triplane_resolutions.is_empty() {
+            return Err(TrainError::config(
+                "evogs.triplane",
+                "needs at least one channel and one resolution",
+            ));
+        }
+        if self.triplane_resolutions.iter().any(|&r| r < 2) {
+            return Err(TrainError::config(
+                "evogs.triplane_resolutions",
+                "every resolution must be at least 2",
+            ));
+        }
+        if self.bspline_controls < 4 || self.bspline_width == 0 {
+            return Err(TrainError::config(
+                "evogs.bspline",
+                "needs at least 4 control vectors of width at least 1",
+            ));
+        }
+        for (field, v) in [
+            ("evogs.lambda_sup", self.lambda_sup),
+            ("evogs.lambda_prior", self.lambda_prior),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(TrainError::config(field, "must be finite and non-negative"));
+            }
+        }
+        Ok(())
+    }
+}
