@@ -3,20 +3,10 @@
 
 #[path = "../../train/tests/common/mod.rs"]
 mod common;
+mod support;
 
-use std::path::Path;
-use std::process::{Command, Output};
-
-fn evogs(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_evogs"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use std::process::Output;
+use support::{evogs, s};
 
 fn ok(o: &Output) {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));

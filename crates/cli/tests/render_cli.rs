@@ -1,23 +1,13 @@
 //! The `evogs render` binary end to end: renders from files written by the io crate, the demo
 //! scene, and one-line errors naming the file for bad input, never touching an existing output.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod support;
+use std::path::PathBuf;
 
 use evogs_io::{CameraInfo, Distortion, write_nerfies_camera, write_ply};
 use glam::Vec3;
 use splat_raster::{Camera, Gaussians};
-
-fn evogs(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_evogs"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use support::{evogs, s};
 
 /// A small scene: a grid of Gaussians at SH degree 1 in front of the camera.
 fn small_scene(n: usize) -> Gaussians {

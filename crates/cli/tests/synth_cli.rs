@@ -1,14 +1,8 @@
 //! `evogs synth`: help snapshot, a small run read back by the D-NeRF reader, and bad arguments.
 
-use std::process::Command;
+mod support;
 
-fn evogs(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_evogs"))
-        .args(args)
-        .env("COLUMNS", "100")
-        .output()
-        .unwrap()
-}
+use support::evogs;
 
 #[test]
 fn synth_help() {
