@@ -570,6 +570,24 @@ mod tests {
     }
 
     #[test]
+    fn evolution_defaults_on_in_older_configs() {
+        let mut json = serde_json::to_value(EvoSettings::default()).unwrap();
+        json.as_object_mut().unwrap().remove("evolution");
+        let back: EvoSettings = serde_json::from_value(json).unwrap();
+        assert!(back.evolution);
+        let off = EvoSettings {
+            evolution: false,
+            ..EvoSettings::default()
+        };
+        let round: EvoSettings =
+            serde_json::from_value(serde_json::to_value(&off).unwrap()).unwrap();
+        assert!(!round.evolution);
+        // The switch reaches evo-state, which then keeps no buffer.
+        let config = crate::evo_backbone::evo_config(&off, 1.0);
+        assert!(!config.evolution);
+    }
+
+    #[test]
     fn switches_line() {
         let rows = ladder();
         assert_eq!(rows[0].switches(), "baseline");
