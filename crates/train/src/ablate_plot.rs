@@ -77,9 +77,16 @@ fn draw(results: &[AblationResult], buf: &mut [u8], text: bool) -> Result<(), St
         )
         .map_err(|e| err(&e))?;
     if text {
+        // Labels to the right of their point, staggered downwards so that rows with nearly equal
+        // time and PSNR stay readable.
         chart
-            .draw_series(points.iter().map(|&(x, y, name)| {
-                Text::new(name.to_string(), (x, y), ("sans-serif", 16).into_font())
+            .draw_series(points.iter().enumerate().map(|(i, &(x, y, name))| {
+                EmptyElement::at((x, y))
+                    + Text::new(
+                        name.to_string(),
+                        (8, -8 + 15 * (i % 4) as i32),
+                        ("sans-serif", 15).into_font(),
+                    )
             }))
             .map_err(|e| err(&e))?;
     }
