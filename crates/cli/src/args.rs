@@ -29,6 +29,8 @@ pub enum Command {
     /// Train the baseline and EvoGS on the built-in synthetic scene and compare them (no files
     /// needed).
     Demo(crate::demo_cmd::DemoArgs),
+    /// Run the paper's ablation ladder at equal iterations on one dataset (table, JSON, plot).
+    Ablate(crate::ablate_cmd::AblateArgs),
 }
 
 /// Arguments of `evogs train`.

@@ -10,10 +10,10 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 use evogs_io::Split;
+use evogs_train::ablate::train_and_evaluate;
 use evogs_train::data::load_split;
-use evogs_train::eval::evaluate;
 use evogs_train::synth::{embedded_scene, write_dnerf};
-use evogs_train::{LoadedRun, Method, Preset, TrainConfig, TrainRequest, train};
+use evogs_train::{Method, Preset, TrainConfig};
 
 use crate::args::RenderArgs;
 use crate::render_run::render_run;
@@ -98,28 +98,16 @@ pub fn run_demo(args: &DemoArgs) -> Result<(u64, Vec<DemoRow>)> {
         let mut config = TrainConfig::preset(Preset::Tiny).with_iterations(iterations);
         config.method = method;
         let out = args.out.join(method.to_string());
-        let summary = train(
-            &TrainRequest {
-                data: data.clone(),
-                out: out.clone(),
-                config,
-                resume: false,
-                stop_after: None,
-            },
-            &mut |_, _| {},
-        )?;
-        let mut run = LoadedRun::open(&out)?;
-        let report = evaluate(&mut run, Split::Test)?;
-        let temporal = report.temporal.as_ref();
+        let scores = train_and_evaluate(&data, &out, config, false)?;
         rows.push(DemoRow {
             method,
-            psnr: report.mean_psnr,
-            ssim: report.mean_ssim,
-            flicker: temporal.map_or(f64::NAN, |t| t.flicker_rendered),
-            jitter: temporal.map_or(f64::NAN, |t| t.jitter),
-            seconds: summary.seconds,
-            gaussians: summary.gaussians,
-            buffer_bytes: run.backbone.state_bytes(),
+            psnr: scores.psnr,
+            ssim: scores.ssim,
+            flicker: scores.flicker,
+            jitter: scores.jitter,
+            seconds: scores.seconds,
+            gaussians: scores.gaussians,
+            buffer_bytes: scores.buffer_bytes,
         });
         render_run(
             &out,

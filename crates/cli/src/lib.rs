@@ -2,7 +2,8 @@
 //!
 //! What it is: argument parsing ([`args`]) and one thin module per subcommand: `train`
 //! ([`train_cmd`]: settings from the flags, progress bar), `eval` ([`eval_cmd`]), `export`
-//! ([`export_cmd`]), `demo` ([`demo_cmd`]: baseline vs EvoGS on the embedded synthetic scene), and `render` ([`render`]: a 3DGS PLY from a nerfies camera, the built-in
+//! ([`export_cmd`]), `demo` ([`demo_cmd`]: baseline vs EvoGS on the embedded synthetic scene), `ablate`
+//! ([`ablate_cmd`]: the paper's ablation ladder), and `render` ([`render`]: a 3DGS PLY from a nerfies camera, the built-in
 //! procedural scene of [`demo_scene`], or a trained run at a time or a time sweep via
 //! [`render_run`]), and `synth` ([`synth_cmd`]: procedural scenes in the D-NeRF layout).
 //!
@@ -10,6 +11,7 @@
 //! scenes live in `evogs-train`, file formats in `evogs-io`, rendering in `splat-raster`. Errors are `anyhow`
 //! here and are shown as one line.
 
+pub mod ablate_cmd;
 pub mod args;
 pub mod demo_cmd;
 pub mod demo_scene;

@@ -94,6 +94,13 @@ fn main() -> ExitCode {
             print!("{}", evogs_cli::demo_cmd::table(n, &rows));
             println!("wrote {}", args.out.display());
         }),
+        Command::Ablate(args) => evogs_cli::ablate_cmd::run_ablate(args).map(|results| {
+            println!(
+                "ran {} rows; wrote {}",
+                results.len(),
+                args.out.join("ablation.md").display()
+            );
+        }),
         Command::Synth(args) => evogs_cli::synth_cmd::run_synth(args)
             .map(|summary| println!("{}", evogs_cli::synth_cmd::report_line(args, &summary))),
     };

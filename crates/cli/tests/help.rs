@@ -43,3 +43,10 @@ fn train_eval_export_help() {
         insta::assert_snapshot!(format!("evogs_{name}_help"), text);
     }
 }
+
+#[test]
+fn ablate_help() {
+    let text = help(&["ablate", "--help"]);
+    assert_eq!(text, help(&["help", "ablate"]));
+    insta::assert_snapshot!("evogs_ablate_help", text);
+}

@@ -43,6 +43,7 @@ pub fn evo_config(settings: &EvoSettings, extent: f32) -> EvoConfig {
         layout: settings.components.layout(),
         storage: settings.buffer.storage(),
         extent,
+        evolution: settings.evolution,
         gain: settings.gain.to_gain(),
         history: settings.history.to_mode(),
         lambda_sup: settings.lambda_sup,

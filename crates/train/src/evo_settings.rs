@@ -284,6 +284,10 @@ impl fmt::Display for Components {
 /// EvoGS's settings: the switches and Φ's shape.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct EvoSettings {
+    /// Evolution on (the method); `false` runs Φ alone (d̃ = z, no buffer, no Ψ, EvoGS losses zero), the
+    /// ablation "Φ without evolution". Absent in older `config.json` files: on.
+    #[serde(default = "evolution_on")]
+    pub evolution: bool,
     /// `--gain`.
     pub gain: GainSetting,
     /// `--history`.
@@ -312,12 +316,18 @@ pub struct EvoSettings {
     pub lambda_prior: f32,
 }
 
+/// serde's default of [`EvoSettings::evolution`].
+fn evolution_on() -> bool {
+    true
+}
+
 impl Default for EvoSettings {
     /// The method: learned gain, buffer history, trigger + deformation-aware densification, f32
     /// storage, position + rotation + scale; Φ with 8 channels at resolutions 32 and 64 (concatenated),
     /// 16 control vectors of width 8 and 2 hidden layers.
     fn default() -> Self {
         Self {
+            evolution: true,
             gain: GainSetting::Learned,
             history: HistorySetting::Buffer,
             densify: DensifyPolicy::TriggerDeform,

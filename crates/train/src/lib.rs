@@ -4,6 +4,7 @@
 //! through densify's row plans, deformation backbones, losses, schedules, checkpoints), synthetic
 //! scene generation, and the image and temporal metrics shared by training and evaluation.
 //!
+//! - [`ablate`], [`ablate_plot`]: the paper's ablation ladder, its runner, table and plot;
 //! - [`config`]: the D-3DGS recipe and the presets (`paper`, `cpu`, `tiny`);
 //! - [`backbone`]: the deformation-backbone trait and the D-3DGS backbone;
 //! - [`evo_backbone`], [`evo_settings`]: EvoGS (Φ + evo-state + Ψ) and its switches;
@@ -20,6 +21,8 @@
 //! What it is not: a rasterizer, a network library, a file-format reader or a command line. Those
 //! are `splat-raster`, `tiny-nn`, `evogs-io` and `evogs-cli`.
 
+pub mod ablate;
+pub mod ablate_plot;
 pub mod backbone;
 pub mod checkpoint;
 pub mod config;

@@ -1,0 +1,101 @@
+//! `evogs ablate`: the paper's ablation ladder at equal iterations on one dataset. Thin: the
+//! ladder, the runner and the outputs are `evogs_train::ablate`; this module reads the flags and
+//! shows progress (one line per row started and finished, and a bar on a terminal).
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use evogs_train::ablate::{AblationRequest, AblationResult, Progress, run_ablation, select};
+use evogs_train::{Preset, TrainConfig};
+use indicatif::{ProgressBar, ProgressStyle};
+
+/// Arguments of `evogs ablate`.
+#[derive(Debug, Args)]
+pub struct AblateArgs {
+    /// Dataset directory (any layout `evogs train` reads).
+    #[arg(long, value_name = "DIR")]
+    pub data: PathBuf,
+
+    /// Output directory: one run directory per row, ablation.md, ablation.json, ablation.png.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+
+    /// Training preset for every row.
+    #[arg(long, default_value = "cpu", value_name = "cpu|tiny|paper")]
+    pub preset: String,
+
+    /// Iterations per row (scales the preset's schedule).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub iterations: Option<u64>,
+
+    /// Random seed for every row.
+    #[arg(long, value_name = "S")]
+    pub seed: Option<u64>,
+
+    /// Rows to run, comma-separated, in the ladder's order whatever the order given [default:
+    /// all]: baseline, phi, evo-requery, evo-buffer, trigger, full, k0, k0.5, k1, net-f16,
+    /// buffer-f16.
+    #[arg(long, value_name = "LIST", value_delimiter = ',')]
+    pub rows: Vec<String>,
+}
+
+/// Runs `evogs ablate`; returns the results (the outputs are written).
+pub fn run_ablate(args: &AblateArgs) -> Result<Vec<AblationResult>> {
+    let preset: Preset = args.preset.parse()?;
+    let mut config = TrainConfig::preset(preset);
+    if let Some(n) = args.iterations {
+        config = config.with_iterations(n);
+    }
+    if let Some(s) = args.seed {
+        config.seed = s;
+    }
+    let rows = select(&args.rows)?;
+    let request = AblationRequest {
+        data: args.data.clone(),
+        out: args.out.clone(),
+        config,
+        rows,
+    };
+    let bar = if std::io::stderr().is_terminal() {
+        ProgressBar::new(request.rows.len() as u64)
+    } else {
+        ProgressBar::hidden()
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} rows, ETA {eta} | {msg}")
+            .context("progress bar template")?,
+    );
+    let results = run_ablation(&request, &mut |p| match p {
+        Progress::Started { index, total, row } => {
+            bar.suspend(|| {
+                eprintln!(
+                    "row {}/{total} {}: started ({})",
+                    index + 1,
+                    row.name,
+                    row.switches()
+                )
+            });
+            bar.set_message(row.name);
+        }
+        Progress::Finished {
+            index,
+            total,
+            result,
+        } => {
+            bar.suspend(|| {
+                eprintln!(
+                    "row {}/{total} {}: finished in {:.1} s, test PSNR {:.2} dB",
+                    index + 1,
+                    result.name,
+                    result.scores.seconds,
+                    result.scores.psnr
+                )
+            });
+            bar.inc(1);
+        }
+    })?;
+    bar.finish_and_clear();
+    Ok(results)
+}

@@ -1,0 +1,109 @@
+//! The ablation plot: test PSNR against training time, one labelled point per row (`plotters`,
+//! bitmap backend). Text is drawn with the system's sans-serif font; where none can be found the
+//! plot is drawn again without text (points and axes only).
+
+use image::RgbImage;
+use plotters::prelude::*;
+
+use crate::ablate::AblationResult;
+
+const WIDTH: u32 = 800;
+const HEIGHT: u32 = 600;
+
+/// The plot as an RGB image; the error is plotters' message.
+pub fn plot(results: &[AblationResult]) -> Result<RgbImage, String> {
+    let mut buf = vec![255u8; (WIDTH * HEIGHT * 3) as usize];
+    if draw(results, &mut buf, true).is_err() {
+        buf.fill(255);
+        draw(results, &mut buf, false)?;
+    }
+    RgbImage::from_raw(WIDTH, HEIGHT, buf).ok_or_else(|| "plot buffer of the wrong size".into())
+}
+
+/// A finite range around `values` with a margin (a unit range when there are none).
+fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    let margin = ((hi - lo) * 0.1).max(0.05 * hi.abs().max(1.0));
+    (lo - margin, hi + margin)
+}
+
+fn draw(results: &[AblationResult], buf: &mut [u8], text: bool) -> Result<(), String> {
+    let err = |e: &dyn std::fmt::Display| e.to_string();
+    let root = BitMapBackend::with_buffer(buf, (WIDTH, HEIGHT)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let (x0, x1) = range(results.iter().map(|r| r.scores.seconds));
+    let (y0, y1) = range(results.iter().map(|r| r.scores.psnr));
+    let mut builder = ChartBuilder::on(&root);
+    builder.margin(20);
+    if text {
+        builder
+            .caption("PSNR against training time", ("sans-serif", 24))
+            .x_label_area_size(40)
+            .y_label_area_size(60);
+    } else {
+        builder.x_label_area_size(10).y_label_area_size(10);
+    }
+    let mut chart = builder
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(|e| err(&e))?;
+    let mut mesh = chart.configure_mesh();
+    if text {
+        mesh.x_desc("training time (s)").y_desc("test PSNR (dB)");
+    } else {
+        mesh.disable_x_mesh()
+            .disable_y_mesh()
+            .x_labels(0)
+            .y_labels(0);
+    }
+    mesh.draw().map_err(|e| err(&e))?;
+    let points: Vec<(f64, f64, &str)> = results
+        .iter()
+        .filter(|r| r.scores.seconds.is_finite() && r.scores.psnr.is_finite())
+        .map(|r| (r.scores.seconds, r.scores.psnr, r.name.as_str()))
+        .collect();
+    chart
+        .draw_series(
+            points
+                .iter()
+                .enumerate()
+                .map(|(i, &(x, y, _))| Circle::new((x, y), 5, Palette99::pick(i).filled())),
+        )
+        .map_err(|e| err(&e))?;
+    if text {
+        // Labels to the right of their point, staggered downwards so that rows with nearly equal
+        // time and PSNR stay readable.
+        chart
+            .draw_series(points.iter().enumerate().map(|(i, &(x, y, name))| {
+                EmptyElement::at((x, y))
+                    + Text::new(
+                        name.to_string(),
+                        (8, -8 + 15 * (i % 4) as i32),
+                        ("sans-serif", 15).into_font(),
+                    )
+            }))
+            .map_err(|e| err(&e))?;
+    }
+    root.present().map_err(|e| err(&e))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn range_has_margins_and_survives_nan_and_single_values() {
+        let (lo, hi) = range([1.0, 3.0, f64::NAN].into_iter());
+        assert!(lo < 1.0 && hi > 3.0);
+        let (lo, hi) = range([20.0].into_iter());
+        assert!(lo < 20.0 && hi > 20.0);
+        assert_eq!(range(std::iter::empty()), (0.0, 1.0));
+    }
+}
