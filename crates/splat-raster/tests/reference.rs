@@ -4,11 +4,47 @@
 
 mod common;
 
-use common::{Params, RefCam};
+use common::{Params, RefCam, RefImage};
 use rand::RngExt;
-use splat_raster::{CpuRasterizer, Rasterizer, RenderOptions};
+use splat_raster::{CpuRasterizer, ForwardOutput, Rasterizer, RenderOptions};
 
 const TOL: f64 = 1e-5;
+
+/// Every pixel not within float rounding of a threshold (which may legitimately go either way)
+/// matches the reference within `TOL`: colour, alpha and, when `with_depth`, expected depth
+/// (relative). At most 10% of the pixels may be skipped that way.
+fn assert_pixels_match(out: &ForwardOutput, reference: &RefImage, seed: u64, with_depth: bool) {
+    let mut compared = 0;
+    for p in 0..out.color.len() {
+        if reference.pixel_margin[p] < 1e-4 {
+            continue;
+        }
+        compared += 1;
+        for ch in 0..3 {
+            let (a, b) = (f64::from(out.color[p][ch]), reference.color[p][ch]);
+            assert!(
+                (a - b).abs() <= TOL,
+                "seed {seed} pixel {p} ch {ch}: {a} vs {b}"
+            );
+        }
+        let (a, b) = (f64::from(out.alpha[p]), reference.alpha[p]);
+        assert!(
+            (a - b).abs() <= TOL,
+            "seed {seed} pixel {p} alpha: {a} vs {b}"
+        );
+        if with_depth {
+            let (a, b) = (f64::from(out.depth[p]), reference.depth[p]);
+            assert!(
+                (a - b).abs() <= TOL * b.abs().max(1.0),
+                "seed {seed} pixel {p} depth: {a} vs {b}"
+            );
+        }
+    }
+    assert!(
+        compared * 10 >= out.color.len() * 9,
+        "seed {seed}: too many pixels skipped"
+    );
+}
 
 fn check_scene(
     seed: u64,
@@ -47,35 +83,7 @@ fn check_scene(
         "seed {seed}: drawn count"
     );
     assert!(out.stats.drawn > 0, "seed {seed}: empty scene");
-    let mut compared = 0;
-    for p in 0..out.color.len() {
-        // A pixel within float rounding of a threshold may legitimately go either way.
-        if reference.pixel_margin[p] < 1e-4 {
-            continue;
-        }
-        compared += 1;
-        for ch in 0..3 {
-            let (a, b) = (f64::from(out.color[p][ch]), reference.color[p][ch]);
-            assert!(
-                (a - b).abs() <= TOL,
-                "seed {seed} pixel {p} ch {ch}: {a} vs {b}"
-            );
-        }
-        let (a, b) = (f64::from(out.alpha[p]), reference.alpha[p]);
-        assert!(
-            (a - b).abs() <= TOL,
-            "seed {seed} pixel {p} alpha: {a} vs {b}"
-        );
-        let (a, b) = (f64::from(out.depth[p]), reference.depth[p]);
-        assert!(
-            (a - b).abs() <= TOL * b.abs().max(1.0),
-            "seed {seed} pixel {p} depth: {a} vs {b}"
-        );
-    }
-    assert!(
-        compared * 10 >= out.color.len() * 9,
-        "seed {seed}: too many pixels skipped"
-    );
+    assert_pixels_match(&out, &reference, seed, true);
     reference.stopped
 }
 
@@ -126,26 +134,7 @@ fn matches_reference_for_needles_and_large_gaussians() {
             .forward(g.view(), &cam, &RenderOptions::default())
             .unwrap();
         let reference = common::render(&Params::from(&g), &RefCam::from(&cam), [0.0; 3], 1);
-        let mut compared = 0;
-        for p in 0..out.color.len() {
-            if reference.pixel_margin[p] < 1e-4 {
-                continue;
-            }
-            compared += 1;
-            for ch in 0..3 {
-                let (a, b) = (f64::from(out.color[p][ch]), reference.color[p][ch]);
-                assert!(
-                    (a - b).abs() <= TOL,
-                    "seed {seed} pixel {p} ch {ch}: {a} vs {b}"
-                );
-            }
-            let (a, b) = (f64::from(out.alpha[p]), reference.alpha[p]);
-            assert!(
-                (a - b).abs() <= TOL,
-                "seed {seed} pixel {p} alpha: {a} vs {b}"
-            );
-        }
-        assert!(compared * 10 >= out.color.len() * 9, "seed {seed}");
+        assert_pixels_match(&out, &reference, seed, false);
         assert!(out.stats.drawn >= 5, "seed {seed}: {}", out.stats);
     }
 }
