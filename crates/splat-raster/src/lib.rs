@@ -32,6 +32,8 @@ mod composite;
 mod cpu;
 mod error;
 pub mod gaussians;
+#[cfg(feature = "wgpu")]
+mod gpu;
 mod options;
 mod output;
 mod project;
@@ -43,6 +45,9 @@ pub use camera::Camera;
 pub use cpu::CpuRasterizer;
 pub use error::RasterError;
 pub use gaussians::{Gaussians, GaussiansView, sh_coeff_count};
+#[cfg(feature = "wgpu")]
+#[doc(hidden)]
+pub use gpu::sort::{SortHarness, request_device};
 pub use options::{CullStats, RenderOptions};
 pub use output::{ForwardOutput, Gradients};
 pub use project::{

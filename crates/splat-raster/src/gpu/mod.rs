@@ -1,0 +1,3 @@
+//! The wgpu backend's building blocks.
+
+pub(crate) mod sort;

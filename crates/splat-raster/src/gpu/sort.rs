@@ -1,0 +1,416 @@
+//! A stable GPU LSD radix sort of `u32` keys carrying `u32` values.
+//!
+//! Digits are 4 bits wide; only the `ceil(key_bits / 4)` passes the key width needs run, and the
+//! last one only looks at the bits that remain. Each pass runs three kernels on 1024-element
+//! blocks (256 invocations × 4 elements):
+//! 1. `count`: each block's 16-bin digit histogram, stored bin-major (`counts[bin · blocks +
+//!    block]`);
+//! 2. `scan_chunks` / `add_chunk_offsets`: an exclusive prefix sum of `counts`, hierarchical in
+//!    1024-element chunks (2 levels up to 2^26 keys, 3 up to 2^36), after which `counts[bin ·
+//!    blocks + block]` is where that block's first element of that bin goes;
+//! 3. `scatter`: each block ranks its elements stably within their digit (a local sort by one
+//!    1-bit split per digit bit) and writes them to their global places.
+//!
+//! Passes alternate between the caller's buffers and the sorter's scratch pair; after an odd
+//! number of passes the result is copied back. Workgroups are dispatched on a 2D grid, so the
+//! 65535-per-dimension limit does not bound `n`; the binding-size limits of the device do
+//! (`4·n` bytes per key or value binding).
+//!
+//! No subgroup operations are used, so it runs on every adapter (lavapipe included).
+
+mod harness;
+
+use std::num::NonZeroU64;
+use std::sync::Mutex;
+
+use wgpu::util::DeviceExt;
+
+#[doc(hidden)]
+pub use harness::{SortHarness, request_device};
+
+/// Elements per workgroup (block) in every kernel.
+const BLOCK: u32 = 1024;
+/// Bits per radix digit.
+const DIGIT_BITS: u32 = 4;
+/// Histogram bins per block.
+const BINS: u32 = 1 << DIGIT_BITS;
+/// Bytes of one `Params` record (the WGSL struct: 8 u32).
+const PARAMS_SIZE: u64 = 32;
+
+const COMMON_WGSL: &str = include_str!("shaders/sort_common.wgsl");
+const COUNT_WGSL: &str = include_str!("shaders/sort_count.wgsl");
+const SCAN_WGSL: &str = include_str!("shaders/sort_scan.wgsl");
+const SCATTER_WGSL: &str = include_str!("shaders/sort_scatter.wgsl");
+
+/// Per-dispatch parameters, as the WGSL `Params` struct.
+#[repr(C)]
+#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    n: u32,
+    shift: u32,
+    bits: u32,
+    num_blocks: u32,
+    len: u32,
+    pad: [u32; 3],
+}
+
+/// Buffers the sorter owns, sized for `capacity` pairs.
+struct Scratch {
+    capacity: u32,
+    keys: wgpu::Buffer,
+    values: wgpu::Buffer,
+    /// `levels[0]` holds the digit counts (16 per block); `levels[i + 1]` the chunk totals of
+    /// `levels[i]`; the last one has a single element.
+    levels: Vec<wgpu::Buffer>,
+}
+
+/// A stable LSD radix sorter of (u32 key, u32 value) pairs on the GPU.
+pub(crate) struct RadixSorter {
+    count: wgpu::ComputePipeline,
+    scan_chunks: wgpu::ComputePipeline,
+    add_chunk_offsets: wgpu::ComputePipeline,
+    scatter: wgpu::ComputePipeline,
+    count_layout: wgpu::BindGroupLayout,
+    scan_layout: wgpu::BindGroupLayout,
+    scatter_layout: wgpu::BindGroupLayout,
+    /// Byte stride between `Params` records (the uniform dynamic-offset alignment).
+    params_stride: u64,
+    /// Largest workgroup count per dispatch dimension.
+    max_groups_per_dim: u32,
+    scratch: Mutex<Option<Scratch>>,
+}
+
+/// Lengths of the scan levels for `n` pairs: the digit counts, then each level's chunk totals,
+/// down to a single element.
+fn level_lengths(n: u32) -> Vec<u32> {
+    let mut lens = vec![BINS * n.div_ceil(BLOCK).max(1)];
+    while *lens.last().expect("non-empty") > 1 {
+        let next = lens.last().expect("non-empty").div_ceil(BLOCK);
+        lens.push(next);
+    }
+    lens
+}
+
+fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: NonZeroU64::new(4),
+        },
+        count: None,
+    }
+}
+
+fn params_entry() -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding: 0,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: true,
+            min_binding_size: NonZeroU64::new(PARAMS_SIZE),
+        },
+        count: None,
+    }
+}
+
+/// The first `words` u32 of `buffer` as a binding.
+fn words(buffer: &wgpu::Buffer, words: u32) -> wgpu::BindingResource<'_> {
+    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+        buffer,
+        offset: 0,
+        size: NonZeroU64::new(4 * u64::from(words.max(1))),
+    })
+}
+
+fn storage_buffer(device: &wgpu::Device, label: &str, words: u32) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: 4 * u64::from(words.max(1)),
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+impl RadixSorter {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        Self::with_max_groups_per_dim(device, device.limits().max_compute_workgroups_per_dimension)
+    }
+
+    /// As [`RadixSorter::new`], dispatching at most `max_groups_per_dim` workgroups along x (the
+    /// tests lower it to exercise the 2D grid with small inputs).
+    pub(crate) fn with_max_groups_per_dim(device: &wgpu::Device, max_groups_per_dim: u32) -> Self {
+        let pipeline = |layout: &wgpu::BindGroupLayout, body: &str, entry: &str, label: &str| {
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(format!("{COMMON_WGSL}\n{body}").into()),
+            });
+            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts: &[Some(layout)],
+                immediate_size: 0,
+            });
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(label),
+                layout: Some(&pipeline_layout),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let layout = |label: &str, entries: &[wgpu::BindGroupLayoutEntry]| {
+            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some(label),
+                entries,
+            })
+        };
+        let count_layout = layout(
+            "radix sort count",
+            &[
+                params_entry(),
+                storage_entry(1, true),
+                storage_entry(2, false),
+            ],
+        );
+        let scan_layout = layout(
+            "radix sort scan",
+            &[
+                params_entry(),
+                storage_entry(1, false),
+                storage_entry(2, false),
+            ],
+        );
+        let scatter_layout = layout(
+            "radix sort scatter",
+            &[
+                params_entry(),
+                storage_entry(1, true),
+                storage_entry(2, true),
+                storage_entry(3, true),
+                storage_entry(4, false),
+                storage_entry(5, false),
+            ],
+        );
+        let align = u64::from(device.limits().min_uniform_buffer_offset_alignment);
+        Self {
+            count: pipeline(&count_layout, COUNT_WGSL, "count", "radix sort count"),
+            scan_chunks: pipeline(&scan_layout, SCAN_WGSL, "scan_chunks", "radix sort scan"),
+            add_chunk_offsets: pipeline(
+                &scan_layout,
+                SCAN_WGSL,
+                "add_chunk_offsets",
+                "radix sort add",
+            ),
+            scatter: pipeline(
+                &scatter_layout,
+                SCATTER_WGSL,
+                "scatter",
+                "radix sort scatter",
+            ),
+            count_layout,
+            scan_layout,
+            scatter_layout,
+            params_stride: PARAMS_SIZE.div_ceil(align) * align,
+            max_groups_per_dim: max_groups_per_dim.max(1),
+            scratch: Mutex::new(None),
+        }
+    }
+
+    /// Stable ascending sort of the first `n` (key, value) u32 pairs by the low `key_bits` bits of
+    /// the key (1..=32). `keys`/`values` are STORAGE|COPY_SRC|COPY_DST buffers of at least n u32;
+    /// the sorted result ends in the same buffers. Scratch buffers are owned by the sorter and
+    /// grown as needed.
+    ///
+    /// # Panics
+    /// If `key_bits` is outside 1..=32 or a buffer holds fewer than `n` u32 (caller bugs).
+    pub(crate) fn encode(
+        &self,
+        device: &wgpu::Device,
+        encoder: &mut wgpu::CommandEncoder,
+        keys: &wgpu::Buffer,
+        values: &wgpu::Buffer,
+        n: u32,
+        key_bits: u32,
+    ) {
+        assert!(
+            (1..=32).contains(&key_bits),
+            "RadixSorter::encode: key_bits must be in 1..=32, got {key_bits}"
+        );
+        let bytes = 4 * u64::from(n);
+        assert!(
+            keys.size() >= bytes && values.size() >= bytes,
+            "RadixSorter::encode: keys ({} B) and values ({} B) must hold n = {n} u32",
+            keys.size(),
+            values.size()
+        );
+        if n == 0 {
+            return;
+        }
+        let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
+        if guard.as_ref().is_none_or(|s| s.capacity < n) {
+            let capacity = n.checked_next_power_of_two().unwrap_or(n);
+            *guard = Some(Scratch {
+                capacity,
+                keys: storage_buffer(device, "radix sort keys scratch", capacity),
+                values: storage_buffer(device, "radix sort values scratch", capacity),
+                levels: level_lengths(capacity)
+                    .into_iter()
+                    .map(|len| storage_buffer(device, "radix sort counts", len))
+                    .collect(),
+            });
+        }
+        let scratch = guard.as_ref().expect("scratch allocated above");
+
+        let num_blocks = n.div_ceil(BLOCK);
+        let passes = key_bits.div_ceil(DIGIT_BITS);
+        let lens = level_lengths(n);
+
+        // One Params record per digit pass, then one per scan level.
+        let mut records = Vec::new();
+        for pass in 0..passes {
+            let shift = pass * DIGIT_BITS;
+            records.push(Params {
+                n,
+                shift,
+                bits: (key_bits - shift).min(DIGIT_BITS),
+                num_blocks,
+                ..Params::default()
+            });
+        }
+        for &len in &lens {
+            records.push(Params {
+                len,
+                ..Params::default()
+            });
+        }
+        let stride = self.params_stride as usize;
+        let mut bytes = vec![0u8; stride * records.len()];
+        for (i, r) in records.iter().enumerate() {
+            bytes[i * stride..i * stride + PARAMS_SIZE as usize]
+                .copy_from_slice(bytemuck::bytes_of(r));
+        }
+        let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("radix sort params"),
+            contents: &bytes,
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let params_binding = wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+            buffer: &params,
+            offset: 0,
+            size: NonZeroU64::new(PARAMS_SIZE),
+        });
+        let pass_offset = |pass: u32| (u64::from(pass) * self.params_stride) as u32;
+        let level_offset = |level: usize| ((passes as usize + level) * stride) as u32;
+
+        // Ping-pong: even passes read the caller's buffers, odd passes the scratch pair.
+        let pairs = [(keys, values), (&scratch.keys, &scratch.values)];
+        let bind = |layout: &wgpu::BindGroupLayout, resources: &[wgpu::BindingResource<'_>]| {
+            let entries: Vec<_> = resources
+                .iter()
+                .enumerate()
+                .map(|(i, r)| wgpu::BindGroupEntry {
+                    binding: i as u32,
+                    resource: r.clone(),
+                })
+                .collect();
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("radix sort"),
+                layout,
+                entries: &entries,
+            })
+        };
+        let count_groups: Vec<_> = pairs
+            .iter()
+            .map(|(k, _)| {
+                bind(
+                    &self.count_layout,
+                    &[
+                        params_binding.clone(),
+                        words(k, n),
+                        words(&scratch.levels[0], lens[0]),
+                    ],
+                )
+            })
+            .collect();
+        let scatter_groups: Vec<_> = (0..2)
+            .map(|from| {
+                let (ki, vi) = pairs[from];
+                let (ko, vo) = pairs[1 - from];
+                bind(
+                    &self.scatter_layout,
+                    &[
+                        params_binding.clone(),
+                        words(ki, n),
+                        words(vi, n),
+                        words(&scratch.levels[0], lens[0]),
+                        words(ko, n),
+                        words(vo, n),
+                    ],
+                )
+            })
+            .collect();
+        let scan_groups: Vec<_> = (0..lens.len() - 1)
+            .map(|level| {
+                bind(
+                    &self.scan_layout,
+                    &[
+                        params_binding.clone(),
+                        words(&scratch.levels[level], lens[level]),
+                        words(&scratch.levels[level + 1], lens[level + 1]),
+                    ],
+                )
+            })
+            .collect();
+
+        {
+            let mut cpass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("radix sort"),
+                timestamp_writes: None,
+            });
+            for pass in 0..passes {
+                let from = (pass % 2) as usize;
+                cpass.set_pipeline(&self.count);
+                cpass.set_bind_group(0, &count_groups[from], &[pass_offset(pass)]);
+                self.dispatch(&mut cpass, num_blocks);
+
+                // Scan down the levels, then add the scanned chunk totals back up.
+                for (level, group) in scan_groups.iter().enumerate() {
+                    cpass.set_pipeline(&self.scan_chunks);
+                    cpass.set_bind_group(0, group, &[level_offset(level)]);
+                    self.dispatch(&mut cpass, lens[level + 1]);
+                }
+                for (level, group) in scan_groups.iter().enumerate().rev() {
+                    // The top level is a single chunk: its total is not an offset.
+                    if lens[level + 1] > 1 {
+                        cpass.set_pipeline(&self.add_chunk_offsets);
+                        cpass.set_bind_group(0, group, &[level_offset(level)]);
+                        self.dispatch(&mut cpass, lens[level + 1]);
+                    }
+                }
+
+                cpass.set_pipeline(&self.scatter);
+                cpass.set_bind_group(0, &scatter_groups[from], &[pass_offset(pass)]);
+                self.dispatch(&mut cpass, num_blocks);
+            }
+        }
+        if passes % 2 == 1 {
+            encoder.copy_buffer_to_buffer(&scratch.keys, 0, keys, 0, 4 * u64::from(n));
+            encoder.copy_buffer_to_buffer(&scratch.values, 0, values, 0, 4 * u64::from(n));
+        }
+    }
+
+    /// Dispatches `groups` workgroups on a 2D grid; the kernels skip the ones past `groups`.
+    fn dispatch(&self, cpass: &mut wgpu::ComputePass<'_>, groups: u32) {
+        let x = groups.min(self.max_groups_per_dim);
+        cpass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+    }
+}
+
+#[cfg(test)]
+mod tests;

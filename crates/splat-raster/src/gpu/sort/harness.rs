@@ -1,0 +1,198 @@
+//! A self-contained way to run [`RadixSorter`] from the tests and the `gpu_sort` bench, which
+//! cannot see the crate-private sorter: its own device, upload, sort, read back.
+
+use wgpu::util::DeviceExt;
+
+use super::RadixSorter;
+
+/// Opens the default adapter (honouring `WGPU_BACKEND`, `WGPU_POWER_PREF` and the driver
+/// variables such as `VK_DRIVER_FILES`) with all of its limits. An error says what was missing.
+pub fn request_device() -> Result<(wgpu::Adapter, wgpu::Device, wgpu::Queue), String> {
+    let instance =
+        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+        power_preference:
+            wgpu::PowerPreference::from_env().unwrap_or(wgpu::PowerPreference::HighPerformance),
+        ..Default::default()
+    }))
+    .map_err(|e| {
+        format!(
+            "no wgpu adapter: {e} (install a Vulkan driver, e.g. Mesa's lavapipe: \
+             apt-get install mesa-vulkan-drivers libvulkan1)"
+        )
+    })?;
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("splat-raster"),
+        required_limits: adapter.limits(),
+        ..Default::default()
+    }))
+    .map_err(|e| {
+        format!(
+            "wgpu adapter {:?}: cannot open a device: {e}",
+            adapter.get_info().name
+        )
+    })?;
+    Ok((adapter, device, queue))
+}
+
+/// Pairs resident on the device for repeated sorting (the bench).
+struct Loaded {
+    n: u32,
+    keys: wgpu::Buffer,
+    values: wgpu::Buffer,
+    original_keys: wgpu::Buffer,
+    original_values: wgpu::Buffer,
+}
+
+/// A device plus a [`RadixSorter`] (hidden test and bench hook, not a public API).
+#[doc(hidden)]
+pub struct SortHarness {
+    adapter_name: String,
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    sorter: RadixSorter,
+    loaded: Option<Loaded>,
+}
+
+impl SortHarness {
+    /// Opens a device (see [`request_device`]) and builds a sorter on it.
+    pub fn new() -> Result<Self, String> {
+        Self::build(None)
+    }
+
+    /// As [`SortHarness::new`], with at most `max_groups_per_dim` workgroups along a dispatch's
+    /// x axis, to exercise the 2D grid on small inputs.
+    pub fn with_max_groups_per_dim(max_groups_per_dim: u32) -> Result<Self, String> {
+        Self::build(Some(max_groups_per_dim))
+    }
+
+    fn build(max_groups_per_dim: Option<u32>) -> Result<Self, String> {
+        let (adapter, device, queue) = request_device()?;
+        let sorter = match max_groups_per_dim {
+            Some(m) => RadixSorter::with_max_groups_per_dim(&device, m),
+            None => RadixSorter::new(&device),
+        };
+        Ok(Self {
+            adapter_name: adapter.get_info().name,
+            device,
+            queue,
+            sorter,
+            loaded: None,
+        })
+    }
+
+    /// The adapter's name, as the driver reports it.
+    pub fn adapter_name(&self) -> &str {
+        &self.adapter_name
+    }
+
+    fn upload(&self, label: &str, data: &[u32]) -> wgpu::Buffer {
+        // A zero-sized buffer cannot be bound: always at least one word.
+        let contents: &[u32] = if data.is_empty() { &[0] } else { data };
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytemuck::cast_slice(contents),
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+            })
+    }
+
+    fn read_back(&self, buffer: &wgpu::Buffer, n: usize) -> Vec<u32> {
+        if n == 0 {
+            return Vec::new();
+        }
+        let bytes = 4 * n as u64;
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("sort read-back"),
+            size: bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, bytes);
+        self.queue.submit([encoder.finish()]);
+        let (tx, rx) = std::sync::mpsc::channel();
+        staging.map_async(wgpu::MapMode::Read, .., move |r| {
+            // The receiver waits below; a send error cannot happen while it does.
+            let _ = tx.send(r);
+        });
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .expect("wgpu device poll");
+        rx.recv()
+            .expect("map callback ran")
+            .expect("mapping the read-back buffer");
+        let out =
+            bytemuck::cast_slice(&staging.get_mapped_range(..).expect("mapped range")).to_vec();
+        staging.unmap();
+        out
+    }
+
+    /// Sorts `(keys[i], values[i])` stably by the low `key_bits` bits of the keys on the GPU and
+    /// returns the sorted keys and values.
+    pub fn sort(&self, keys: &[u32], values: &[u32], key_bits: u32) -> (Vec<u32>, Vec<u32>) {
+        assert_eq!(keys.len(), values.len(), "one value per key");
+        let n = u32::try_from(keys.len()).expect("at most u32::MAX pairs");
+        let k = self.upload("sort keys", keys);
+        let v = self.upload("sort values", values);
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        self.sorter
+            .encode(&self.device, &mut encoder, &k, &v, n, key_bits);
+        self.queue.submit([encoder.finish()]);
+        (
+            self.read_back(&k, keys.len()),
+            self.read_back(&v, keys.len()),
+        )
+    }
+
+    /// Keeps `keys`/`values` on the device for [`SortHarness::sort_loaded`].
+    pub fn load(&mut self, keys: &[u32], values: &[u32]) {
+        assert_eq!(keys.len(), values.len(), "one value per key");
+        self.loaded = Some(Loaded {
+            n: u32::try_from(keys.len()).expect("at most u32::MAX pairs"),
+            keys: self.upload("sort keys", keys),
+            values: self.upload("sort values", values),
+            original_keys: self.upload("sort keys (original)", keys),
+            original_values: self.upload("sort values (original)", values),
+        });
+    }
+
+    /// Restores the loaded pairs to their original order (two buffer copies), sorts them and
+    /// waits for the device.
+    pub fn sort_loaded(&self, key_bits: u32) {
+        let l = self.loaded.as_ref().expect("SortHarness::load first");
+        let bytes = 4 * u64::from(l.n.max(1));
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        encoder.copy_buffer_to_buffer(&l.original_keys, 0, &l.keys, 0, bytes);
+        encoder.copy_buffer_to_buffer(&l.original_values, 0, &l.values, 0, bytes);
+        self.sorter.encode(
+            &self.device,
+            &mut encoder,
+            &l.keys,
+            &l.values,
+            l.n,
+            key_bits,
+        );
+        self.queue.submit([encoder.finish()]);
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .expect("wgpu device poll");
+    }
+
+    /// The loaded pairs as they are now on the device.
+    pub fn read_loaded(&self) -> (Vec<u32>, Vec<u32>) {
+        let l = self.loaded.as_ref().expect("SortHarness::load first");
+        (
+            self.read_back(&l.keys, l.n as usize),
+            self.read_back(&l.values, l.n as usize),
+        )
+    }
+}
