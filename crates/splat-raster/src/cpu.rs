@@ -14,7 +14,7 @@ use crate::composite::{self, Counters, LANES, PixelGrads, TileOut};
 use crate::error::RasterError;
 use crate::gaussians::GaussiansView;
 use crate::options::{CullStats, RenderOptions};
-use crate::output::{BackwardState, ForwardOutput, Gradients};
+use crate::output::{BackendState, BackwardState, CpuState, ForwardOutput, Gradients};
 use crate::project::{self, CullReason, Frame, Splat, SplatGrad, TILE};
 use crate::tiles;
 use crate::validate::{check_pixels, validate};
@@ -169,12 +169,15 @@ impl CpuRasterizer {
                 sh_degree: g.sh_degree,
                 active_degree: active,
                 background: opts.background,
-                splats,
                 radii,
-                lists,
-                final_t,
-                last,
                 counters,
+                tile_pairs: lists.ids.len(),
+                backend: BackendState::Cpu(CpuState {
+                    splats,
+                    lists,
+                    final_t,
+                    last,
+                }),
             },
         })
     }
@@ -222,6 +225,11 @@ impl CpuRasterizer {
         if let Some(d) = d_depth {
             check_pixels("d_depth", d, npix, f32::is_finite)?;
         }
+        #[allow(unreachable_patterns)]
+        let cpu = match &st.backend {
+            BackendState::Cpu(cpu) => cpu,
+            _ => return mismatch("the forward pass ran on another backend".into()),
+        };
         let frame = Frame::new(cam);
         let pixel_grads = PixelGrads {
             color: d_color,
@@ -230,7 +238,7 @@ impl CpuRasterizer {
         };
 
         // Per list entry gradients, each tile writing its own slots.
-        let lists = &st.lists;
+        let lists = &cpu.lists;
         let mut entries = vec![SplatGrad::default(); lists.ids.len()];
         let mut slots: Vec<&mut [SplatGrad]> = Vec::with_capacity(lists.offsets.len());
         let mut rest = entries.as_mut_slice();
@@ -245,10 +253,10 @@ impl CpuRasterizer {
                 &frame,
                 tile,
                 lists.tile(tile),
-                &st.splats,
+                &cpu.splats,
                 st.background,
-                &st.final_t[lanes.clone()],
-                &st.last[lanes],
+                &cpu.final_t[lanes.clone()],
+                &cpu.last[lanes],
                 pixel_grads,
                 out,
             );
@@ -267,7 +275,7 @@ impl CpuRasterizer {
             .enumerate()
             .map(|(i, sh_out)| {
                 // Culled in the forward pass (off screen included): zero gradient.
-                if st.splats[i].opacity <= 0.0 {
+                if cpu.splats[i].opacity <= 0.0 {
                     return None;
                 }
                 let grad =

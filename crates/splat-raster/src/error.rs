@@ -73,6 +73,15 @@ pub enum RasterError {
     /// The forward output handed to the backward pass was made from other inputs.
     #[error("backward: the forward output does not match the inputs ({0})")]
     ForwardMismatch(String),
+    /// The GPU backend could not run: no adapter, a refused device, a buffer beyond the device's
+    /// limits, or a failed read-back.
+    #[error("wgpu backend ({stage}): {message}")]
+    Gpu {
+        /// Where it failed: `adapter`, `device`, `pipelines`, `buffers` or `read-back`.
+        stage: &'static str,
+        /// What went wrong.
+        message: String,
+    },
     /// A thread pool could not be built.
     #[error("could not build a thread pool of {threads} threads: {message}")]
     ThreadPool {

@@ -4,7 +4,8 @@
 //! backward pass (gradients to every raw Gaussian parameter) of 3DGS, exactly as pinned in the
 //! project's SPEC §3, over plain structure-of-arrays inputs ([`GaussiansView`]) and an OpenCV-axes
 //! pinhole [`Camera`]. The [`Rasterizer`] trait is the backend interface; [`CpuRasterizer`] is the
-//! rayon-parallel CPU backend.
+//! rayon-parallel CPU backend, and `WgpuRasterizer` (cargo feature `wgpu`, on by default) the
+//! GPU backend with WGSL compute kernels, checked against the CPU one.
 //!
 //! Conventions beyond SPEC §3, fixed here:
 //! - depth output is the un-normalised expected depth `Σ z·α·T` (camera-space z); divide by the
@@ -48,13 +49,15 @@ pub use gaussians::{Gaussians, GaussiansView, sh_coeff_count};
 #[cfg(feature = "wgpu")]
 #[doc(hidden)]
 pub use gpu::sort::{SortHarness, request_device};
+#[cfg(feature = "wgpu")]
+pub use gpu::{AdapterSummary, AtomicMode, GpuContext, WgpuRasterizer};
 pub use options::{CullStats, RenderOptions};
 pub use output::{ForwardOutput, Gradients};
 pub use project::{
     ALPHA_MAX, ALPHA_MIN, DILATION, MAX_COLOR, NEAR_PLANE, QUAT_NORM2_MIN, T_MIN, TILE,
 };
 
-/// A rasterizer backend: the CPU one here, a wgpu one later.
+/// A rasterizer backend: [`CpuRasterizer`], or `WgpuRasterizer` (feature `wgpu`).
 pub trait Rasterizer {
     /// Renders colour, alpha and expected depth, keeping what the backward pass needs.
     fn forward(

@@ -30,21 +30,38 @@ pub struct ForwardOutput {
     pub(crate) state: BackwardState,
 }
 
-/// Per-frame state kept for the backward pass.
+/// Per-frame state kept for the backward pass: what every backend records, and the backend's
+/// own state (the GPU backend keeps its buffers on the device).
 #[derive(Clone, Debug)]
 pub(crate) struct BackwardState {
     pub n_gaussians: usize,
     pub sh_degree: u32,
     pub active_degree: u32,
     pub background: [f32; 3],
-    pub splats: Vec<Splat>,
     pub radii: Vec<f32>,
+    pub counters: Counters,
+    /// Gaussian-tile pairs (total length of the per-tile lists).
+    pub tile_pairs: usize,
+    pub backend: BackendState,
+}
+
+/// The backend-specific part of [`BackwardState`].
+#[derive(Clone, Debug)]
+pub(crate) enum BackendState {
+    Cpu(CpuState),
+    #[cfg(feature = "wgpu")]
+    Gpu(Box<crate::gpu::GpuState>),
+}
+
+/// The CPU backend's backward state.
+#[derive(Clone, Debug)]
+pub(crate) struct CpuState {
+    pub splats: Vec<Splat>,
     pub lists: TileLists,
     /// Tile-major (tile, lane) final transmittance.
     pub final_t: Vec<f32>,
     /// Tile-major one-past-last contributor position in the tile list.
     pub last: Vec<u32>,
-    pub counters: Counters,
 }
 
 impl ForwardOutput {
@@ -66,7 +83,7 @@ impl ForwardOutput {
 
     /// Total length of the per-tile Gaussian lists (Gaussian-tile pairs).
     pub fn tile_pairs(&self) -> usize {
-        self.state.lists.ids.len()
+        self.state.tile_pairs
     }
 }
 

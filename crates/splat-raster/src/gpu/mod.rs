@@ -1,3 +1,181 @@
-//! The wgpu backend's building blocks.
+//! The wgpu backend: [`WgpuRasterizer`] runs the forward and backward passes of SPEC §3 in WGSL
+//! compute kernels and gives the results of [`crate::CpuRasterizer`] (same culling and
+//! [`CullStats`](crate::CullStats), same opacity-aware tile test, compositing constants, depth
+//! convention and [`Gradients`] fields), to f32 rounding.
+//!
+//! Pipeline (kernels in `shaders/`):
+//! 1. `project` (one thread per Gaussian): culling in the CPU's order, counted per reason with
+//!    atomics; the compositing record, screen radius, number of touched tiles, depth key;
+//! 2. depth sort ([`sort::RadixSorter`], 32-bit keys `z.to_bits()`, values the Gaussian index);
+//! 3. tile counts gathered in depth order and scanned (`scan.wgsl`); the total number of
+//!    (tile, Gaussian) pairs is read back (4 bytes, with the 32 bytes of cull counts) to size
+//!    the intersection buffers;
+//! 4. `emit`: each Gaussian writes its pairs at its scanned offset, so pairs are in depth order;
+//!    a stable sort by tile id (only `ceil(log2(tiles))` key bits) then leaves every tile's list
+//!    in depth order with ties broken by index, exactly the CPU's order; `tile_ranges`;
+//! 5. `rasterize`: one 16×16 workgroup per tile, lists loaded into shared memory in batches of
+//!    256; per pixel the CPU's loop (bounding box, σ cut-off, 0.99 cap, stop before `T < 1e-4`),
+//!    keeping the final `T` and the last contributor per pixel, and the work counters per tile;
+//! 6. `rasterize_backward`: per tile back to front from the largest last contributor, `T`
+//!    recovered by division; per-pixel contributions added into 10 floats per Gaussian with
+//!    native `atomic<f32>` adds where the adapter offers `SHADER_FLOAT32_ATOMIC`, otherwise a
+//!    compare-exchange loop on `atomic<u32>` bit patterns ([`AtomicMode`], chosen when the
+//!    pipelines are built);
+//! 7. `project_backward` (one thread per Gaussian): the chain to means (SH view-direction path
+//!    included), log-scales, raw quaternions, opacity logits and SH; means2d in pixels.
+//!
+//! Why two sorts rather than one with packed `tile | depth` keys: the sorter's keys are 32 bits,
+//! and a packed key would have to cut the depth to `32 - log2(tiles)` bits, which reorders
+//! Gaussians at close depths relative to the CPU backend; the depth sort keeps all 32 bits (the
+//! bit pattern of a positive f32 orders like the number) and the stable tile sort is short.
+//!
+//! Precision: per-Gaussian geometry runs in f32 (the CPU uses f64). `det(Σ2d)` is formed without
+//! cancellation (`Σ2d = T Tᵀ + 0.3 I`, `T = J W R S`, and `det(T Tᵀ)` as the sum of the squared
+//! 2×2 minors of `T`, Cauchy–Binet), with `T` scaled by its largest entry so that squared scales
+//! are never formed, and quaternions and means are scaled before squaring; needle-thin and huge
+//! Gaussians therefore project as on the CPU. Known limits of f32: scales above `e^88`
+//! (`exp` overflows) are culled as degenerate where the CPU's f64 still draws them as a flat
+//! wash up to about `e^150`, and their gradients (meaningless in either precision) may be zeroed
+//! as non-finite on the GPU.
+//!
+//! What crosses between CPU and GPU per call (d = SH degree, k = 3(d+1)² SH floats):
+//! - forward: upload `4·(11 + k)` bytes per Gaussian (raw parameters) and a 160-byte uniform;
+//!   read back 36 bytes mid-pass (cull counts, pair count), then 20 bytes per pixel (colour,
+//!   alpha, depth), 4 bytes per Gaussian (radius) and 8 bytes per tile (work counters);
+//! - backward: upload 12 bytes per pixel (`d_color`) plus 4 per pixel for each of `d_alpha`,
+//!   `d_depth` given; read back `4·(14 + k)` bytes per Gaussian (gradients, means2d, a
+//!   non-finite flag). The compositing record, tile lists, per-pixel `T` and last contributor
+//!   stay on the device between forward and backward (in the [`ForwardOutput`]).
+//!
+//! Not (yet) done here: buffer pooling across calls (buffers are allocated per call), subgroup
+//! or workgroup reductions before the gradient atomics.
 
+mod backward;
+mod buffers;
+mod context;
+mod forward;
+mod frame;
+mod pipelines;
 pub(crate) mod sort;
+
+use std::sync::Arc;
+
+pub use context::{AdapterSummary, GpuContext};
+pub use pipelines::AtomicMode;
+
+use crate::Rasterizer;
+use crate::camera::Camera;
+use crate::error::RasterError;
+use crate::gaussians::GaussiansView;
+use crate::options::RenderOptions;
+use crate::output::{ForwardOutput, Gradients};
+
+use frame::FrameUniform;
+use pipelines::Pipelines;
+use sort::RadixSorter;
+
+/// Device buffers a GPU forward pass keeps for its backward pass.
+#[derive(Clone, Debug)]
+pub(crate) struct GpuState {
+    pub context_id: u64,
+    pub frame: FrameUniform,
+    pub params: wgpu::Buffer,
+    pub splats: wgpu::Buffer,
+    pub isect_ids: wgpu::Buffer,
+    pub ranges: wgpu::Buffer,
+    pub final_t: wgpu::Buffer,
+    pub last: wgpu::Buffer,
+}
+
+/// The GPU rasterizer (wgpu compute kernels). Same interface and results as
+/// [`crate::CpuRasterizer`].
+pub struct WgpuRasterizer {
+    ctx: Arc<GpuContext>,
+    pipelines: Pipelines,
+    sorter: RadixSorter,
+    atomics: AtomicMode,
+}
+
+impl std::fmt::Debug for WgpuRasterizer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("WgpuRasterizer")
+            .field("adapter", &self.ctx.summary)
+            .field("atomics", &self.atomics)
+            .finish_non_exhaustive()
+    }
+}
+
+impl WgpuRasterizer {
+    /// A rasterizer on the default adapter, with native f32 atomics when it offers them.
+    /// No adapter is an error ([`RasterError::Gpu`]), not a panic.
+    pub fn new() -> Result<Self, RasterError> {
+        let ctx = Arc::new(GpuContext::new()?);
+        let mode = if ctx.summary.float32_atomics {
+            AtomicMode::NativeF32
+        } else {
+            AtomicMode::CompareExchange
+        };
+        Self::with_context(ctx, mode)
+    }
+
+    /// A rasterizer on an existing context with a chosen gradient accumulation. Asking for
+    /// [`AtomicMode::NativeF32`] on an adapter without f32 atomics is an error.
+    pub fn with_context(ctx: Arc<GpuContext>, atomics: AtomicMode) -> Result<Self, RasterError> {
+        if atomics == AtomicMode::NativeF32 && !ctx.summary.float32_atomics {
+            return Err(RasterError::Gpu {
+                stage: "pipelines",
+                message: format!(
+                    "adapter {} does not offer SHADER_FLOAT32_ATOMIC",
+                    ctx.summary.name
+                ),
+            });
+        }
+        let pipelines = Pipelines::new(&ctx.device, atomics)?;
+        let sorter = RadixSorter::new(&ctx.device);
+        Ok(Self {
+            ctx,
+            pipelines,
+            sorter,
+            atomics,
+        })
+    }
+
+    /// The device context (shareable between rasterizers).
+    pub fn context(&self) -> &Arc<GpuContext> {
+        &self.ctx
+    }
+
+    /// What the adapter is (name, backend, hardware or software, f32 atomics).
+    pub fn adapter(&self) -> &AdapterSummary {
+        &self.ctx.summary
+    }
+
+    /// How the backward pass accumulates gradients.
+    pub fn atomics(&self) -> AtomicMode {
+        self.atomics
+    }
+}
+
+impl Rasterizer for WgpuRasterizer {
+    fn forward(
+        &self,
+        g: GaussiansView<'_>,
+        cam: &Camera,
+        opts: &RenderOptions,
+    ) -> Result<ForwardOutput, RasterError> {
+        self.forward_impl(g, cam, opts)
+    }
+
+    fn backward(
+        &self,
+        g: GaussiansView<'_>,
+        cam: &Camera,
+        opts: &RenderOptions,
+        fwd: &ForwardOutput,
+        d_color: &[[f32; 3]],
+        d_alpha: Option<&[f32]>,
+        d_depth: Option<&[f32]>,
+    ) -> Result<Gradients, RasterError> {
+        self.backward_impl(g, cam, opts, fwd, d_color, d_alpha, d_depth)
+    }
+}

@@ -1,0 +1,82 @@
+//! The wgpu backend on the scenes of `benches/raster.rs` (10K Gaussians / 256×256 and 100K /
+//! 800×800, same generator and seed): forward, and forward + backward, wall-clock time including
+//! the uploads and read-backs of every call. On lavapipe (software Vulkan) the figures are a
+//! sanity check, not GPU performance.
+
+use std::hint::black_box;
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use glam::Vec3;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use splat_raster::{Camera, Gaussians, Rasterizer, RenderOptions, WgpuRasterizer, sh_coeff_count};
+
+/// The scene of `benches/raster.rs`.
+fn scene(n: usize, size: u32, seed: u64) -> (Gaussians, Camera) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let degree = 3;
+    let spacing = (8.0 / n as f32).cbrt();
+    let mut g = Gaussians::with_degree(degree);
+    for _ in 0..n {
+        g.means
+            .push(std::array::from_fn(|_| rng.random_range(-1.0f32..1.0)));
+        g.log_scales.push(std::array::from_fn(|_| {
+            (spacing * rng.random_range(0.2f32..0.8)).ln()
+        }));
+        g.rotations
+            .push(std::array::from_fn(|_| rng.random_range(-1.0f32..1.0)));
+        g.opacity_logits.push(rng.random_range(-1.0f32..3.0));
+        for c in 0..sh_coeff_count(degree) {
+            let amp = if c == 0 { 1.0 } else { 0.1 };
+            for _ in 0..3 {
+                g.sh.push(rng.random_range(-amp..amp));
+            }
+        }
+    }
+    let cam = Camera::look_at(
+        size,
+        size,
+        0.8,
+        Vec3::new(0.5, -4.0, 1.0),
+        Vec3::ZERO,
+        Vec3::Z,
+    );
+    (g, cam)
+}
+
+fn bench(c: &mut Criterion) {
+    let r = WgpuRasterizer::new().expect("the wgpu bench needs an adapter");
+    eprintln!("adapter: {}; atomics {:?}", r.adapter(), r.atomics());
+    let opts = RenderOptions {
+        background: [1.0, 1.0, 1.0],
+        sh_degree: None,
+    };
+    for (n, size) in [(10_000usize, 256u32), (100_000, 800)] {
+        let (g, cam) = scene(n, size, 7);
+        let fwd = r.forward(g.view(), &cam, &opts).unwrap();
+        let evals = fwd.pair_evaluations();
+        eprintln!(
+            "scene {n} Gaussians {size}x{size}: {}; {} Gaussian-tile pairs; {evals} Gaussian-pixel evaluations",
+            fwd.stats,
+            fwd.tile_pairs(),
+        );
+        let d_color = vec![[0.1f32, -0.2, 0.3]; cam.pixel_count()];
+        let d_alpha = vec![0.05f32; cam.pixel_count()];
+        let mut group = c.benchmark_group(format!("wgpu/{}k_{size}", n / 1000));
+        group.throughput(Throughput::Elements(evals));
+        group.bench_function("forward", |b| {
+            b.iter(|| r.forward(black_box(g.view()), &cam, &opts).unwrap())
+        });
+        group.bench_function("forward_backward", |b| {
+            b.iter(|| {
+                let f = r.forward(black_box(g.view()), &cam, &opts).unwrap();
+                r.backward(g.view(), &cam, &opts, &f, &d_color, Some(&d_alpha), None)
+                    .unwrap()
+            })
+        });
+        group.finish();
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

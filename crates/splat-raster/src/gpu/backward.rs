@@ -1,0 +1,176 @@
+//! The backward pass on the GPU: upload the pixel gradients, composite backward into
+//! per-Gaussian record gradients (atomics), chain them through the projection, read back.
+
+use crate::camera::Camera;
+use crate::error::RasterError;
+use crate::gaussians::GaussiansView;
+use crate::options::RenderOptions;
+use crate::output::{BackendState, ForwardOutput, Gradients};
+use crate::validate::{check_pixels, validate};
+
+use super::WgpuRasterizer;
+use super::buffers::{read_back, storage, storage_init, uniform};
+use super::pipelines::{bind, dispatch, groups_1d};
+
+/// Floats per Gaussian of the record gradient (u, v, a, b, c, opacity, r, g, b, z).
+const RECORD_GRAD: u64 = 10;
+/// Floats per Gaussian of the projection backward's output (see project_bwd.wgsl).
+const OUT_STRIDE: usize = 14;
+
+impl WgpuRasterizer {
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn backward_impl(
+        &self,
+        g: GaussiansView<'_>,
+        cam: &Camera,
+        opts: &RenderOptions,
+        fwd: &ForwardOutput,
+        d_color: &[[f32; 3]],
+        d_alpha: Option<&[f32]>,
+        d_depth: Option<&[f32]>,
+    ) -> Result<Gradients, RasterError> {
+        let active = validate(&g, cam, opts)?;
+        let st = &fwd.state;
+        let mismatch = |what: String| Err(RasterError::ForwardMismatch(what));
+        if st.n_gaussians != g.len() {
+            return mismatch(format!(
+                "forward saw {} Gaussians, backward got {}",
+                st.n_gaussians,
+                g.len()
+            ));
+        }
+        if (fwd.width, fwd.height) != (cam.width, cam.height) {
+            return mismatch(format!(
+                "forward image is {}x{}, camera is {}x{}",
+                fwd.width, fwd.height, cam.width, cam.height
+            ));
+        }
+        if st.sh_degree != g.sh_degree || st.active_degree != active {
+            return mismatch("SH degree differs".into());
+        }
+        if st.background.map(f32::to_bits) != opts.background.map(f32::to_bits) {
+            return mismatch("background differs".into());
+        }
+        let gpu = match &st.backend {
+            BackendState::Gpu(gpu) if gpu.context_id == self.ctx.id => gpu,
+            BackendState::Gpu(_) => {
+                return mismatch("the forward pass ran on another GPU context".into());
+            }
+            BackendState::Cpu(_) => {
+                return mismatch("the forward pass ran on another backend".into());
+            }
+        };
+        let npix = cam.pixel_count();
+        check_pixels("d_color", d_color, npix, |c: [f32; 3]| {
+            c.iter().all(|v| v.is_finite())
+        })?;
+        if let Some(d) = d_alpha {
+            check_pixels("d_alpha", d, npix, f32::is_finite)?;
+        }
+        if let Some(d) = d_depth {
+            check_pixels("d_depth", d, npix, f32::is_finite)?;
+        }
+
+        let device = &self.ctx.device;
+        let queue = &self.ctx.queue;
+        let max_dim = device.limits().max_compute_workgroups_per_dimension;
+        let n = g.len();
+        let stride = g.sh_stride();
+        let mut frame = gpu.frame;
+        frame.use_d_alpha = u32::from(d_alpha.is_some());
+        frame.use_d_depth = u32::from(d_depth.is_some());
+        let frame_buf = uniform(device, "frame", bytemuck::bytes_of(&frame));
+        let d_color_buf = storage_init(device, "d_color", bytemuck::cast_slice(d_color))?;
+        let d_alpha_buf = storage_init(
+            device,
+            "d_alpha",
+            bytemuck::cast_slice(d_alpha.unwrap_or(&[])),
+        )?;
+        let d_depth_buf = storage_init(
+            device,
+            "d_depth",
+            bytemuck::cast_slice(d_depth.unwrap_or(&[])),
+        )?;
+        let n64 = n as u64;
+        let grads = storage(device, "record_grads", n64 * RECORD_GRAD * 4)?;
+        let out = storage(device, "raw_grads", n64 * OUT_STRIDE as u64 * 4)?;
+        let sh_out = storage(device, "sh_grads", n64 * stride as u64 * 4)?;
+
+        let p = &self.pipelines;
+        let mut enc = device.create_command_encoder(&Default::default());
+        if n > 0 {
+            let bg = bind(
+                device,
+                &p.rasterize_backward,
+                &[
+                    (0, &frame_buf),
+                    (2, &gpu.splats),
+                    (3, &gpu.isect_ids),
+                    (4, &gpu.ranges),
+                    (5, &gpu.final_t),
+                    (6, &gpu.last),
+                    (7, &d_color_buf),
+                    (8, &d_alpha_buf),
+                    (9, &d_depth_buf),
+                    (10, &grads),
+                ],
+            );
+            dispatch(
+                &mut enc,
+                &p.rasterize_backward,
+                &bg,
+                (frame.tiles_x, frame.tiles_y),
+            );
+            let bg = bind(
+                device,
+                &p.project_backward,
+                &[
+                    (0, &frame_buf),
+                    (1, &gpu.params),
+                    (2, &gpu.splats),
+                    (3, &grads),
+                    (4, &out),
+                    (5, &sh_out),
+                ],
+            );
+            dispatch(
+                &mut enc,
+                &p.project_backward,
+                &bg,
+                groups_1d(n as u32, max_dim),
+            );
+        }
+        let back = read_back(
+            device,
+            queue,
+            enc,
+            &[
+                (&out, 0, n64 * OUT_STRIDE as u64 * 4),
+                (&sh_out, 0, n64 * stride as u64 * 4),
+            ],
+        )?;
+        let raw: Vec<f32> = bytemuck::pod_collect_to_vec(&back[0]);
+        let sh: Vec<f32> = bytemuck::pod_collect_to_vec(&back[1]);
+        let mut grads = Gradients {
+            means: Vec::with_capacity(n),
+            log_scales: Vec::with_capacity(n),
+            rotations: Vec::with_capacity(n),
+            opacity_logits: Vec::with_capacity(n),
+            sh,
+            means2d: Vec::with_capacity(n),
+            radii: st.radii.clone(),
+            zeroed_non_finite: 0,
+        };
+        for r in raw.chunks_exact(OUT_STRIDE) {
+            grads.means.push([r[0], r[1], r[2]]);
+            grads.log_scales.push([r[3], r[4], r[5]]);
+            grads.rotations.push([r[6], r[7], r[8], r[9]]);
+            grads.opacity_logits.push(r[10]);
+            grads.means2d.push([r[11], r[12]]);
+            if r[13] != 0.0 {
+                grads.zeroed_non_finite += 1;
+            }
+        }
+        Ok(grads)
+    }
+}

@@ -1,0 +1,138 @@
+//! Buffer helpers: storage buffers sized against the device limits (a too large scene is an
+//! error, not a panic), uploads, and blocking read-backs through a staging buffer.
+
+use wgpu::util::DeviceExt;
+
+use crate::error::RasterError;
+
+/// Usage of every storage buffer of the backend (copies both ways, so any can be cleared, read
+/// back or handed to the sort).
+pub(crate) const STORAGE: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE
+    .union(wgpu::BufferUsages::COPY_SRC)
+    .union(wgpu::BufferUsages::COPY_DST);
+
+fn too_large(device: &wgpu::Device, label: &'static str, bytes: u64) -> Result<(), RasterError> {
+    let limit = device
+        .limits()
+        .max_storage_buffer_binding_size
+        .min(device.limits().max_buffer_size);
+    if bytes > limit {
+        return Err(RasterError::Gpu {
+            stage: "buffers",
+            message: format!(
+                "buffer {label} needs {bytes} bytes, the device allows {limit} per binding"
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// A zero-initialised storage buffer of `bytes` bytes (at least 64, one record, so that empty
+/// scenes still bind something).
+pub(crate) fn storage(
+    device: &wgpu::Device,
+    label: &'static str,
+    bytes: u64,
+) -> Result<wgpu::Buffer, RasterError> {
+    let bytes = bytes.max(64).next_multiple_of(4);
+    too_large(device, label, bytes)?;
+    Ok(device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes,
+        usage: STORAGE,
+        mapped_at_creation: false,
+    }))
+}
+
+/// A storage buffer holding `data` (padded to at least 64 bytes).
+pub(crate) fn storage_init(
+    device: &wgpu::Device,
+    label: &'static str,
+    data: &[u8],
+) -> Result<wgpu::Buffer, RasterError> {
+    too_large(device, label, data.len() as u64)?;
+    if data.len() < 64 {
+        let mut padded = [0u8; 64];
+        padded[..data.len()].copy_from_slice(data);
+        return Ok(
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: &padded,
+                usage: STORAGE,
+            }),
+        );
+    }
+    Ok(
+        device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: data,
+            usage: STORAGE,
+        }),
+    )
+}
+
+/// A uniform buffer holding `data`.
+pub(crate) fn uniform(device: &wgpu::Device, label: &'static str, data: &[u8]) -> wgpu::Buffer {
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: data,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+    })
+}
+
+/// Copies `(buffer, byte offset, byte count)` regions to the host after the work already
+/// recorded in `encoder`, submits, and blocks until they are read.
+pub(crate) fn read_back(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    mut encoder: wgpu::CommandEncoder,
+    regions: &[(&wgpu::Buffer, u64, u64)],
+) -> Result<Vec<Vec<u8>>, RasterError> {
+    let sizes: Vec<u64> = regions
+        .iter()
+        .map(|&(_, _, n)| n.next_multiple_of(4))
+        .collect();
+    let total: u64 = sizes.iter().sum::<u64>().max(4);
+    let staging = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("read-back"),
+        size: total,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut offset = 0;
+    for (&(buffer, from, _), &size) in regions.iter().zip(&sizes) {
+        if size > 0 {
+            encoder.copy_buffer_to_buffer(buffer, from, &staging, offset, size);
+        }
+        offset += size;
+    }
+    queue.submit([encoder.finish()]);
+    let slice = staging.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        // The receiver lives until `recv` below returns; a send error cannot happen.
+        let _ = tx.send(r);
+    });
+    let gpu_err = |message: String| RasterError::Gpu {
+        stage: "read-back",
+        message,
+    };
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| gpu_err(e.to_string()))?;
+    rx.recv()
+        .map_err(|e| gpu_err(e.to_string()))?
+        .map_err(|e| gpu_err(e.to_string()))?;
+    let view = slice
+        .get_mapped_range()
+        .map_err(|e| gpu_err(e.to_string()))?;
+    let mut out = Vec::with_capacity(regions.len());
+    let mut offset = 0usize;
+    for (&(_, _, n), &size) in regions.iter().zip(&sizes) {
+        out.push(view[offset..offset + n as usize].to_vec());
+        offset += size as usize;
+    }
+    drop(view);
+    staging.unmap();
+    Ok(out)
+}

@@ -1,0 +1,139 @@
+//! Adapter and device acquisition: one [`GpuContext`] per rasterizer, holding the device, its
+//! queue, what the adapter is (hardware or software) and which optional features it offers.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::error::RasterError;
+
+/// What the chosen adapter is.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct AdapterSummary {
+    /// Adapter name as the driver reports it (e.g. `llvmpipe (LLVM 19.1.7, 256 bits)`).
+    pub name: String,
+    /// Graphics API backend (`Vulkan`, `Metal`, ...).
+    pub backend: String,
+    /// Driver name and version.
+    pub driver: String,
+    /// True for a hardware GPU (integrated, discrete or virtual); false for a software
+    /// rasterizer (`wgpu::DeviceType::Cpu`, e.g. Mesa's lavapipe) or an unknown device type.
+    pub hardware: bool,
+    /// Whether the adapter offers native `atomic<f32>` add (`SHADER_FLOAT32_ATOMIC`).
+    pub float32_atomics: bool,
+}
+
+impl std::fmt::Display for AdapterSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} ({}, {}, {})",
+            self.name,
+            self.backend,
+            if self.hardware {
+                "hardware"
+            } else {
+                "software"
+            },
+            if self.float32_atomics {
+                "f32 atomics"
+            } else {
+                "no f32 atomics"
+            }
+        )
+    }
+}
+
+/// A wgpu device and queue with what the adapter offers.
+#[derive(Debug)]
+pub struct GpuContext {
+    pub(crate) device: wgpu::Device,
+    pub(crate) queue: wgpu::Queue,
+    pub(crate) summary: AdapterSummary,
+    /// Distinguishes contexts, so that a forward output made on one device is not handed to the
+    /// backward pass of another.
+    pub(crate) id: u64,
+}
+
+static NEXT_ID: AtomicU64 = AtomicU64::new(1);
+
+impl GpuContext {
+    /// Acquires the default adapter (high performance preference; the backends and adapter can be
+    /// pinned with wgpu's environment variables, e.g. `WGPU_BACKEND=vulkan`) and a device with
+    /// the features and limits the kernels need. A missing adapter or a refused device is
+    /// [`RasterError::Gpu`], never a panic.
+    pub fn new() -> Result<Self, RasterError> {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            ..Default::default()
+        }))
+        .map_err(|e| RasterError::Gpu {
+            stage: "adapter",
+            message: format!(
+                "no GPU adapter found ({e}); install a Vulkan driver (e.g. Mesa's lavapipe: \
+                 mesa-vulkan-drivers) or use the CPU backend"
+            ),
+        })?;
+        let info = adapter.get_info();
+        let float32_atomics = adapter
+            .features()
+            .contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
+        let mut required_features = wgpu::Features::empty();
+        if float32_atomics {
+            required_features |= wgpu::Features::SHADER_FLOAT32_ATOMIC;
+        }
+        let adapter_limits = adapter.limits();
+        let required_limits = wgpu::Limits {
+            max_storage_buffers_per_shader_stage: adapter_limits
+                .max_storage_buffers_per_shader_stage
+                .min(16),
+            max_storage_buffer_binding_size: adapter_limits.max_storage_buffer_binding_size,
+            max_buffer_size: adapter_limits.max_buffer_size,
+            max_compute_workgroups_per_dimension: adapter_limits
+                .max_compute_workgroups_per_dimension,
+            ..wgpu::Limits::default()
+        };
+        if required_limits.max_storage_buffers_per_shader_stage < 10 {
+            return Err(RasterError::Gpu {
+                stage: "adapter",
+                message: format!(
+                    "adapter {} offers {} storage buffers per shader stage, the kernels need 10",
+                    info.name, required_limits.max_storage_buffers_per_shader_stage
+                ),
+            });
+        }
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("splat-raster"),
+            required_features,
+            required_limits,
+            ..Default::default()
+        }))
+        .map_err(|e| RasterError::Gpu {
+            stage: "device",
+            message: format!("adapter {} refused a device: {e}", info.name),
+        })?;
+        let summary = AdapterSummary {
+            name: info.name.clone(),
+            backend: format!("{:?}", info.backend),
+            driver: format!("{} {}", info.driver, info.driver_info),
+            hardware: matches!(
+                info.device_type,
+                wgpu::DeviceType::DiscreteGpu
+                    | wgpu::DeviceType::IntegratedGpu
+                    | wgpu::DeviceType::VirtualGpu
+            ),
+            float32_atomics,
+        };
+        Ok(Self {
+            device,
+            queue,
+            summary,
+            id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
+        })
+    }
+
+    /// What the adapter is.
+    pub fn adapter(&self) -> &AdapterSummary {
+        &self.summary
+    }
+}

@@ -1,0 +1,245 @@
+//! The forward pass on the GPU: projection, depth sort, tile counts and their prefix sum,
+//! intersection emission, sort by tile, tile ranges, compositing; then the read-back of the
+//! images, radii and counters.
+
+use crate::camera::Camera;
+use crate::composite::Counters;
+use crate::error::RasterError;
+use crate::gaussians::GaussiansView;
+use crate::options::{CullStats, RenderOptions};
+use crate::output::{BackendState, BackwardState, ForwardOutput};
+use crate::validate::validate;
+
+use super::buffers::{read_back, storage, storage_init, uniform};
+use super::frame::{FrameUniform, pack_params};
+use super::pipelines::{bind, dispatch, groups_1d};
+use super::{GpuState, WgpuRasterizer};
+
+/// Bytes of one WGSL `Splat` record.
+const SPLAT_BYTES: u64 = 64;
+/// Elements per scan block (`BLOCK` in scan.wgsl).
+const SCAN_BLOCK: u32 = 1024;
+
+fn u32s(bytes: &[u8]) -> Vec<u32> {
+    bytemuck::pod_collect_to_vec(bytes)
+}
+
+fn f32s(bytes: &[u8]) -> Vec<f32> {
+    bytemuck::pod_collect_to_vec(bytes)
+}
+
+impl WgpuRasterizer {
+    pub(crate) fn forward_impl(
+        &self,
+        g: GaussiansView<'_>,
+        cam: &Camera,
+        opts: &RenderOptions,
+    ) -> Result<ForwardOutput, RasterError> {
+        let active = validate(&g, cam, opts)?;
+        let device = &self.ctx.device;
+        let queue = &self.ctx.queue;
+        let max_dim = device.limits().max_compute_workgroups_per_dimension;
+        let n = g.len();
+        let n32 = u32::try_from(n).map_err(|_| RasterError::Gpu {
+            stage: "buffers",
+            message: format!("{n} Gaussians do not fit u32 indices"),
+        })?;
+        let mut frame = FrameUniform::new(cam, n, g.sh_stride(), active, opts.background);
+        let n_tiles = frame.n_tiles();
+        let npix = cam.pixel_count() as u64;
+
+        let params = storage_init(device, "params", bytemuck::cast_slice(&pack_params(&g)))?;
+        let frame_buf = uniform(device, "frame", bytemuck::bytes_of(&frame));
+        let n64 = n as u64;
+        let splats = storage(device, "splats", n64 * SPLAT_BYTES)?;
+        let radii = storage(device, "radii", n64 * 4)?;
+        let depth_keys = storage(device, "depth_keys", n64 * 4)?;
+        let sort_ids = storage(device, "sort_ids", n64 * 4)?;
+        let tile_counts = storage(device, "tile_counts", n64 * 4)?;
+        let stats = storage(device, "stats", 32)?;
+        let offsets = storage(device, "offsets", n64 * 4)?;
+        let n_blocks = n32.div_ceil(SCAN_BLOCK);
+        let block_sums = storage(device, "block_sums", (u64::from(n_blocks) + 1) * 4)?;
+        let scan_params = uniform(
+            device,
+            "scan_params",
+            bytemuck::cast_slice(&[n32, n_blocks, 0, 0]),
+        );
+
+        // Stage 1: project, sort by depth, count tiles in depth order and scan the counts.
+        let p = &self.pipelines;
+        let mut enc = device.create_command_encoder(&Default::default());
+        let per_gaussian = groups_1d(n32, max_dim);
+        if n > 0 {
+            let bg = bind(
+                device,
+                &p.project,
+                &[
+                    (0, &frame_buf),
+                    (1, &params),
+                    (2, &splats),
+                    (3, &radii),
+                    (4, &depth_keys),
+                    (5, &sort_ids),
+                    (6, &tile_counts),
+                    (7, &stats),
+                ],
+            );
+            dispatch(&mut enc, &p.project, &bg, per_gaussian);
+            self.sorter
+                .encode(device, &mut enc, &depth_keys, &sort_ids, n32, 32);
+            let bg = bind(
+                device,
+                &p.gather_counts,
+                &[
+                    (0, &frame_buf),
+                    (3, &sort_ids),
+                    (4, &tile_counts),
+                    (5, &offsets),
+                ],
+            );
+            dispatch(&mut enc, &p.gather_counts, &bg, per_gaussian);
+            let scan_entries = [(0, &scan_params), (1, &offsets), (2, &block_sums)];
+            let bg = bind(device, &p.scan_blocks, &scan_entries);
+            dispatch(
+                &mut enc,
+                &p.scan_blocks,
+                &bg,
+                groups_1d(n_blocks * 256, max_dim),
+            );
+            let bg = bind(device, &p.scan_sums, &[(0, &scan_params), (2, &block_sums)]);
+            dispatch(&mut enc, &p.scan_sums, &bg, (1, 1));
+            let bg = bind(device, &p.scan_add, &scan_entries);
+            dispatch(&mut enc, &p.scan_add, &bg, per_gaussian);
+        }
+        let head = read_back(
+            device,
+            queue,
+            enc,
+            &[(&stats, 0, 32), (&block_sums, u64::from(n_blocks) * 4, 4)],
+        )?;
+        let counts = u32s(&head[0]);
+        let n_isect = if n > 0 { u32s(&head[1])[0] } else { 0 };
+        let stats = CullStats {
+            total: n,
+            drawn: counts[0] as usize,
+            non_finite: counts[1] as usize,
+            zero_quaternion: counts[2] as usize,
+            low_opacity: counts[3] as usize,
+            behind_near_plane: counts[4] as usize,
+            degenerate_covariance: counts[5] as usize,
+            off_screen: counts[6] as usize,
+        };
+
+        // Stage 2: emit the (tile, Gaussian) pairs in depth order, sort them stably by tile,
+        // find each tile's range and composite.
+        frame.n_isect = n_isect;
+        queue.write_buffer(&frame_buf, 0, bytemuck::bytes_of(&frame));
+        let isect_keys = storage(device, "isect_keys", u64::from(n_isect) * 4)?;
+        let isect_ids = storage(device, "isect_ids", u64::from(n_isect) * 4)?;
+        let ranges = storage(device, "ranges", u64::from(n_tiles) * 8)?;
+        let color = storage(device, "color", npix * 12)?;
+        let alpha = storage(device, "alpha", npix * 4)?;
+        let depth = storage(device, "depth", npix * 4)?;
+        let lanes = u64::from(n_tiles) * 256;
+        let final_t = storage(device, "final_t", lanes * 4)?;
+        let last = storage(device, "last", lanes * 4)?;
+        let tile_counters = storage(device, "tile_counters", u64::from(n_tiles) * 8)?;
+        let mut enc = device.create_command_encoder(&Default::default());
+        if n_isect > 0 {
+            let bg = bind(
+                device,
+                &p.emit,
+                &[
+                    (0, &frame_buf),
+                    (2, &splats),
+                    (3, &sort_ids),
+                    (4, &tile_counts),
+                    (5, &offsets),
+                    (6, &isect_keys),
+                    (7, &isect_ids),
+                ],
+            );
+            dispatch(&mut enc, &p.emit, &bg, per_gaussian);
+            let key_bits = (32 - (n_tiles.max(2) - 1).leading_zeros()).max(1);
+            self.sorter
+                .encode(device, &mut enc, &isect_keys, &isect_ids, n_isect, key_bits);
+            let bg = bind(
+                device,
+                &p.tile_ranges,
+                &[(0, &frame_buf), (2, &isect_keys), (3, &ranges)],
+            );
+            dispatch(&mut enc, &p.tile_ranges, &bg, groups_1d(n_isect, max_dim));
+        }
+        let bg = bind(
+            device,
+            &p.rasterize,
+            &[
+                (0, &frame_buf),
+                (2, &splats),
+                (3, &isect_ids),
+                (4, &ranges),
+                (5, &color),
+                (6, &alpha),
+                (7, &depth),
+                (8, &final_t),
+                (9, &last),
+                (10, &tile_counters),
+            ],
+        );
+        dispatch(&mut enc, &p.rasterize, &bg, (frame.tiles_x, frame.tiles_y));
+        let out = read_back(
+            device,
+            queue,
+            enc,
+            &[
+                (&color, 0, npix * 12),
+                (&alpha, 0, npix * 4),
+                (&depth, 0, npix * 4),
+                (&radii, 0, n64 * 4),
+                (&tile_counters, 0, u64::from(n_tiles) * 8),
+            ],
+        )?;
+        let color_flat = f32s(&out[0]);
+        let per_tile = u32s(&out[4]);
+        let counters = Counters {
+            evaluations: per_tile.iter().step_by(2).map(|&v| u64::from(v)).sum(),
+            blended: per_tile
+                .iter()
+                .skip(1)
+                .step_by(2)
+                .map(|&v| u64::from(v))
+                .sum(),
+        };
+        Ok(ForwardOutput {
+            width: cam.width,
+            height: cam.height,
+            color: color_flat
+                .chunks_exact(3)
+                .map(|c| [c[0], c[1], c[2]])
+                .collect(),
+            alpha: f32s(&out[1]),
+            depth: f32s(&out[2]),
+            stats,
+            state: BackwardState {
+                n_gaussians: n,
+                sh_degree: g.sh_degree,
+                active_degree: active,
+                background: opts.background,
+                radii: f32s(&out[3]),
+                counters,
+                tile_pairs: n_isect as usize,
+                backend: BackendState::Gpu(Box::new(GpuState {
+                    context_id: self.ctx.id,
+                    frame,
+                    params,
+                    splats,
+                    isect_ids,
+                    ranges,
+                    final_t,
+                    last,
+                })),
+            },
+        })
+    }
+}

@@ -1,0 +1,451 @@
+//! Parity of the wgpu backend with the CPU backend: random scenes (SH 0-3, off-centre principal
+//! points, odd image sizes, dense enough that pixels stop at T < 1e-4 and the 0.99 cap acts) and
+//! the hard cases, with both gradient accumulation paths (native f32 atomics, compare-exchange).
+//!
+//! Tolerances: colour and alpha within 1e-4 absolute; depth within 1e-4 relative
+//! (`|g - c| <= 1e-4 max(|c|, 1)`); radii within 1e-4 relative; cull counts, tile pairs and work
+//! counters equal. Gradients: `|g - c| <= 1e-3 max(|c|, s)` where `s` is the scale of that
+//! parameter kind in the scene, the root mean square of the CPU gradients of the kind (so
+//! that a component that cancels to nearly zero is judged against the kind's typical size).
+//!
+//! A missing adapter fails these tests (in CI the software Vulkan driver lavapipe is installed
+//! and pinned); it is not a skip.
+
+mod common;
+
+use std::sync::{Arc, OnceLock};
+
+use glam::{Mat3, Vec3};
+use rand::RngExt;
+use splat_raster::{
+    AtomicMode, Camera, CpuRasterizer, ForwardOutput, GpuContext, Gradients, RasterError,
+    Rasterizer, RenderOptions, WgpuRasterizer,
+};
+
+struct Backends {
+    native: Option<WgpuRasterizer>,
+    cas: WgpuRasterizer,
+}
+
+fn gpu() -> &'static Backends {
+    static GPU: OnceLock<Backends> = OnceLock::new();
+    GPU.get_or_init(|| {
+        let ctx = Arc::new(GpuContext::new().unwrap_or_else(|e| {
+            panic!("the wgpu backend needs an adapter (CI installs lavapipe): {e}")
+        }));
+        eprintln!("adapter: {}", ctx.adapter());
+        let native = ctx
+            .adapter()
+            .float32_atomics
+            .then(|| WgpuRasterizer::with_context(ctx.clone(), AtomicMode::NativeF32).unwrap());
+        let cas = WgpuRasterizer::with_context(ctx, AtomicMode::CompareExchange).unwrap();
+        Backends { native, cas }
+    })
+}
+
+/// Both accumulation paths; on a software adapter (lavapipe offers f32 atomics) the native one
+/// must be there, so that CI covers both.
+fn both() -> Vec<&'static WgpuRasterizer> {
+    let b = gpu();
+    if !b.cas.adapter().hardware {
+        assert!(
+            b.native.is_some(),
+            "lavapipe offers SHADER_FLOAT32_ATOMIC; the native path must be tested"
+        );
+    }
+    b.native.iter().chain([&b.cas]).collect()
+}
+
+fn close(what: &str, g: f32, c: f32, tol: f32) {
+    assert!(
+        (g - c).abs() <= tol || (g == c),
+        "{what}: gpu {g} vs cpu {c} (tolerance {tol})"
+    );
+}
+
+fn assert_forward_parity(gpu: &ForwardOutput, cpu: &ForwardOutput) {
+    assert_eq!(gpu.stats, cpu.stats, "cull stats");
+    assert_eq!(gpu.tile_pairs(), cpu.tile_pairs(), "tile pairs");
+    assert_eq!(
+        gpu.pair_evaluations(),
+        cpu.pair_evaluations(),
+        "pair evaluations"
+    );
+    assert_eq!(
+        gpu.mean_contributors(),
+        cpu.mean_contributors(),
+        "contributors"
+    );
+    for (p, (g, c)) in gpu.color.iter().zip(&cpu.color).enumerate() {
+        for ch in 0..3 {
+            close(&format!("colour pixel {p} ch {ch}"), g[ch], c[ch], 1e-4);
+        }
+    }
+    for (p, (g, c)) in gpu.alpha.iter().zip(&cpu.alpha).enumerate() {
+        close(&format!("alpha pixel {p}"), *g, *c, 1e-4);
+    }
+    for (p, (g, c)) in gpu.depth.iter().zip(&cpu.depth).enumerate() {
+        close(&format!("depth pixel {p}"), *g, *c, 1e-4 * c.abs().max(1.0));
+    }
+    for (i, (g, c)) in gpu.radii().iter().zip(cpu.radii()).enumerate() {
+        close(&format!("radius {i}"), *g, *c, 1e-4 * c.abs().max(1.0));
+    }
+}
+
+fn rms(v: &[f32]) -> f32 {
+    (v.iter().map(|x| f64::from(*x).powi(2)).sum::<f64>() / v.len().max(1) as f64).sqrt() as f32
+}
+
+fn kinds(g: &Gradients) -> [(&'static str, &[f32]); 6] {
+    [
+        ("means", g.means.as_flattened()),
+        ("log_scales", g.log_scales.as_flattened()),
+        ("rotations", g.rotations.as_flattened()),
+        ("opacity_logits", &g.opacity_logits),
+        ("sh", &g.sh),
+        ("means2d", g.means2d.as_flattened()),
+    ]
+}
+
+/// Gradient parity; `skip` lists Gaussians whose gradients are not compared (documented per
+/// call).
+fn assert_gradient_parity(gpu: &Gradients, cpu: &Gradients, skip: &[usize]) {
+    assert_eq!(gpu.zeroed_non_finite, cpu.zeroed_non_finite, "zeroed");
+    assert_eq!(gpu.radii.len(), cpu.radii.len());
+    let n = cpu.opacity_logits.len();
+    for ((kind, g), (_, c)) in kinds(gpu).into_iter().zip(kinds(cpu)) {
+        assert_eq!(g.len(), c.len(), "{kind} length");
+        let per = c.len().checked_div(n).unwrap_or(0);
+        let keep: Vec<usize> = (0..c.len())
+            .filter(|k| per == 0 || !skip.contains(&(k / per)))
+            .collect();
+        let kept: Vec<f32> = keep.iter().map(|&k| c[k]).collect();
+        let scale = rms(&kept);
+        for &k in &keep {
+            let tol = 1e-3 * c[k].abs().max(scale);
+            close(
+                &format!("{kind}[{k}] (Gaussian {})", k / per.max(1)),
+                g[k],
+                c[k],
+                tol,
+            );
+        }
+    }
+}
+
+fn pixel_grads(npix: usize, seed: u64) -> (Vec<[f32; 3]>, Vec<f32>, Vec<f32>) {
+    let mut rng = common::rng(seed);
+    (
+        (0..npix)
+            .map(|_| std::array::from_fn(|_| rng.random_range(-1.0f32..1.0)))
+            .collect(),
+        (0..npix).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
+        (0..npix).map(|_| rng.random_range(-0.2f32..0.2)).collect(),
+    )
+}
+
+/// Forward and backward on the CPU and on each GPU path; asserts parity.
+fn check_scene(
+    g: &splat_raster::Gaussians,
+    cam: &Camera,
+    opts: &RenderOptions,
+    seed: u64,
+    skip: &[usize],
+) -> ForwardOutput {
+    let cpu = CpuRasterizer::new();
+    let fc = cpu.forward(g.view(), cam, opts).unwrap();
+    let (dc, da, dd) = pixel_grads(cam.pixel_count(), seed);
+    let gc = cpu
+        .backward(g.view(), cam, opts, &fc, &dc, Some(&da), Some(&dd))
+        .unwrap();
+    let gc_color_only = cpu
+        .backward(g.view(), cam, opts, &fc, &dc, None, None)
+        .unwrap();
+    for r in both() {
+        let fg = r.forward(g.view(), cam, opts).unwrap();
+        assert_forward_parity(&fg, &fc);
+        let gg = r
+            .backward(g.view(), cam, opts, &fg, &dc, Some(&da), Some(&dd))
+            .unwrap();
+        assert_gradient_parity(&gg, &gc, skip);
+        let gg = r
+            .backward(g.view(), cam, opts, &fg, &dc, None, None)
+            .unwrap();
+        assert_gradient_parity(&gg, &gc_color_only, skip);
+    }
+    fc
+}
+
+/// A dense random scene: many Gaussians over a small odd-sized image, a third of them nearly
+/// opaque, so that pixels stop at T < 1e-4 and the 0.99 cap acts.
+fn dense_scene(
+    seed: u64,
+    degree: u32,
+    n: usize,
+    w: u32,
+    h: u32,
+) -> (splat_raster::Gaussians, Camera, RenderOptions) {
+    let mut rng = common::rng(seed);
+    let cam = common::random_camera(&mut rng, w, h);
+    let mut g = common::random_gaussians(&mut rng, n, degree, 1.0);
+    for (i, l) in g.opacity_logits.iter_mut().enumerate() {
+        if i % 3 == 0 {
+            *l = rng.random_range(4.0f32..7.0);
+        }
+    }
+    let opts = RenderOptions {
+        background: std::array::from_fn(|_| rng.random_range(0.0f32..1.0)),
+        sh_degree: None,
+    };
+    (g, cam, opts)
+}
+
+#[test]
+fn random_scenes_match_the_cpu_for_every_sh_degree() {
+    let sizes = [(45, 37), (33, 50), (64, 17), (29, 29)];
+    for degree in 0..=3u32 {
+        let (w, h) = sizes[degree as usize];
+        let (g, cam, opts) = dense_scene(100 + u64::from(degree), degree, 260, w, h);
+        let fc = check_scene(&g, &cam, &opts, 7 + u64::from(degree), &[]);
+        assert!(fc.stats.drawn > 200, "{}", fc.stats);
+        // The scene exercises the early stop: some pixel's transmittance fell near T_MIN.
+        let min_t = fc.alpha.iter().map(|a| 1.0 - a).fold(1.0f32, f32::min);
+        assert!(min_t < 2e-3, "min T {min_t}: the scene is not dense enough");
+    }
+}
+
+#[test]
+fn lower_active_sh_degree_and_a_large_image_match_the_cpu() {
+    let (g, cam, mut opts) = dense_scene(200, 3, 400, 97, 71);
+    opts.sh_degree = Some(1);
+    check_scene(&g, &cam, &opts, 11, &[]);
+}
+
+fn one(
+    mean: [f32; 3],
+    log_scale: [f32; 3],
+    q: [f32; 4],
+    logit: f32,
+    degree: u32,
+) -> splat_raster::Gaussians {
+    let k = splat_raster::sh_coeff_count(degree);
+    splat_raster::Gaussians {
+        sh_degree: degree,
+        means: vec![mean],
+        log_scales: vec![log_scale],
+        rotations: vec![q],
+        opacity_logits: vec![logit],
+        sh: (0..3 * k).map(|i| 0.3 - 0.05 * i as f32).collect(),
+    }
+}
+
+fn concat(parts: &[splat_raster::Gaussians]) -> splat_raster::Gaussians {
+    let mut g = splat_raster::Gaussians::with_degree(parts[0].sh_degree);
+    for p in parts {
+        g.means.extend_from_slice(&p.means);
+        g.log_scales.extend_from_slice(&p.log_scales);
+        g.rotations.extend_from_slice(&p.rotations);
+        g.opacity_logits.extend_from_slice(&p.opacity_logits);
+        g.sh.extend_from_slice(&p.sh);
+    }
+    g
+}
+
+fn hard_camera() -> Camera {
+    Camera::from_center(40, 30, 35.0, 33.0, 21.0, 14.0, Mat3::IDENTITY, Vec3::ZERO)
+}
+
+const Q: [f32; 4] = [1.0, 0.0, 0.0, 0.0];
+
+#[test]
+fn hard_cases_match_the_cpu() {
+    let d = 3;
+    let mut parts = vec![
+        // Needle-thin, flat, huge.
+        one(
+            [0.1, 0.0, 3.0],
+            [-14.0, -14.0, 0.0],
+            [0.8, 0.3, 0.4, 0.1],
+            2.0,
+            d,
+        ),
+        one(
+            [0.0, 0.2, 3.0],
+            [-20.0, 0.5, 0.5],
+            [0.7, -0.3, 0.2, 0.5],
+            2.0,
+            d,
+        ),
+        one([0.0, 0.0, 5.0], [8.0, 8.0, 8.0], Q, 0.0, d),
+        // Behind the camera, at the camera, at and just beyond the near plane.
+        one([0.0, 0.0, -2.0], [0.0; 3], Q, 1.0, d),
+        one([0.0, 0.0, 0.01], [-2.0; 3], Q, 1.0, d),
+        one([0.0, 0.0, 0.0], [-2.0; 3], Q, 1.0, d),
+        one([0.0, 0.0, 0.0101], [-2.0; 3], Q, 1.0, d),
+        // Zero, tiny and huge quaternions; faint.
+        one([0.0, 0.0, 3.0], [-1.0; 3], [0.0; 4], 1.0, d),
+        one([0.0, 0.0, 3.0], [-1.0; 3], [1e-7, 0.0, 0.0, 0.0], 1.0, d),
+        one([0.3, 0.1, 3.0], [-1.0; 3], [3e30, 1e30, 0.0, 0.0], 1.0, d),
+        one([0.0, 0.0, 3.0], [-1.0; 3], Q, -6.0, d),
+        // Off screen, and a covariance that overflows even f64.
+        one([30.0, 0.0, 3.0], [-2.0; 3], Q, 1.0, d),
+        one([0.0, 0.0, 5.0], [400.0, 0.0, 0.0], Q, 0.0, d),
+        // Ordinary ones, so that the hard cases are composited among others.
+        one(
+            [-0.2, 0.1, 2.0],
+            [-2.5, -2.0, -2.2],
+            [0.9, 0.1, -0.2, 0.3],
+            3.0,
+            d,
+        ),
+        one(
+            [0.25, -0.15, 2.5],
+            [-2.0, -2.6, -2.1],
+            [0.2, 0.9, 0.1, -0.3],
+            1.5,
+            d,
+        ),
+    ];
+    let mut bright = one([0.0, 0.0, 3.0], [-1.0; 3], Q, 1.0, d);
+    bright.sh.iter_mut().for_each(|v| *v = 3e38);
+    parts.push(bright);
+    // NaN / +Inf / -Inf in every field.
+    let good = one([0.1, -0.1, 3.0], [-1.5; 3], Q, 1.0, d);
+    for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+        for field in 0..5 {
+            let mut g = good.clone();
+            match field {
+                0 => g.means[0][1] = bad,
+                1 => g.log_scales[0][2] = bad,
+                2 => g.rotations[0][3] = bad,
+                3 => g.opacity_logits[0] = bad,
+                _ => g.sh[40] = bad,
+            }
+            parts.push(g);
+        }
+    }
+    parts.push(good);
+    let g = concat(&parts);
+    let opts = RenderOptions {
+        background: [0.2, 0.4, 0.6],
+        sh_degree: None,
+    };
+    let fc = check_scene(&g, &hard_camera(), &opts, 3, &[]);
+    let s = fc.stats;
+    assert_eq!(
+        (
+            s.non_finite,
+            s.zero_quaternion,
+            s.low_opacity,
+            s.behind_near_plane,
+            s.degenerate_covariance,
+            s.off_screen
+        ),
+        (16, 2, 1, 3, 1, 1),
+        "{s}"
+    );
+}
+
+#[test]
+fn a_vast_flat_wash_matches_the_cpu_image() {
+    // Log-scale 60 (σ ≈ 1e26): drawn as a flat wash by both backends. Its gradients are
+    // dominated by rounding in either precision (the CPU's f64 ones included), so only the
+    // image, counts and radius are compared.
+    let g = one([0.0, 0.0, 5.0], [60.0, 0.0, 0.0], Q, 0.0, 1);
+    let opts = RenderOptions::default();
+    let cam = hard_camera();
+    let fc = CpuRasterizer::new().forward(g.view(), &cam, &opts).unwrap();
+    assert_eq!(fc.stats.drawn, 1);
+    for r in both() {
+        let fg = r.forward(g.view(), &cam, &opts).unwrap();
+        assert_forward_parity(&fg, &fc);
+    }
+}
+
+#[test]
+fn zero_gaussians_give_the_background_and_empty_gradients() {
+    let g = splat_raster::Gaussians::with_degree(2);
+    let cam = hard_camera();
+    let opts = RenderOptions {
+        background: [0.25, 0.5, 0.75],
+        sh_degree: None,
+    };
+    for r in both() {
+        let f = r.forward(g.view(), &cam, &opts).unwrap();
+        assert!(f.color.iter().all(|c| *c == [0.25, 0.5, 0.75]));
+        assert!(f.alpha.iter().chain(&f.depth).all(|&v| v == 0.0));
+        assert_eq!((f.stats.total, f.stats.drawn, f.tile_pairs()), (0, 0, 0));
+        let dc = vec![[1.0f32; 3]; cam.pixel_count()];
+        let grads = r
+            .backward(g.view(), &cam, &opts, &f, &dc, None, None)
+            .unwrap();
+        assert_eq!(grads, Gradients::default());
+    }
+}
+
+#[test]
+fn repeated_runs_agree() {
+    let (g, cam, opts) = dense_scene(300, 2, 200, 41, 39);
+    let (dc, da, _) = pixel_grads(cam.pixel_count(), 5);
+    for r in both() {
+        let f1 = r.forward(g.view(), &cam, &opts).unwrap();
+        let f2 = r.forward(g.view(), &cam, &opts).unwrap();
+        // The forward pass has no floating-point atomics: bit-identical.
+        assert_eq!(f1.color, f2.color);
+        assert_eq!(f1.alpha, f2.alpha);
+        assert_eq!(f1.depth, f2.depth);
+        let g1 = r
+            .backward(g.view(), &cam, &opts, &f1, &dc, Some(&da), None)
+            .unwrap();
+        let g2 = r
+            .backward(g.view(), &cam, &opts, &f2, &dc, Some(&da), None)
+            .unwrap();
+        // Atomic accumulation order may differ: equal up to rounding.
+        for ((kind, a), (_, b)) in kinds(&g1).into_iter().zip(kinds(&g2)) {
+            let scale = rms(b);
+            for (k, (x, y)) in a.iter().zip(b).enumerate() {
+                close(&format!("{kind}[{k}]"), *x, *y, 1e-5 * y.abs().max(scale));
+            }
+        }
+    }
+}
+
+#[test]
+fn bad_input_and_foreign_forward_outputs_are_errors() {
+    let (g, cam, opts) = dense_scene(400, 1, 20, 30, 20);
+    let r = &gpu().cas;
+    let mut short = g.clone();
+    short.opacity_logits.pop();
+    assert_eq!(
+        r.forward(short.view(), &cam, &opts).unwrap_err(),
+        RasterError::LengthMismatch {
+            field: "opacity_logits",
+            got: 19,
+            expected: 20
+        }
+    );
+    let fc = CpuRasterizer::new().forward(g.view(), &cam, &opts).unwrap();
+    let dc = vec![[0.0f32; 3]; cam.pixel_count()];
+    let err = r
+        .backward(g.view(), &cam, &opts, &fc, &dc, None, None)
+        .unwrap_err();
+    assert!(
+        matches!(err, RasterError::ForwardMismatch(ref m) if m.contains("another backend")),
+        "{err}"
+    );
+    let fg = r.forward(g.view(), &cam, &opts).unwrap();
+    let err = CpuRasterizer::new()
+        .backward(g.view(), &cam, &opts, &fg, &dc, None, None)
+        .unwrap_err();
+    assert!(matches!(err, RasterError::ForwardMismatch(_)), "{err}");
+    let mut bad = dc.clone();
+    bad[3][1] = f32::NAN;
+    assert_eq!(
+        r.backward(g.view(), &cam, &opts, &fg, &bad, None, None)
+            .unwrap_err(),
+        RasterError::NonFiniteGradient {
+            field: "d_color",
+            pixel: 3
+        }
+    );
+}
