@@ -3,9 +3,11 @@
 //! the hard cases, with both gradient accumulation paths (native f32 atomics, compare-exchange).
 //!
 //! Tolerances: alpha within 1e-4 absolute; colour and depth within 1e-4 relative to values
-//! above 1 (`|g - c| <= 1e-4 max(|c|, 1)`: extreme SH coefficients give colours far above 1); radii within 1e-4 relative; cull counts, tile pairs and work
-//! counters equal. Gradients: `|g - c| <= 1e-3 max(|c|, s)` where `s` is the scale of that
-//! parameter kind in the scene, the root mean square of the CPU gradients of the kind (so
+//! above 1 (`|g - c| <= 1e-4 max(|c|, 1)`: extreme SH coefficients give colours far above 1);
+//! cull counts equal; tile pairs, work counters and blended pairs equal up to two decisions
+//! flipped at a threshold (f32 versus f64 geometry); radii within 1e-4 relative. Gradients:
+//! `|g - c| <= 1e-3 max(|c|, s)` where `s` is the scale of that parameter kind in the scene,
+//! the root mean square of the CPU gradients of the kind (so
 //! that a component that cancels to nearly zero is judged against the kind's typical size);
 //! for quaternions at least that of the log-scales (a Gaussian symmetric about an axis has an
 //! analytically zero quaternion gradient, which f32 gives as rounding noise of that size), and
@@ -69,16 +71,30 @@ fn close(what: &str, g: f32, c: f32, tol: f32) {
 
 fn assert_forward_parity(gpu: &ForwardOutput, cpu: &ForwardOutput) {
     assert_eq!(gpu.stats, cpu.stats, "cull stats");
-    assert_eq!(gpu.tile_pairs(), cpu.tile_pairs(), "tile pairs");
-    assert_eq!(
-        gpu.pair_evaluations(),
-        cpu.pair_evaluations(),
-        "pair evaluations"
+    // Discrete decisions taken at a threshold (a bounding-box edge, alpha = 1/255, T = 1e-4)
+    // can flip between f32 and f64 geometry; on these small scenes they do not, on the 100K
+    // bench scene 2 of 817,880 tile pairs do. Allowed: a flip or two.
+    let near = |what: &str, g: f64, c: f64, slack: f64| {
+        assert!((g - c).abs() <= slack, "{what}: gpu {g} vs cpu {c}");
+    };
+    near(
+        "tile pairs",
+        gpu.tile_pairs() as f64,
+        cpu.tile_pairs() as f64,
+        2.0,
     );
-    assert_eq!(
-        gpu.mean_contributors(),
-        cpu.mean_contributors(),
-        "contributors"
+    near(
+        "pair evaluations",
+        gpu.pair_evaluations() as f64,
+        cpu.pair_evaluations() as f64,
+        2.0 * 256.0,
+    );
+    let npix = cpu.color.len() as f64;
+    near(
+        "blended pairs",
+        gpu.mean_contributors() * npix,
+        cpu.mean_contributors() * npix,
+        2.5,
     );
     for (p, (g, c)) in gpu.color.iter().zip(&cpu.color).enumerate() {
         for ch in 0..3 {
@@ -524,5 +540,23 @@ proptest::proptest! {
             .filter(|&i| g.sh[i * stride..(i + 1) * stride].iter().any(|v| v.abs() > 1e6))
             .collect();
         check_scene(&g, &hard_camera(), &opts, SMOOTH, &skip, GRAD_FLOOR_ARBITRARY);
+    }
+}
+
+#[test]
+fn the_adapter_is_described() {
+    let a = gpu().cas.adapter();
+    assert!(!a.name.is_empty() && !a.backend.is_empty());
+    let line = a.to_string();
+    assert!(line.starts_with(&a.name), "{line}");
+    let kind = if a.hardware { "hardware" } else { "software" };
+    assert!(line.contains(kind), "{line}");
+    // Mesa's lavapipe reports itself as llvmpipe, a CPU device: software.
+    if a.name.contains("llvmpipe") {
+        assert!(!a.hardware, "{line}");
+    }
+    assert_eq!(gpu().cas.atomics(), AtomicMode::CompareExchange);
+    if let Some(native) = &gpu().native {
+        assert_eq!(native.atomics(), AtomicMode::NativeF32);
     }
 }

@@ -156,6 +156,28 @@ impl WgpuRasterizer {
     }
 }
 
+impl WgpuRasterizer {
+    /// Runs `f` with wgpu's validation and out-of-memory errors captured (instead of wgpu's
+    /// default of panicking) and returned as [`RasterError::Gpu`].
+    fn checked<R>(&self, f: impl FnOnce() -> Result<R, RasterError>) -> Result<R, RasterError> {
+        let device = &self.ctx.device;
+        let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let out = f();
+        let errors = [
+            pollster::block_on(validation.pop()),
+            pollster::block_on(oom.pop()),
+        ];
+        if let Some(err) = errors.into_iter().flatten().next() {
+            return Err(RasterError::Gpu {
+                stage: "device",
+                message: err.to_string(),
+            });
+        }
+        out
+    }
+}
+
 impl Rasterizer for WgpuRasterizer {
     fn forward(
         &self,
@@ -163,7 +185,7 @@ impl Rasterizer for WgpuRasterizer {
         cam: &Camera,
         opts: &RenderOptions,
     ) -> Result<ForwardOutput, RasterError> {
-        self.forward_impl(g, cam, opts)
+        self.checked(|| self.forward_impl(g, cam, opts))
     }
 
     fn backward(
@@ -176,6 +198,6 @@ impl Rasterizer for WgpuRasterizer {
         d_alpha: Option<&[f32]>,
         d_depth: Option<&[f32]>,
     ) -> Result<Gradients, RasterError> {
-        self.backward_impl(g, cam, opts, fwd, d_color, d_alpha, d_depth)
+        self.checked(|| self.backward_impl(g, cam, opts, fwd, d_color, d_alpha, d_depth))
     }
 }
