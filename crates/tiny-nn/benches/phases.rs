@@ -92,9 +92,38 @@ fn decoder(c: &mut Criterion<CpuTime>) {
     g.finish();
 }
 
+/// Φ (product tri-plane C = 32 at 64², B-spline 16 × 16, decoder 48 → 64 → 64 → 10) over 100K
+/// rows with all threads: forward, and backward alone (from a kept cache).
+fn phi(c: &mut Criterion<CpuTime>) {
+    let mut g = c.benchmark_group("phases/phi");
+    let rows = 100_000;
+    let net = tiny_nn::ObservationNet::new(tiny_nn::ObservationConfig {
+        triplane: tiny_nn::TriPlaneConfig::new(32, &[64], tiny_nn::PlaneCombine::Product),
+        bspline: tiny_nn::BSplineConfig::new(16, 16),
+        width: 64,
+        hidden_layers: 2,
+        output: 10,
+        precision: tiny_nn::Precision::F32,
+        seed: 1,
+    })
+    .unwrap();
+    let p = vals(rows * 3, 7);
+    let t: Vec<f32> = vals(rows, 8).iter().map(|v| v * 0.5 + 0.5).collect();
+    let d = vals(rows * 10, 9);
+    let (_, mut cache) = net.forward(&p, &t, rows).unwrap();
+    g.throughput(Throughput::Elements(rows as u64));
+    g.bench_function(BenchmarkId::new("fwd", rows), |b| {
+        b.iter(|| net.forward_reusing(&p, &t, rows, &mut cache).unwrap())
+    });
+    g.bench_function(BenchmarkId::new("bwd", rows), |b| {
+        b.iter(|| net.backward(&cache, &d, false).unwrap())
+    });
+    g.finish();
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().with_measurement(CpuTime::total());
-    targets = products, decoder
+    targets = products, decoder, phi
 }
 criterion_main!(benches);

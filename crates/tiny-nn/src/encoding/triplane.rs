@@ -19,7 +19,7 @@ use rayon::prelude::*;
 
 use crate::reduce::{add_into, fold_in_order};
 
-use super::ENC_ROWS;
+use super::{ENC_ROWS, dot};
 use crate::error::{NnError, check_len};
 use crate::precision::{Precision, Store, StoreMut, StoreRef};
 
@@ -217,6 +217,7 @@ impl TriPlane {
     }
 
     /// Normalised, clamped coordinates and whether each axis was inside the box.
+    #[inline(always)]
     fn normalise(&self, p: &[f32]) -> ([f32; 3], [f32; 3]) {
         let mut q = [0f32; 3];
         let mut dq = [0f32; 3];
@@ -234,6 +235,7 @@ impl TriPlane {
         (q, dq)
     }
 
+    #[inline(always)]
     fn lookup(res: usize, c: usize, qa: f32, qb: f32) -> Lookup {
         let half = 0.5 * (res - 1) as f32;
         let fa = (qa + 1.0) * half;
@@ -273,6 +275,7 @@ impl TriPlane {
     }
 
     /// Encodes one position `p` (3 values) into `out` (output width); `feat` is scratch of `3C`.
+    #[inline(always)]
     pub(crate) fn encode_row(&self, planes: &[f32], p: &[f32], out: &mut [f32], feat: &mut [f32]) {
         let c = self.config.channels;
         let (q, _) = self.normalise(p);
@@ -297,6 +300,7 @@ impl TriPlane {
 
     /// Backward of one row: adds dL/d(planes) into `acc` and returns dL/d(position). `go` is the
     /// row's output gradient; `feat` and `dfeat` are scratch of `3C`.
+    #[inline(always)]
     pub(crate) fn backward_row(
         &self,
         planes: &[f32],
@@ -339,12 +343,10 @@ impl TriPlane {
                 for corner in 0..4 {
                     let base = off + lk.idx[corner];
                     let wt = lk.w[corner];
-                    let texel = &planes[base..base + c];
-                    let mut dot = 0f32;
-                    for ((ac, &d), &t) in acc[base..base + c].iter_mut().zip(df).zip(texel) {
+                    for (ac, &d) in acc[base..base + c].iter_mut().zip(df) {
                         *ac += wt * d;
-                        dot += t * d;
                     }
+                    let dot = dot(&planes[base..base + c], df);
                     gq[a] += lk.dwa[corner] * dot;
                     gq[b] += lk.dwb[corner] * dot;
                 }
@@ -432,8 +434,8 @@ impl TriPlane {
     }
 }
 
-/// `a += b`, returning `a` (a reduction step).
 /// Bilinear sample of `c = out.len()` channels.
+#[inline(always)]
 fn sample(planes: &[f32], off: usize, lk: &Lookup, out: &mut [f32]) {
     out.fill(0.0);
     let c = out.len();
