@@ -40,8 +40,13 @@ pub struct ObservationNet {
 }
 
 /// Cache of [`ObservationNet::forward`] (`default()` is empty, for `forward_reusing`).
+///
+/// The decoder runs over the rows in the tri-plane's spatial order (see
+/// [`ObservationNet::forward`]): `order[i]` is the input row of decoder row `i`, and the cached
+/// positions and times are stored in that order.
 #[derive(Clone, Debug, Default)]
 pub struct ObservationCache {
+    order: Vec<usize>,
     positions: Vec<f32>,
     times: Vec<f32>,
     mlp: MlpCache,
@@ -102,6 +107,13 @@ impl ObservationNet {
 
     /// Evaluates Φ at `rows` positions (rows × 3) and times (rows). The encoders write straight
     /// into the decoder's input blocks (no intermediate feature matrix).
+    ///
+    /// Rows are processed in a spatial order (cells of the normalised box in Morton order, input
+    /// order inside a cell), so that consecutive rows sample, and in backward scatter gradients
+    /// into, nearby texels: with rows in arbitrary order every texel access of the tri-plane
+    /// misses the cache. The outputs and gradients are returned in input order; each row's
+    /// output does not depend on the order, the parameter gradients' f32 sums are taken in that
+    /// (deterministic) order.
     pub fn forward(
         &self,
         positions: &[f32],
@@ -128,7 +140,19 @@ impl ObservationNet {
         let ctrl = self.bspline.controls_f32();
         let (wx, wt) = (self.triplane.output_width(), self.bspline.output_width());
         let c = self.triplane.config().channels;
-        let out = self.mlp.forward_reusing(
+        let ObservationCache {
+            order,
+            positions: sorted_positions,
+            times: sorted_times,
+            mlp,
+        } = cache;
+        self.triplane.spatial_order(positions, order);
+        sorted_positions.clear();
+        sorted_positions.extend(order.iter().flat_map(|&r| &positions[r * 3..r * 3 + 3]));
+        sorted_times.clear();
+        sorted_times.extend(order.iter().map(|&r| times[r]));
+        let (positions, times) = (&sorted_positions[..], &sorted_times[..]);
+        let sorted_out = self.mlp.forward_reusing(
             rows,
             |r0, _, buf| {
                 let mut feat = vec![0f32; 3 * c];
@@ -140,12 +164,13 @@ impl ObservationNet {
                     self.bspline.encode_row(&ctrl, times[r], ft);
                 }
             },
-            &mut cache.mlp,
+            mlp,
         );
-        cache.positions.clear();
-        cache.positions.extend_from_slice(positions);
-        cache.times.clear();
-        cache.times.extend_from_slice(times);
+        let d = self.mlp.output_width();
+        let mut out = vec![0f32; sorted_out.len()];
+        for (&r, y) in order.iter().zip(sorted_out.chunks_exact(d)) {
+            out[r * d..(r + 1) * d].copy_from_slice(y);
+        }
         Ok(out)
     }
 
@@ -158,6 +183,19 @@ impl ObservationNet {
         want_position_grad: bool,
     ) -> Result<ObservationGrads, NnError> {
         let rows = cache.mlp.rows();
+        let d = self.mlp.output_width();
+        check_len("observation output gradient", rows * d, d_out.len())?;
+        if cache.order.len() != rows {
+            return Err(NnError::Config(
+                "observation cache does not hold a forward pass".into(),
+            ));
+        }
+        let sorted_d_out: Vec<f32> = cache
+            .order
+            .iter()
+            .flat_map(|&r| &d_out[r * d..(r + 1) * d])
+            .copied()
+            .collect();
         let planes = self.triplane.planes_f32();
         let ctrl = self.bspline.controls_f32();
         let (wx, wt) = (self.triplane.output_width(), self.bspline.output_width());
@@ -166,7 +204,7 @@ impl ObservationNet {
         type Acc = (Vec<f32>, Vec<f32>, Vec<(usize, Vec<f32>)>);
         let (mlp, (tp, bs, pos_blocks)) = self.mlp.backward_with(
             &cache.mlp,
-            d_out,
+            &sorted_d_out,
             || -> Acc { (vec![0f32; np], vec![0f32; nb], Vec::new()) },
             |acc: &mut Acc, r0, dx| {
                 let nr = dx.len() / (wx + wt);
@@ -206,7 +244,9 @@ impl ObservationNet {
         let positions = want_position_grad.then(|| {
             let mut out = vec![0f32; rows * 3];
             for (r0, block) in pos_blocks {
-                out[r0 * 3..r0 * 3 + block.len()].copy_from_slice(&block);
+                for (&r, g) in cache.order[r0..].iter().zip(block.chunks_exact(3)) {
+                    out[r * 3..r * 3 + 3].copy_from_slice(g);
+                }
             }
             out
         });
