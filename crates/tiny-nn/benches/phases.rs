@@ -22,11 +22,13 @@ fn vals(n: usize, seed: u64) -> Vec<f32> {
 }
 
 type Product = fn(&mut [f32], &[f32], &[f32], (usize, usize, usize), bool, Parallelism);
+/// Name, product, (m, k, n), accumulate.
+type Shape = (&'static str, Product, (usize, usize, usize), bool);
 
 fn products(c: &mut Criterion<CpuTime>) {
     let mut g = c.benchmark_group("phases/product");
     let nr = 1024;
-    let shapes: [(&str, Product, (usize, usize, usize), bool); 10] = [
+    let shapes: [Shape; 10] = [
         ("peak_256cube", matmul, (256, 256, 256), false),
         ("fwd_l0_x.W", matmul, (nr, 48, 64), false),
         ("fwd_l1_x.W", matmul, (nr, 64, 64), false),

@@ -82,6 +82,7 @@ pub mod mlp;
 pub mod nets;
 pub mod precision;
 mod reduce;
+mod simd;
 pub mod weights;
 
 pub use activation::Activation;
