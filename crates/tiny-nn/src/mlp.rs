@@ -149,6 +149,13 @@ impl MlpCache {
     pub fn rows(&self) -> usize {
         self.rows
     }
+    /// The outputs of the forward pass (rows × output, storage precision).
+    pub(crate) fn output(&self) -> StoreRef<'_> {
+        self.acts
+            .last()
+            .map(Store::as_ref)
+            .unwrap_or(StoreRef::F32(&[]))
+    }
     /// Values that saturated at ±65504 when stored in f16 during the forward pass (always 0 for
     /// f32 storage).
     pub fn saturations(&self) -> u64 {
@@ -300,6 +307,16 @@ impl Mlp {
     where
         F: Fn(usize, usize, &mut [f32]) + Sync,
     {
+        self.forward_cached(rows, fill, cache);
+        cache.acts.last().map(Store::to_f32_vec).unwrap_or_default()
+    }
+
+    /// [`Mlp::forward_reusing`] without copying the outputs out of the cache (read them with
+    /// [`MlpCache::output`]).
+    pub(crate) fn forward_cached<F>(&self, rows: usize, fill: F, cache: &mut MlpCache)
+    where
+        F: Fn(usize, usize, &mut [f32]) + Sync,
+    {
         let p = self.config.precision;
         let ni = self.config.input;
         let weights = self.params.as_f32();
@@ -347,7 +364,6 @@ impl Mlp {
             })
             .sum();
         cache.saturated = saturated;
-        cache.acts.last().map(Store::to_f32_vec).unwrap_or_default()
     }
 
     /// Runs every layer on one block of `nr` rows; `parts[0]` is the input's storage, then one

@@ -152,7 +152,7 @@ impl ObservationNet {
         sorted_times.clear();
         sorted_times.extend(order.iter().map(|&r| times[r]));
         let (positions, times) = (&sorted_positions[..], &sorted_times[..]);
-        let sorted_out = self.mlp.forward_reusing(
+        self.mlp.forward_cached(
             rows,
             |r0, nr, buf| {
                 vectorised(EncodeRows {
@@ -168,9 +168,12 @@ impl ObservationNet {
             mlp,
         );
         let d = self.mlp.output_width();
-        let mut out = vec![0f32; sorted_out.len()];
-        for (&r, y) in order.iter().zip(sorted_out.chunks_exact(d)) {
-            out[r * d..(r + 1) * d].copy_from_slice(y);
+        let sorted_out = mlp.output();
+        let mut out = vec![0f32; rows * d];
+        for (i, &r) in order.iter().enumerate() {
+            sorted_out
+                .slice(i * d, d)
+                .read_into(&mut out[r * d..(r + 1) * d]);
         }
         Ok(out)
     }
