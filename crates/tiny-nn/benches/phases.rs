@@ -27,12 +27,13 @@ type Shape = (&'static str, Product, (usize, usize, usize), bool);
 
 fn products(c: &mut Criterion<CpuTime>) {
     let mut g = c.benchmark_group("phases/product");
-    let nr = 1024;
+    // Forward blocks are `mlp::ROW_BLOCK` = 256 rows, backward blocks `BACKWARD_BLOCK` = 1024.
+    let (nf, nr) = (tiny_nn::mlp::ROW_BLOCK, tiny_nn::mlp::BACKWARD_BLOCK);
     let shapes: [Shape; 10] = [
         ("peak_256cube", matmul, (256, 256, 256), false),
-        ("fwd_l0_x.W", matmul, (nr, 48, 64), false),
-        ("fwd_l1_x.W", matmul, (nr, 64, 64), false),
-        ("fwd_l2_x.W", matmul, (nr, 64, 10), false),
+        ("fwd_l0_x.W", matmul, (nf, 48, 64), false),
+        ("fwd_l1_x.W", matmul, (nf, 64, 64), false),
+        ("fwd_l2_x.W", matmul, (nf, 64, 10), false),
         ("dW_l0_xT.g", matmul_at_b, (48, nr, 64), true),
         ("dW_l1_xT.g", matmul_at_b, (64, nr, 64), true),
         ("dW_l2_xT.g", matmul_at_b, (64, nr, 10), true),
