@@ -148,7 +148,10 @@ impl ObservationNet {
         } = cache;
         self.triplane.spatial_order(positions, order);
         sorted_positions.clear();
-        sorted_positions.extend(order.iter().flat_map(|&r| &positions[r * 3..r * 3 + 3]));
+        sorted_positions.resize(rows * 3, 0.0);
+        for (dst, &r) in sorted_positions.chunks_exact_mut(3).zip(order.iter()) {
+            dst.copy_from_slice(&positions[r * 3..r * 3 + 3]);
+        }
         sorted_times.clear();
         sorted_times.extend(order.iter().map(|&r| times[r]));
         let (positions, times) = (&sorted_positions[..], &sorted_times[..]);
@@ -194,12 +197,10 @@ impl ObservationNet {
                 "observation cache does not hold a forward pass".into(),
             ));
         }
-        let sorted_d_out: Vec<f32> = cache
-            .order
-            .iter()
-            .flat_map(|&r| &d_out[r * d..(r + 1) * d])
-            .copied()
-            .collect();
+        let mut sorted_d_out = vec![0f32; rows * d];
+        for (dst, &r) in sorted_d_out.chunks_exact_mut(d).zip(&cache.order) {
+            dst.copy_from_slice(&d_out[r * d..(r + 1) * d]);
+        }
         let planes = self.triplane.planes_f32();
         let ctrl = self.bspline.controls_f32();
         let (wx, wt) = (self.triplane.output_width(), self.bspline.output_width());
