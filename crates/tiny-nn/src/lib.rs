@@ -42,9 +42,13 @@
 //!
 //! Rows are cut into blocks of [`mlp::ROW_BLOCK`] (MLP forward), [`mlp::BACKWARD_BLOCK`] (MLP
 //! backward) or 1024 (encoders) processed in parallel
-//! with rayon; inside a block each product is one single-threaded gemm call, fused with bias,
-//! activation and storage conversion. Parameter gradients are accumulated per rayon task and
-//! summed. Results do not depend on the thread count up to f32 summation order.
+//! with rayon; inside a block each product is one single-threaded gemm call (in f32 storage
+//! written straight into the forward cache, bias and activation applied there in one pass).
+//! Parameter gradients are accumulated in a fixed grouping of blocks and summed in order, so they
+//! are bit-identical for any thread count. [`ObservationNet`] runs its rows in a spatial order
+//! (Morton order of tri-plane cells) so that texel reads and gradient scatters hit the cache;
+//! outputs and gradients come back in input order. The encoders' row loops inside Φ are compiled
+//! for AVX2 and selected at run time when the CPU has it (bit-identical to the baseline build).
 //!
 //! # Example: the EvoGS gain network Ψ
 //!
@@ -82,6 +86,7 @@ pub mod mlp;
 pub mod nets;
 pub mod precision;
 mod reduce;
+mod simd;
 pub mod weights;
 
 pub use activation::Activation;

@@ -149,6 +149,13 @@ impl MlpCache {
     pub fn rows(&self) -> usize {
         self.rows
     }
+    /// The outputs of the forward pass (rows × output, storage precision).
+    pub(crate) fn output(&self) -> StoreRef<'_> {
+        self.acts
+            .last()
+            .map(Store::as_ref)
+            .unwrap_or(StoreRef::F32(&[]))
+    }
     /// Values that saturated at ±65504 when stored in f16 during the forward pass (always 0 for
     /// f32 storage).
     pub fn saturations(&self) -> u64 {
@@ -300,6 +307,16 @@ impl Mlp {
     where
         F: Fn(usize, usize, &mut [f32]) + Sync,
     {
+        self.forward_cached(rows, fill, cache);
+        cache.acts.last().map(Store::to_f32_vec).unwrap_or_default()
+    }
+
+    /// [`Mlp::forward_reusing`] without copying the outputs out of the cache (read them with
+    /// [`MlpCache::output`]).
+    pub(crate) fn forward_cached<F>(&self, rows: usize, fill: F, cache: &mut MlpCache)
+    where
+        F: Fn(usize, usize, &mut [f32]) + Sync,
+    {
         let p = self.config.precision;
         let ni = self.config.input;
         let weights = self.params.as_f32();
@@ -332,13 +349,21 @@ impl Mlp {
             .map_init(Scratch::default, |scr, (b, parts)| {
                 let r0 = b * ROW_BLOCK;
                 let nr = ROW_BLOCK.min(rows - r0);
-                scr.x.resize(nr * ni, 0.0);
-                fill(r0, nr, &mut scr.x);
-                self.forward_block(&weights, scr, nr, parts)
+                match f32_parts(parts) {
+                    Ok(mut parts) => {
+                        fill(r0, nr, parts[0]);
+                        self.forward_block_f32(&weights, scr, nr, parts);
+                        0
+                    }
+                    Err(parts) => {
+                        scr.x.resize(nr * ni, 0.0);
+                        fill(r0, nr, &mut scr.x);
+                        self.forward_block(&weights, scr, nr, parts)
+                    }
+                }
             })
             .sum();
         cache.saturated = saturated;
-        cache.acts.last().map(Store::to_f32_vec).unwrap_or_default()
     }
 
     /// Runs every layer on one block of `nr` rows; `parts[0]` is the input's storage, then one
@@ -375,19 +400,54 @@ impl Mlp {
                 Parallelism::None,
             );
             let bias = &w[layer.bias_offset..layer.bias_offset + layer.output];
-            for row in next.chunks_exact_mut(layer.output) {
-                row.iter_mut().zip(bias).for_each(|(y, b)| *y += b);
-            }
-            let act = if l == last {
-                self.config.output_activation
-            } else {
-                self.config.hidden_activation
-            };
-            act.apply(next);
+            self.activation(l == last).apply_with_bias(next, bias);
             sat += store_rounded(&mut parts[l + 1], next);
             std::mem::swap(cur, next);
         }
         sat
+    }
+
+    /// The activation after layer `l`: the output activation for the last layer.
+    fn activation(&self, last: bool) -> Activation {
+        if last {
+            self.config.output_activation
+        } else {
+            self.config.hidden_activation
+        }
+    }
+
+    /// [`Mlp::forward_block`] for f32 storage: every product writes straight into the cache's
+    /// block (`parts[0]` already holds the input), bias and activation are applied there in one
+    /// pass, and the next layer reads it from there; no scratch copies.
+    fn forward_block_f32(
+        &self,
+        w: &[f32],
+        scr: &mut Scratch,
+        nr: usize,
+        mut parts: Vec<&mut [f32]>,
+    ) {
+        let ni = self.config.input;
+        let last = self.layers.len() - 1;
+        for (l, layer) in self.layers.iter().enumerate() {
+            let (done, rest) = parts.split_at_mut(l + 1);
+            let out = &mut *rest[0];
+            let input: &[f32] = if layer.skip_input {
+                concat_rows(done[0], ni, done[l], layer.input - ni, nr, &mut scr.cat);
+                &scr.cat
+            } else {
+                done[l]
+            };
+            matmul(
+                out,
+                input,
+                &w[layer.weight_offset..layer.bias_offset],
+                (nr, layer.input, layer.output),
+                false,
+                Parallelism::None,
+            );
+            let bias = &w[layer.bias_offset..layer.bias_offset + layer.output];
+            self.activation(l == last).apply_with_bias(out, bias);
+        }
     }
 
     /// Checks that `cache` and `d_out` fit this network.
@@ -553,8 +613,10 @@ impl Mlp {
         let x = cache.input.as_ref().slice(r0 * ni, nr * ni).view_f32(x);
         g.clear();
         g.extend_from_slice(&d_out[r0 * self.config.output..(r0 + nr) * self.config.output]);
+        // dx receives the skip layer's share first (if any), then layer 0's product, which
+        // gemm adds into it; without a skip, layer 0's product is written straight into it.
+        let mut dx_written = false;
         if want_dx {
-            dx.clear();
             dx.resize(nr * ni, 0.0);
         }
         for l in (0..self.layers.len()).rev() {
@@ -563,12 +625,7 @@ impl Mlp {
                 .as_ref()
                 .slice(r0 * layer.output, nr * layer.output)
                 .view_f32(y);
-            let act = if l == last {
-                self.config.output_activation
-            } else {
-                self.config.hidden_activation
-            };
-            act.backward_from_output(yv, g);
+            self.activation(l == last).backward_from_output(yv, g);
             // Layer input: x, the previous activation, or [x, previous activation].
             let input: &[f32] = if l == 0 {
                 x
@@ -600,30 +657,25 @@ impl Mlp {
             if l == 0 && !want_dx {
                 break;
             }
-            da.resize(nr * layer.input, 0.0);
-            matmul_a_bt(
-                da,
-                g,
-                &w[layer.weight_offset..layer.bias_offset],
-                (nr, layer.output, layer.input),
-                false,
-                Parallelism::None,
-            );
+            let wl = &w[layer.weight_offset..layer.bias_offset];
+            let shape = (nr, layer.output, layer.input);
             if l == 0 {
-                dx.iter_mut().zip(da.iter()).for_each(|(s, v)| *s += v);
-            } else if layer.skip_input {
+                matmul_a_bt(dx, g, wl, shape, dx_written, Parallelism::None);
+                continue;
+            }
+            da.resize(nr * layer.input, 0.0);
+            matmul_a_bt(da, g, wl, shape, false, Parallelism::None);
+            if layer.skip_input {
                 let prev = layer.input - ni;
                 g.resize(nr * prev, 0.0);
                 for r in 0..nr {
                     let src = &da[r * layer.input..(r + 1) * layer.input];
                     if want_dx {
-                        dx[r * ni..(r + 1) * ni]
-                            .iter_mut()
-                            .zip(&src[..ni])
-                            .for_each(|(s, v)| *s += v);
+                        dx[r * ni..(r + 1) * ni].copy_from_slice(&src[..ni]);
                     }
                     g[r * prev..(r + 1) * prev].copy_from_slice(&src[ni..]);
                 }
+                dx_written = want_dx;
             } else {
                 std::mem::swap(g, da);
             }
@@ -640,6 +692,21 @@ struct Scratch {
     cat: Vec<f32>,
     y: Vec<f32>,
     dx: Vec<f32>,
+}
+
+/// The block's storage parts as f32 slices when they are all f32 (the network's precision is
+/// one switch, so they are all or none), else the parts unchanged.
+fn f32_parts(parts: Vec<StoreMut<'_>>) -> Result<Vec<&mut [f32]>, Vec<StoreMut<'_>>> {
+    if !parts.iter().all(|p| matches!(p, StoreMut::F32(_))) {
+        return Err(parts);
+    }
+    Ok(parts
+        .into_iter()
+        .filter_map(|p| match p {
+            StoreMut::F32(s) => Some(s),
+            StoreMut::F16(_) => None,
+        })
+        .collect())
 }
 
 /// Writes `vals` into `store` and, for f16, rounds `vals` to the stored values so the next layer

@@ -7,6 +7,7 @@ use crate::error::{NnError, check_len};
 use crate::mlp::{Mlp, MlpCache, MlpConfig};
 use crate::precision::{Precision, StoreMut, StoreRef};
 use crate::reduce::add_into;
+use crate::simd::{Kernel, vectorised};
 use crate::weights::Parameters;
 
 /// Settings of the EvoGS observation network Φ: `[tri-plane(x), B-spline(t)] → MLP → D`.
@@ -40,8 +41,13 @@ pub struct ObservationNet {
 }
 
 /// Cache of [`ObservationNet::forward`] (`default()` is empty, for `forward_reusing`).
+///
+/// The decoder runs over the rows in the tri-plane's spatial order (see
+/// [`ObservationNet::forward`]): `order[i]` is the input row of decoder row `i`, and the cached
+/// positions and times are stored in that order.
 #[derive(Clone, Debug, Default)]
 pub struct ObservationCache {
+    order: Vec<usize>,
     positions: Vec<f32>,
     times: Vec<f32>,
     mlp: MlpCache,
@@ -102,6 +108,13 @@ impl ObservationNet {
 
     /// Evaluates Φ at `rows` positions (rows × 3) and times (rows). The encoders write straight
     /// into the decoder's input blocks (no intermediate feature matrix).
+    ///
+    /// Rows are processed in a spatial order (cells of the normalised box in Morton order, input
+    /// order inside a cell), so that consecutive rows sample, and in backward scatter gradients
+    /// into, nearby texels: with rows in arbitrary order every texel access of the tri-plane
+    /// misses the cache. The outputs and gradients are returned in input order; each row's
+    /// output does not depend on the order, the parameter gradients' f32 sums are taken in that
+    /// (deterministic) order.
     pub fn forward(
         &self,
         positions: &[f32],
@@ -126,26 +139,45 @@ impl ObservationNet {
         BSplineTime::check_times(times)?;
         let planes = self.triplane.planes_f32();
         let ctrl = self.bspline.controls_f32();
-        let (wx, wt) = (self.triplane.output_width(), self.bspline.output_width());
         let c = self.triplane.config().channels;
-        let out = self.mlp.forward_reusing(
+        let ObservationCache {
+            order,
+            positions: sorted_positions,
+            times: sorted_times,
+            mlp,
+        } = cache;
+        self.triplane.spatial_order(positions, order);
+        sorted_positions.clear();
+        sorted_positions.resize(rows * 3, 0.0);
+        for (dst, &r) in sorted_positions.chunks_exact_mut(3).zip(order.iter()) {
+            dst.copy_from_slice(&positions[r * 3..r * 3 + 3]);
+        }
+        sorted_times.clear();
+        sorted_times.extend(order.iter().map(|&r| times[r]));
+        let (positions, times) = (&sorted_positions[..], &sorted_times[..]);
+        self.mlp.forward_cached(
             rows,
-            |r0, _, buf| {
-                let mut feat = vec![0f32; 3 * c];
-                for (i, row) in buf.chunks_exact_mut(wx + wt).enumerate() {
-                    let r = r0 + i;
-                    let (fx, ft) = row.split_at_mut(wx);
-                    self.triplane
-                        .encode_row(&planes, &positions[r * 3..r * 3 + 3], fx, &mut feat);
-                    self.bspline.encode_row(&ctrl, times[r], ft);
-                }
+            |r0, nr, buf| {
+                vectorised(EncodeRows {
+                    net: self,
+                    planes: &planes,
+                    ctrl: &ctrl,
+                    positions: &positions[r0 * 3..(r0 + nr) * 3],
+                    times: &times[r0..r0 + nr],
+                    out: buf,
+                    feat: &mut vec![0f32; 3 * c],
+                })
             },
-            &mut cache.mlp,
+            mlp,
         );
-        cache.positions.clear();
-        cache.positions.extend_from_slice(positions);
-        cache.times.clear();
-        cache.times.extend_from_slice(times);
+        let d = self.mlp.output_width();
+        let sorted_out = mlp.output();
+        let mut out = vec![0f32; rows * d];
+        for (i, &r) in order.iter().enumerate() {
+            sorted_out
+                .slice(i * d, d)
+                .read_into(&mut out[r * d..(r + 1) * d]);
+        }
         Ok(out)
     }
 
@@ -158,6 +190,17 @@ impl ObservationNet {
         want_position_grad: bool,
     ) -> Result<ObservationGrads, NnError> {
         let rows = cache.mlp.rows();
+        let d = self.mlp.output_width();
+        check_len("observation output gradient", rows * d, d_out.len())?;
+        if cache.order.len() != rows {
+            return Err(NnError::Config(
+                "observation cache does not hold a forward pass".into(),
+            ));
+        }
+        let mut sorted_d_out = vec![0f32; rows * d];
+        for (dst, &r) in sorted_d_out.chunks_exact_mut(d).zip(&cache.order) {
+            dst.copy_from_slice(&d_out[r * d..(r + 1) * d]);
+        }
         let planes = self.triplane.planes_f32();
         let ctrl = self.bspline.controls_f32();
         let (wx, wt) = (self.triplane.output_width(), self.bspline.output_width());
@@ -166,33 +209,24 @@ impl ObservationNet {
         type Acc = (Vec<f32>, Vec<f32>, Vec<(usize, Vec<f32>)>);
         let (mlp, (tp, bs, pos_blocks)) = self.mlp.backward_with(
             &cache.mlp,
-            d_out,
+            &sorted_d_out,
             || -> Acc { (vec![0f32; np], vec![0f32; nb], Vec::new()) },
             |acc: &mut Acc, r0, dx| {
                 let nr = dx.len() / (wx + wt);
-                let mut feat = vec![0f32; 3 * c];
-                let mut dfeat = vec![0f32; 3 * c];
-                let mut dp = if want_position_grad {
-                    vec![0f32; nr * 3]
-                } else {
-                    Vec::new()
-                };
-                for (i, g) in dx.chunks_exact(wx + wt).enumerate() {
-                    let r = r0 + i;
-                    let gp = self.triplane.backward_row(
-                        &planes,
-                        &cache.positions[r * 3..r * 3 + 3],
-                        &g[..wx],
-                        &mut acc.0,
-                        &mut feat,
-                        &mut dfeat,
-                    );
-                    self.bspline
-                        .backward_row(&ctrl, cache.times[r], &g[wx..], &mut acc.1);
-                    if want_position_grad {
-                        dp[i * 3..i * 3 + 3].copy_from_slice(&gp);
-                    }
-                }
+                let mut dp = vec![0f32; nr * 3];
+                vectorised(BackwardRows {
+                    net: self,
+                    planes: &planes,
+                    ctrl: &ctrl,
+                    positions: &cache.positions[r0 * 3..(r0 + nr) * 3],
+                    times: &cache.times[r0..r0 + nr],
+                    d_features: dx,
+                    d_planes: &mut acc.0,
+                    d_controls: &mut acc.1,
+                    d_positions: &mut dp,
+                    feat: &mut vec![0f32; 3 * c],
+                    dfeat: &mut vec![0f32; 3 * c],
+                });
                 if want_position_grad {
                     acc.2.push((r0, dp));
                 }
@@ -206,7 +240,9 @@ impl ObservationNet {
         let positions = want_position_grad.then(|| {
             let mut out = vec![0f32; rows * 3];
             for (r0, block) in pos_blocks {
-                out[r0 * 3..r0 * 3 + block.len()].copy_from_slice(&block);
+                for (&r, g) in cache.order[r0..].iter().zip(block.chunks_exact(3)) {
+                    out[r * 3..r * 3 + 3].copy_from_slice(g);
+                }
             }
             out
         });
@@ -216,6 +252,81 @@ impl ObservationNet {
             mlp,
             positions,
         })
+    }
+}
+
+/// Encodes a block of rows (positions and times) into the decoder's input block `out`.
+struct EncodeRows<'a> {
+    net: &'a ObservationNet,
+    planes: &'a [f32],
+    ctrl: &'a [f32],
+    positions: &'a [f32],
+    times: &'a [f32],
+    out: &'a mut [f32],
+    feat: &'a mut [f32],
+}
+
+impl Kernel for EncodeRows<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run(self) {
+        let wx = self.net.triplane.output_width();
+        let width = wx + self.net.bspline.output_width();
+        for ((row, p), &t) in self
+            .out
+            .chunks_exact_mut(width)
+            .zip(self.positions.chunks_exact(3))
+            .zip(self.times)
+        {
+            let (fx, ft) = row.split_at_mut(wx);
+            self.net.triplane.encode_row(self.planes, p, fx, self.feat);
+            self.net.bspline.encode_row(self.ctrl, t, ft);
+        }
+    }
+}
+
+/// Backward of the encoders over a block of rows: adds the plane and control gradients into
+/// `d_planes` and `d_controls`, writes the position gradients into `d_positions` (rows × 3).
+struct BackwardRows<'a> {
+    net: &'a ObservationNet,
+    planes: &'a [f32],
+    ctrl: &'a [f32],
+    positions: &'a [f32],
+    times: &'a [f32],
+    d_features: &'a [f32],
+    d_planes: &'a mut [f32],
+    d_controls: &'a mut [f32],
+    d_positions: &'a mut [f32],
+    feat: &'a mut [f32],
+    dfeat: &'a mut [f32],
+}
+
+impl Kernel for BackwardRows<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run(self) {
+        let wx = self.net.triplane.output_width();
+        let width = wx + self.net.bspline.output_width();
+        for (((g, p), &t), dp) in self
+            .d_features
+            .chunks_exact(width)
+            .zip(self.positions.chunks_exact(3))
+            .zip(self.times)
+            .zip(self.d_positions.chunks_exact_mut(3))
+        {
+            let gp = self.net.triplane.backward_row(
+                self.planes,
+                p,
+                &g[..wx],
+                self.d_planes,
+                self.feat,
+                self.dfeat,
+            );
+            self.net
+                .bspline
+                .backward_row(self.ctrl, t, &g[wx..], self.d_controls);
+            dp.copy_from_slice(&gp);
+        }
     }
 }
 
@@ -443,5 +554,87 @@ impl Parameters for DeformNet {
     }
     fn named_params_mut(&mut self) -> Vec<(String, StoreMut<'_>)> {
         prefixed("mlp", self.mlp.named_params_mut()).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::encoding::triplane::PlaneCombine;
+
+    /// The encoder kernels give bit-identical results compiled for AVX2 (dispatched) and for the
+    /// baseline target (called directly).
+    #[test]
+    fn encoder_kernels_are_bit_identical_with_and_without_avx2() {
+        for combine in [PlaneCombine::Product, PlaneCombine::Concat] {
+            let net = ObservationNet::new(ObservationConfig {
+                triplane: TriPlaneConfig::new(5, &[4, 7], combine),
+                bspline: BSplineConfig::new(6, 3),
+                width: 8,
+                hidden_layers: 1,
+                output: 2,
+                precision: Precision::F32,
+                seed: 5,
+            })
+            .unwrap();
+            let rows = 37;
+            let positions: Vec<f32> = (0..rows * 3)
+                .map(|i| ((i * 37) % 29) as f32 / 12.0 - 1.2)
+                .collect();
+            let times: Vec<f32> = (0..rows).map(|i| i as f32 / (rows - 1) as f32).collect();
+            let (planes, ctrl) = (net.triplane.planes_f32(), net.bspline.controls_f32());
+            let c = net.triplane.config().channels;
+            let width = net.triplane.output_width() + net.bspline.output_width();
+            let encode = |avx: bool| {
+                let mut out = vec![0f32; rows * width];
+                let k = EncodeRows {
+                    net: &net,
+                    planes: &planes,
+                    ctrl: &ctrl,
+                    positions: &positions,
+                    times: &times,
+                    out: &mut out,
+                    feat: &mut vec![0f32; 3 * c],
+                };
+                if avx {
+                    vectorised(k)
+                } else {
+                    k.run()
+                }
+                out
+            };
+            assert_eq!(encode(true), encode(false));
+            let d_features: Vec<f32> = (0..rows * width)
+                .map(|i| ((i * 13) % 17) as f32 / 8.0 - 1.0)
+                .collect();
+            let backward = |avx: bool| {
+                let mut d_planes = vec![0f32; net.triplane.param_count()];
+                let mut d_controls = vec![0f32; net.bspline.param_count()];
+                let mut d_positions = vec![0f32; rows * 3];
+                let k = BackwardRows {
+                    net: &net,
+                    planes: &planes,
+                    ctrl: &ctrl,
+                    positions: &positions,
+                    times: &times,
+                    d_features: &d_features,
+                    d_planes: &mut d_planes,
+                    d_controls: &mut d_controls,
+                    d_positions: &mut d_positions,
+                    feat: &mut vec![0f32; 3 * c],
+                    dfeat: &mut vec![0f32; 3 * c],
+                };
+                if avx {
+                    vectorised(k)
+                } else {
+                    k.run()
+                }
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                (bits(&d_planes), bits(&d_controls), bits(&d_positions))
+            };
+            let (a, b) = (backward(true), backward(false));
+            assert!(a.0.iter().any(|&x| x != 0));
+            assert_eq!(a, b);
+        }
     }
 }

@@ -13,7 +13,7 @@ use rayon::prelude::*;
 
 use crate::reduce::{add_into, fold_in_order};
 
-use super::ENC_ROWS;
+use super::{ENC_ROWS, dot};
 use crate::error::{NnError, check_len};
 use crate::precision::{Precision, Store, StoreMut, StoreRef};
 
@@ -87,6 +87,7 @@ pub struct BSplineGrads {
 }
 
 /// The four basis values at `u`.
+#[inline(always)]
 pub fn basis(u: f32) -> [f32; 4] {
     let (u2, u3) = (u * u, u * u * u);
     let v = 1.0 - u;
@@ -99,6 +100,7 @@ pub fn basis(u: f32) -> [f32; 4] {
 }
 
 /// The four basis derivatives d/du at `u`.
+#[inline(always)]
 pub fn basis_derivative(u: f32) -> [f32; 4] {
     let v = 1.0 - u;
     [
@@ -160,6 +162,7 @@ impl BSplineTime {
     }
 
     /// Segment `k`, local `u`, and `ds/dt` (0 where t was clamped).
+    #[inline(always)]
     pub fn segment(&self, t: f32) -> (usize, f32, f32) {
         let segs = (self.config.controls - 3) as f32;
         let inside = (0.0..=1.0).contains(&t);
@@ -184,6 +187,7 @@ impl BSplineTime {
     }
 
     /// Encodes one time into `out` (E values).
+    #[inline(always)]
     pub(crate) fn encode_row(&self, ctrl: &[f32], t: f32, out: &mut [f32]) {
         let e = self.config.width;
         let (k, u, _) = self.segment(t);
@@ -196,6 +200,7 @@ impl BSplineTime {
     }
 
     /// Backward of one row: adds dL/d(controls) into `acc`, returns dL/dt.
+    #[inline(always)]
     pub(crate) fn backward_row(&self, ctrl: &[f32], t: f32, go: &[f32], acc: &mut [f32]) -> f32 {
         let e = self.config.width;
         let (k, u, ds) = self.segment(t);
@@ -203,16 +208,10 @@ impl BSplineTime {
         let mut gt = 0f32;
         for j in 0..4 {
             let off = (k + j) * e;
-            let mut dot = 0f32;
-            for ((a, &g), &c) in acc[off..off + e]
-                .iter_mut()
-                .zip(go)
-                .zip(&ctrl[off..off + e])
-            {
+            for (a, &g) in acc[off..off + e].iter_mut().zip(go) {
                 *a += b[j] * g;
-                dot += g * c;
             }
-            gt += db[j] * dot;
+            gt += db[j] * dot(go, &ctrl[off..off + e]);
         }
         gt * ds
     }

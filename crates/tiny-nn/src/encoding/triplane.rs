@@ -19,7 +19,7 @@ use rayon::prelude::*;
 
 use crate::reduce::{add_into, fold_in_order};
 
-use super::ENC_ROWS;
+use super::{ENC_ROWS, dot};
 use crate::error::{NnError, check_len};
 use crate::precision::{Precision, Store, StoreMut, StoreRef};
 
@@ -31,6 +31,11 @@ pub enum PlaneCombine {
     /// Multiply the three planes' features element-wise (C per resolution).
     Product,
 }
+
+/// Bits per axis of the cells of [`TriPlane::spatial_order`].
+const ORDER_BITS: usize = 4;
+/// Cells per axis of [`TriPlane::spatial_order`] (16: 4 × 4 texels of a 64² plane per cell).
+const ORDER_CELLS: usize = 1 << ORDER_BITS;
 
 /// The planes' axes (a, b): XY, XZ, YZ.
 const PLANE_AXES: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
@@ -217,6 +222,7 @@ impl TriPlane {
     }
 
     /// Normalised, clamped coordinates and whether each axis was inside the box.
+    #[inline(always)]
     fn normalise(&self, p: &[f32]) -> ([f32; 3], [f32; 3]) {
         let mut q = [0f32; 3];
         let mut dq = [0f32; 3];
@@ -234,6 +240,7 @@ impl TriPlane {
         (q, dq)
     }
 
+    #[inline(always)]
     fn lookup(res: usize, c: usize, qa: f32, qb: f32) -> Lookup {
         let half = 0.5 * (res - 1) as f32;
         let fa = (qa + 1.0) * half;
@@ -255,6 +262,46 @@ impl TriPlane {
         }
     }
 
+    /// Writes into `order` a permutation of the rows of `positions` (rows × 3, already checked)
+    /// that visits them in space-filling-curve order: the normalised box is cut into
+    /// [`ORDER_CELLS`]³ cells, cells are taken in Morton (Z) order, and rows inside a cell keep
+    /// their input order (a stable counting sort, so the order is a function of the positions
+    /// alone). Rows that follow one another then sample nearby texels in all three planes, so
+    /// a block of rows reuses the texels (and their gradients) it brings into cache.
+    pub(crate) fn spatial_order(&self, positions: &[f32], order: &mut Vec<usize>) {
+        let rows = positions.len() / 3;
+        let cell_from_q =
+            |v: f32| (((v + 1.0) * 0.5 * ORDER_CELLS as f32) as usize).min(ORDER_CELLS - 1);
+        let keys: Vec<u16> = positions
+            .chunks_exact(3)
+            .map(|p| {
+                let (q, _) = self.normalise(p);
+                let mut key = 0u16;
+                for (axis, &v) in q.iter().enumerate() {
+                    let cell = cell_from_q(v);
+                    for bit in 0..ORDER_BITS {
+                        key |= (((cell >> bit) & 1) as u16) << (3 * bit + axis);
+                    }
+                }
+                key
+            })
+            .collect();
+        let mut start_from_key = vec![0usize; ORDER_CELLS.pow(3) + 1];
+        for &k in &keys {
+            start_from_key[k as usize + 1] += 1;
+        }
+        for k in 1..start_from_key.len() {
+            start_from_key[k] += start_from_key[k - 1];
+        }
+        order.clear();
+        order.resize(rows, 0);
+        for (r, &k) in keys.iter().enumerate() {
+            let slot = &mut start_from_key[k as usize];
+            order[*slot] = r;
+            *slot += 1;
+        }
+    }
+
     /// Checks shapes and finiteness of positions.
     pub(crate) fn check_positions(&self, positions: &[f32], rows: usize) -> Result<(), NnError> {
         check_len("tri-plane positions", rows * 3, positions.len())?;
@@ -273,6 +320,7 @@ impl TriPlane {
     }
 
     /// Encodes one position `p` (3 values) into `out` (output width); `feat` is scratch of `3C`.
+    #[inline(always)]
     pub(crate) fn encode_row(&self, planes: &[f32], p: &[f32], out: &mut [f32], feat: &mut [f32]) {
         let c = self.config.channels;
         let (q, _) = self.normalise(p);
@@ -297,6 +345,7 @@ impl TriPlane {
 
     /// Backward of one row: adds dL/d(planes) into `acc` and returns dL/d(position). `go` is the
     /// row's output gradient; `feat` and `dfeat` are scratch of `3C`.
+    #[inline(always)]
     pub(crate) fn backward_row(
         &self,
         planes: &[f32],
@@ -339,12 +388,10 @@ impl TriPlane {
                 for corner in 0..4 {
                     let base = off + lk.idx[corner];
                     let wt = lk.w[corner];
-                    let texel = &planes[base..base + c];
-                    let mut dot = 0f32;
-                    for ((ac, &d), &t) in acc[base..base + c].iter_mut().zip(df).zip(texel) {
+                    for (ac, &d) in acc[base..base + c].iter_mut().zip(df) {
                         *ac += wt * d;
-                        dot += t * d;
                     }
+                    let dot = dot(&planes[base..base + c], df);
                     gq[a] += lk.dwa[corner] * dot;
                     gq[b] += lk.dwb[corner] * dot;
                 }
@@ -432,8 +479,8 @@ impl TriPlane {
     }
 }
 
-/// `a += b`, returning `a` (a reduction step).
 /// Bilinear sample of `c = out.len()` channels.
+#[inline(always)]
 fn sample(planes: &[f32], off: usize, lk: &Lookup, out: &mut [f32]) {
     out.fill(0.0);
     let c = out.len();
@@ -452,5 +499,44 @@ impl crate::weights::Parameters for TriPlane {
     }
     fn named_params_mut(&mut self) -> Vec<(String, StoreMut<'_>)> {
         vec![("planes".to_string(), self.params.as_mut())]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn cell(v: f32) -> usize {
+        (((v + 1.0) * 0.5 * ORDER_CELLS as f32) as usize).min(ORDER_CELLS - 1)
+    }
+
+    proptest! {
+        /// The order is a permutation that never steps back along the Morton curve of cells and
+        /// keeps input order inside a cell; positions outside the box fall in the border cells.
+        #[test]
+        fn spatial_order_is_a_stable_morton_sort(
+            pts in proptest::collection::vec(-1.5f32..1.5, 0..600),
+        ) {
+            let tp = TriPlaneConfig::new(2, &[4], PlaneCombine::Concat).build().unwrap();
+            let rows = pts.len() / 3;
+            let positions = &pts[..rows * 3];
+            let mut order = vec![7; 3];
+            tp.spatial_order(positions, &mut order);
+            let mut seen = order.clone();
+            seen.sort_unstable();
+            prop_assert_eq!(seen, (0..rows).collect::<Vec<_>>());
+            // Morton key from the definition: bit b of axis a at position 3b + a.
+            let key = |r: usize| {
+                (0..3).map(|a| {
+                    let c = cell(positions[r * 3 + a].clamp(-1.0, 1.0));
+                    (0..ORDER_BITS).map(|b| ((c >> b) & 1) << (3 * b + a)).sum::<usize>()
+                }).sum::<usize>()
+            };
+            for w in order.windows(2) {
+                let (ka, kb) = (key(w[0]), key(w[1]));
+                prop_assert!(ka < kb || (ka == kb && w[0] < w[1]), "{:?}", w);
+            }
+        }
     }
 }
