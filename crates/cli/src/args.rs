@@ -77,6 +77,17 @@ pub struct TrainArgs {
     #[arg(long, value_name = "pos,rot,scale[,opacity,colour]")]
     pub components: Option<String>,
 
+    /// EvoGS motion floor: below this speed per frame spacing, as a fraction of the scene
+    /// extent, a Gaussian counts as still and its angular deviation θ is 0 [default: the
+    /// trainer's, see the README's EvoGS section].
+    #[arg(long, value_name = "F")]
+    pub motion_floor: Option<f32>,
+
+    /// Print, with each progress line, EvoGS's motion statistics since the last line: samples
+    /// per decade of speed / extent with their mean θ (a diagnostic of the uncertainty trigger).
+    #[arg(long)]
+    pub motion_report: bool,
+
     /// Settings preset: paper (D-3DGS reference, width 256, 40K iterations), cpu (400×400 on
     /// 2 cores, width 64, 3K iterations), tiny (CI, width 32, 300 iterations).
     #[arg(long, default_value = "cpu")]
@@ -97,7 +108,7 @@ pub struct TrainArgs {
     /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
     #[arg(
         long,
-        conflicts_with_all = ["data", "method", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components"]
+        conflicts_with_all = ["data", "method", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor"]
     )]
     pub resume: bool,
 

@@ -71,6 +71,12 @@ pub trait Backbone: Send {
         Ok(DensifyCues::default())
     }
 
+    /// Motion statistics (|v1|, |v2|, θ per Gaussian) of the last training step, when it had
+    /// three history frames (none for D-3DGS).
+    fn motion_stats(&self) -> Option<&[evo_state::Stats]> {
+        None
+    }
+
     /// The latest training step's deformation for deformation-aware densification (none for
     /// D-3DGS).
     fn latest_deformation(&self) -> Option<densify::Deformation<'_>> {

@@ -48,6 +48,7 @@ pub fn evo_config(settings: &EvoSettings, extent: f32) -> EvoConfig {
         history: settings.history.to_mode(),
         lambda_sup: settings.lambda_sup,
         lambda_prior: settings.lambda_prior,
+        motion_floor: settings.motion_floor,
         ..EvoConfig::default()
     }
 }
@@ -416,6 +417,10 @@ impl Backbone for EvoBackbone {
             residual_norm: residual_norms(&t.step, &t.z, &layout, extent)?,
             theta: thetas(&t.step),
         })
+    }
+
+    fn motion_stats(&self) -> Option<&[evo_state::Stats]> {
+        self.training.as_ref().and_then(|t| t.step.stats())
     }
 
     fn latest_deformation(&self) -> Option<Deformation<'_>> {

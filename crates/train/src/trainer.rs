@@ -34,6 +34,7 @@ use crate::error::TrainError;
 use crate::evo_settings::DensifyPolicy;
 use crate::init::random_gaussians;
 use crate::metrics::{ImageSize, photometric_loss, psnr};
+use crate::motion_report::{MotionReport, pixels_per_unit};
 use crate::state::SceneState;
 use crate::timers::{Phase, PhaseTimes};
 
@@ -304,6 +305,33 @@ impl Trainer {
             gaussians: self.state.len(),
             densified,
         })
+    }
+
+    /// An empty [`MotionReport`] for this run: its extent, the training cameras' pixels per
+    /// scene unit at the centroid of the canonical means, and the trigger's τ_θ (densify's
+    /// default when the run has no trigger).
+    pub fn new_motion_report(&self) -> MotionReport {
+        let means = &self.state.gaussians.means;
+        let centre = if means.is_empty() {
+            glam::Vec3::ZERO
+        } else {
+            means
+                .iter()
+                .map(|m| glam::Vec3::from(*m))
+                .sum::<glam::Vec3>()
+                / means.len() as f32
+        };
+        let tau = self.densify.trigger.unwrap_or_default().tau_theta;
+        MotionReport::new(
+            self.extent,
+            pixels_per_unit(&self.train.cameras(), centre),
+            tau,
+        )
+    }
+
+    /// Motion statistics of the last training step (EvoGS with three history frames only).
+    pub fn motion_stats(&self) -> Option<&[evo_state::Stats]> {
+        self.backbone.motion_stats()
     }
 
     /// The deformed Gaussians at `time` (canonical ones when the run has not reached the end of
