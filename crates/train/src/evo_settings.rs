@@ -14,9 +14,9 @@
 //! [`TRAINER_MOTION_FLOOR`] for the measurement and the reasoning.
 //!
 //! The settings are recorded in `config.json` for every method; only `--method evogs` uses them
-//! (the baseline ignores them). Opacity and colour components parse and are recorded, but the
-//! trainer's deformed geometry holds position, rotation and scale only, so [`EvoSettings::validate`]
-//! refuses them for training (a clear error, not a silent drop).
+//! (the baseline ignores them, except that it refuses opacity and colour components: D-3DGS's
+//! network has heads for position, rotation and scale only). EvoGS trains every component:
+//! opacity adds to the opacity logit, colour to the SH DC coefficients (SPEC §4).
 
 use std::fmt;
 use std::str::FromStr;
@@ -387,15 +387,6 @@ impl EvoSettings {
             return Err(TrainError::config(
                 "evogs.components",
                 "at least one component is needed",
-            ));
-        }
-        if c.opacity || c.colour {
-            return Err(TrainError::config(
-                "evogs.components",
-                format!(
-                    "`{c}`: the trainer deforms position, rotation and scale only; opacity and \
-                     colour components are not supported yet"
-                ),
             ));
         }
         if let GainSetting::Fixed(k) = self.gain

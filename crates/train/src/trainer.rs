@@ -215,7 +215,11 @@ impl Trainer {
             None
         };
         t = self.times.lap(Phase::NetForward, t);
-        let geometry = DeformedGeometry::new(&self.state.gaussians, d.as_deref());
+        let geometry = DeformedGeometry::new(
+            &self.state.gaussians,
+            d.as_deref(),
+            self.backbone.appearance(),
+        );
         let gview = geometry.view(&self.state.gaussians);
         let view = &self.train.views[vi];
         let opts = RenderOptions {
@@ -240,7 +244,7 @@ impl Trainer {
         )?;
         t = self.times.lap(Phase::RasterBackward, t);
         let net_grads = if deforms {
-            let dd = deformation_gradient(&grads.means, &grads.rotations, &grads.log_scales);
+            let dd = deformation_gradient(&grads, self.state.gaussians.sh_stride());
             Some(self.backbone.backward(&dd)?)
         } else {
             None
@@ -355,7 +359,10 @@ pub fn deformed_gaussians(
     } else {
         None
     };
-    Ok(DeformedGeometry::new(canonical, d.as_deref()).into_gaussians(canonical))
+    Ok(
+        DeformedGeometry::new(canonical, d.as_deref(), backbone.appearance())
+            .into_gaussians(canonical),
+    )
 }
 
 #[cfg(test)]
