@@ -78,8 +78,8 @@ pub struct TrainArgs {
     pub components: Option<String>,
 
     /// EvoGS motion floor: below this speed per frame spacing, as a fraction of the scene
-    /// extent, a Gaussian counts as still and its angular deviation θ is 0 [default: the
-    /// trainer's, see the README's EvoGS section].
+    /// extent, a Gaussian counts as still and its angular deviation θ is 0 [default: 1e-3, the
+    /// trainer's; SPEC's 1e-6 is far below the noise, see the README's EvoGS section].
     #[arg(long, value_name = "F", allow_negative_numbers = true)]
     pub motion_floor: Option<f32>,
 
