@@ -62,7 +62,7 @@ impl MotionReport {
 
     /// The bin of a speed relative to the extent.
     fn bin(relative: f64) -> usize {
-        if !(relative > 0.0) {
+        if relative.is_nan() || relative <= 0.0 {
             return 0;
         }
         let decade = relative.log10().floor() as i64;
