@@ -83,6 +83,11 @@ pub struct TrainArgs {
     #[arg(long, value_name = "F", allow_negative_numbers = true)]
     pub motion_floor: Option<f32>,
 
+    /// EvoGS: factor on the network learning rate for Φ's tri-plane features and B-spline
+    /// controls [default: 1] (4DGaussians trains its grids at 10× its MLP's rate).
+    #[arg(long, value_name = "S")]
+    pub grid_lr_scale: Option<f32>,
+
     /// Print, with each progress line, EvoGS's motion statistics since the last line: samples
     /// per decade of speed / extent with their mean θ (a diagnostic of the uncertainty trigger).
     #[arg(long)]
@@ -108,7 +113,7 @@ pub struct TrainArgs {
     /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
     #[arg(
         long,
-        conflicts_with_all = ["data", "method", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor"]
+        conflicts_with_all = ["data", "method", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale"]
     )]
     pub resume: bool,
 

@@ -52,6 +52,9 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     if let Some(v) = args.motion_floor {
         e.motion_floor = v;
     }
+    if let Some(v) = args.grid_lr_scale {
+        e.grid_lr_scale = v;
+    }
     config.seed = args.seed;
     config.validate()?;
     Ok(config)

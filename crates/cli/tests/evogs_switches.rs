@@ -124,6 +124,11 @@ fn each_switch_reaches_the_config() {
             ),
         ),
         (
+            &["--grid-lr-scale", "10"],
+            |e| e.grid_lr_scale.to_string(),
+            10f32.to_string(),
+        ),
+        (
             &["--motion-floor", "5e-4"],
             |e| e.motion_floor.to_string(),
             5e-4f32.to_string(),
@@ -153,6 +158,7 @@ fn bad_switch_values_name_the_setting() {
         (&["--components", "pos,pos"][..], "components"),
         (&["--components", "velocity"][..], "components"),
         (&["--motion-floor", "-1"][..], "evogs.motion_floor"),
+        (&["--grid-lr-scale", "0"][..], "evogs.grid_lr_scale"),
     ] {
         let e = format!("{:#}", config(flags).unwrap_err());
         assert!(e.contains(&format!("`{field}`")), "{flags:?}: {e}");

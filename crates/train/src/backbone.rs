@@ -49,6 +49,11 @@ pub trait Backbone: Send {
     /// The same buffers, mutable.
     fn params_mut(&mut self) -> Vec<(String, StoreMut<'_>)>;
 
+    /// Factor on the network lr schedule for the parameter buffer `name` (1 for D-3DGS).
+    fn lr_scale(&self, _name: &str) -> f32 {
+        1.0
+    }
+
     /// Which appearance columns of its rows the backbone deforms (none for D-3DGS).
     fn appearance(&self) -> Appearance {
         Appearance::default()

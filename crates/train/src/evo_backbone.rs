@@ -417,6 +417,14 @@ impl Backbone for EvoBackbone {
         })
     }
 
+    fn lr_scale(&self, name: &str) -> f32 {
+        if name.starts_with("phi.triplane") || name.starts_with("phi.bspline") {
+            self.settings.grid_lr_scale
+        } else {
+            1.0
+        }
+    }
+
     fn appearance(&self) -> Appearance {
         let c = self.settings.components;
         Appearance {

@@ -319,10 +319,21 @@ pub struct EvoSettings {
     /// `config.json` files: SPEC's 1e-6, which those runs were trained with.
     #[serde(default = "spec_motion_floor")]
     pub motion_floor: f32,
+    /// `--grid-lr-scale`: factor on the network lr for Φ's tri-plane features and B-spline
+    /// controls (the decoder MLP and Ψ keep the network lr). 1 (the default) trains all of Φ
+    /// at D-3DGS's deformation-network lr; grid-based deformation fields (4DGaussians) train
+    /// their grids at 10× their MLP's lr. Absent in older `config.json` files: 1.
+    #[serde(default = "unit_scale")]
+    pub grid_lr_scale: f32,
     /// λ1, weight of L_sup (0.5).
     pub lambda_sup: f32,
     /// λ2, weight of L_prior (0.5).
     pub lambda_prior: f32,
+}
+
+/// serde's default of [`EvoSettings::grid_lr_scale`].
+fn unit_scale() -> f32 {
+    1.0
 }
 
 /// serde's default of [`EvoSettings::motion_floor`]: SPEC §4's (evo-state's) default.
@@ -373,6 +384,7 @@ impl Default for EvoSettings {
             bspline_width: 8,
             hidden_layers: 2,
             motion_floor: TRAINER_MOTION_FLOOR,
+            grid_lr_scale: 1.0,
             lambda_sup: 0.5,
             lambda_prior: 0.5,
         }
@@ -419,6 +431,12 @@ impl EvoSettings {
             return Err(TrainError::config(
                 "evogs.motion_floor",
                 format!("{}: must be finite and non-negative", self.motion_floor),
+            ));
+        }
+        if !(self.grid_lr_scale.is_finite() && self.grid_lr_scale > 0.0) {
+            return Err(TrainError::config(
+                "evogs.grid_lr_scale",
+                format!("{}: must be finite and positive", self.grid_lr_scale),
             ));
         }
         for (field, v) in [
