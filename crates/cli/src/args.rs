@@ -84,7 +84,7 @@ pub struct TrainArgs {
     pub motion_floor: Option<f32>,
 
     /// EvoGS: factor on the network learning rate for Φ's tri-plane features and B-spline
-    /// controls [default: 1] (4DGaussians trains its grids at 10× its MLP's rate).
+    /// controls [default: 10, as grid-based deformation fields (4DGaussians) train their grids].
     #[arg(long, value_name = "S")]
     pub grid_lr_scale: Option<f32>,
 
