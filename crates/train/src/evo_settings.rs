@@ -11,7 +11,9 @@
 //!
 //! The motion floor ([`EvoSettings::motion_floor`], `--motion-floor`) is the trainer's own,
 //! 1e-3 of the scene extent per frame spacing instead of SPEC §4's 1e-6: see
-//! [`TRAINER_MOTION_FLOOR`] for the measurement and the reasoning.
+//! [`TRAINER_MOTION_FLOOR`] for the measurement and the reasoning. Φ's tri-plane and B-spline
+//! train at 10× the network lr ([`EvoSettings::grid_lr_scale`], `--grid-lr-scale`; see
+//! [`TRAINER_GRID_LR_SCALE`]).
 //!
 //! The settings are recorded in `config.json` for every method; only `--method evogs` uses them
 //! (the baseline ignores them, except that it refuses opacity and colour components: D-3DGS's
