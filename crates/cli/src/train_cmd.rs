@@ -49,6 +49,12 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     if let Some(v) = &args.components {
         e.components = v.parse()?;
     }
+    if let Some(v) = args.motion_floor {
+        e.motion_floor = v;
+    }
+    if let Some(v) = args.grid_lr_scale {
+        e.grid_lr_scale = v;
+    }
     config.seed = args.seed;
     config.validate()?;
     Ok(config)
@@ -85,7 +91,15 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
     );
     let started = Instant::now();
     let mut first = None;
+    let mut motion: Option<evogs_train::motion_report::MotionReport> = None;
     let summary = train(&request, &mut |report, trainer| {
+        if args.motion_report
+            && let Some(stats) = trainer.motion_stats()
+        {
+            motion
+                .get_or_insert_with(|| trainer.new_motion_report())
+                .add(stats);
+        }
         let total = trainer.config.iterations;
         let start = *first.get_or_insert(report.iteration - 1);
         bar.set_length(total);
@@ -104,6 +118,13 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
                 "iteration {}/{total}: {msg}, {rate:.2} it/s, ETA {eta:.0} s",
                 report.iteration
             );
+        }
+        if let Some(m) = motion.as_mut()
+            && report.iteration.is_multiple_of(every)
+            && m.samples() > 0
+        {
+            bar.suspend(|| eprint!("{}", m.table()));
+            m.reset();
         }
     })?;
     bar.finish_and_clear();

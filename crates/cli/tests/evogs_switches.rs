@@ -111,6 +111,28 @@ fn each_switch_reaches_the_config() {
             |e| format!("{:?}", e.components),
             format!("{:?}", comps(false, true, true)),
         ),
+        (
+            &["--components", "pos,rot,scale,opacity,colour"],
+            |e| format!("{:?}", e.components),
+            format!(
+                "{:?}",
+                Components {
+                    opacity: true,
+                    colour: true,
+                    ..comps(true, true, true)
+                }
+            ),
+        ),
+        (
+            &["--grid-lr-scale", "10"],
+            |e| e.grid_lr_scale.to_string(),
+            10f32.to_string(),
+        ),
+        (
+            &["--motion-floor", "5e-4"],
+            |e| e.motion_floor.to_string(),
+            5e-4f32.to_string(),
+        ),
     ];
     for (flags, get, want) in table {
         let c = config(flags).unwrap_or_else(|e| panic!("{flags:?}: {e:#}"));
@@ -135,15 +157,34 @@ fn bad_switch_values_name_the_setting() {
         (&["--net-precision", "bf16"][..], "precision"),
         (&["--components", "pos,pos"][..], "components"),
         (&["--components", "velocity"][..], "components"),
-        // Parsed, but the trainer deforms geometry only.
-        (
-            &["--components", "pos,rot,scale,opacity"][..],
-            "evogs.components",
-        ),
+        (&["--motion-floor", "-1"][..], "evogs.motion_floor"),
+        (&["--grid-lr-scale", "0"][..], "evogs.grid_lr_scale"),
     ] {
         let e = format!("{:#}", config(flags).unwrap_err());
         assert!(e.contains(&format!("`{field}`")), "{flags:?}: {e}");
     }
+    // The baseline's network has geometric heads only: opacity and colour are refused for it.
+    let cli = Cli::try_parse_from([
+        "evogs",
+        "train",
+        "--data",
+        "d",
+        "--out",
+        "o",
+        "--method",
+        "baseline",
+        "--components",
+        "pos,rot,scale,colour",
+    ])
+    .unwrap();
+    let Command::Train(args) = cli.command else {
+        unreachable!("parsed a train command")
+    };
+    let e = format!("{:#}", config_from_args(&args).unwrap_err());
+    assert!(
+        e.contains("`evogs.components`") && e.contains("--method evogs"),
+        "{e}"
+    );
     let e = Cli::try_parse_from(["evogs", "train", "--out", "o", "--resume", "--gain", "0"])
         .unwrap_err()
         .to_string();

@@ -156,6 +156,8 @@ fn trains_evaluates_renders_and_exports_a_tiny_scene() {
         image::image_dimensions(sweep.join("strip.png")).unwrap(),
         (72, 20)
     );
+    // Beyond the training range: accepted (the network's extrapolation); non-finite: refused.
+    let beyond = dir.path().join("beyond.png");
     let o = evogs(&[
         "render",
         "--run",
@@ -165,10 +167,23 @@ fn trains_evaluates_renders_and_exports_a_tiny_scene() {
         "--time",
         "1.5",
         "--out",
+        s(&beyond),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(image::image_dimensions(&beyond).unwrap(), (24, 20));
+    let o = evogs(&[
+        "render",
+        "--run",
+        s(&run),
+        "--camera",
+        s(&cam),
+        "--time",
+        "inf",
+        "--out",
         s(&img),
     ]);
     assert!(!o.status.success());
-    assert!(stderr(&o).contains("outside [0, 1]"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("not a finite number"), "{}", stderr(&o));
 }
 
 fn one_line_error(o: &Output) -> String {

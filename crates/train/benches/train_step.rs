@@ -1,16 +1,18 @@
 //! One training iteration (render, loss, backward, backbone backward, Adam) of the baseline and of
 //! EvoGS on the embedded synthetic scene (64×64), after the warm-up, with densification off so
-//! both methods run on the same 2 000 Gaussians and every measured iteration runs the network.
+//! both methods run on the same 2 000 Gaussians and every measured iteration runs the network;
+//! plus EvoGS with the opacity and colour components (D = 14 instead of 10).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use evogs_io::Split;
 use evogs_train::data::load_split;
 use evogs_train::synth::{embedded_scene, write_dnerf};
-use evogs_train::{Method, Preset, TrainConfig, Trainer};
+use evogs_train::{Components, Method, Preset, TrainConfig, Trainer};
 
-fn trainer(method: Method, data: &std::path::Path) -> Trainer {
+fn trainer(method: Method, components: Components, data: &std::path::Path) -> Trainer {
     let mut c = TrainConfig::preset(Preset::Tiny).with_iterations(1_000_000);
     c.method = method;
+    c.evogs.components = components;
     c.warm_up = 50;
     c.densify.from = 999_999;
     c.densify.until = 1_000_000;
@@ -27,10 +29,16 @@ fn bench(c: &mut Criterion) {
     let data = dir.path().join("scene");
     write_dnerf(&embedded_scene().unwrap(), &data).unwrap();
     let mut group = c.benchmark_group("train_step_embedded_64x64");
-    for method in [Method::Baseline, Method::Evogs] {
-        let mut t = trainer(method, &data);
+    let geometry = Components::default();
+    let every: Components = "pos,rot,scale,opacity,colour".parse().unwrap();
+    for (method, components, label) in [
+        (Method::Baseline, geometry, ""),
+        (Method::Evogs, geometry, ""),
+        (Method::Evogs, every, " +opacity,colour"),
+    ] {
+        let mut t = trainer(method, components, &data);
         let n = t.state.len();
-        group.bench_function(format!("{method} ({n} Gaussians)"), |b| {
+        group.bench_function(format!("{method}{label} ({n} Gaussians)"), |b| {
             b.iter(|| t.step().unwrap())
         });
     }

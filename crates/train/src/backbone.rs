@@ -1,8 +1,10 @@
 //! The deformation-backbone interface and the D-3DGS backbone on it.
 //!
-//! A backbone maps the canonical Gaussians and a time to per-Gaussian deformations, N × 10 rows
-//! `[position 3, rotation 4, scale 3]` added to the raw mean, raw quaternion and log-scale
-//! ([`DEFORM_DIM`]). It keeps what its backward pass needs from the last forward, exposes its
+//! A backbone maps the canonical Gaussians and a time to per-Gaussian deformations, N × 14 rows
+//! `[position 3, rotation 4, scale 3, opacity 1, colour 3]` added to the raw mean, raw
+//! quaternion, log-scale, opacity logit and SH DC ([`DEFORM_DIM`]). The appearance columns are
+//! used only where the backbone says so ([`Backbone::appearance`]; EvoGS's optional components);
+//! D-3DGS deforms geometry only and leaves them zero. It keeps what its backward pass needs from the last forward, exposes its
 //! parameter buffers (for Adam, checkpoints and weight files) and, when it holds per-Gaussian
 //! rows of its own (EvoGS's evolution state, issue T2), hands them to densification so they
 //! stay aligned with the Gaussians.
@@ -14,10 +16,13 @@ use splat_raster::GaussiansView;
 use tiny_nn::{DeformCache, DeformConfig, DeformNet, Parameters, Precision, StoreMut, StoreRef};
 
 use crate::config::NetSettings;
+use crate::deformed::Appearance;
 use crate::error::TrainError;
 
-/// Width of a deformation row: position 3, rotation 4, scale 3.
-pub const DEFORM_DIM: usize = 10;
+/// Width of a deformation row: position 3, rotation 4, scale 3, opacity 1, colour (SH DC) 3.
+pub const DEFORM_DIM: usize = 14;
+/// The geometric part of a row (position, rotation, scale): D-3DGS's heads.
+pub const GEOMETRY_DIM: usize = 10;
 
 /// A deformation backbone.
 pub trait Backbone: Send {
@@ -44,6 +49,16 @@ pub trait Backbone: Send {
     /// The same buffers, mutable.
     fn params_mut(&mut self) -> Vec<(String, StoreMut<'_>)>;
 
+    /// Factor on the network lr schedule for the parameter buffer `name` (1 for D-3DGS).
+    fn lr_scale(&self, _name: &str) -> f32 {
+        1.0
+    }
+
+    /// Which appearance columns of its rows the backbone deforms (none for D-3DGS).
+    fn appearance(&self) -> Appearance {
+        Appearance::default()
+    }
+
     /// Per-Gaussian arrays the backbone holds (none for D-3DGS), for densification plans.
     fn rows_mut(&mut self) -> Vec<&mut dyn PerGaussian> {
         Vec::new()
@@ -69,6 +84,12 @@ pub trait Backbone: Send {
     /// Uncertainty cues of the last training step for densification's trigger (none for D-3DGS).
     fn densify_cues(&self, _extent: f32) -> Result<DensifyCues, TrainError> {
         Ok(DensifyCues::default())
+    }
+
+    /// Motion statistics (|v1|, |v2|, θ per Gaussian) of the last training step, when it had
+    /// three history frames (none for D-3DGS).
+    fn motion_stats(&self) -> Option<&[evo_state::Stats]> {
+        None
     }
 
     /// The latest training step's deformation for deformation-aware densification (none for
@@ -164,11 +185,18 @@ impl Backbone for D3dgsBackbone {
         self.times.clear();
         self.times.resize(n, time);
         let mut cache = self.cache.take().unwrap_or_default();
-        let out = self
+        let geometry = self
             .net
             .forward_reusing(&self.positions, &self.times, n, &mut cache)?;
         if training {
             self.cache = Some(cache);
+        }
+        let mut out = vec![0.0f32; n * DEFORM_DIM];
+        for (row, g) in out
+            .chunks_exact_mut(DEFORM_DIM)
+            .zip(geometry.chunks_exact(GEOMETRY_DIM))
+        {
+            row[..GEOMETRY_DIM].copy_from_slice(g);
         }
         Ok(out)
     }
@@ -177,7 +205,11 @@ impl Backbone for D3dgsBackbone {
         let cache = self.cache.as_ref().ok_or_else(|| {
             TrainError::config("backbone", "backward called without a training forward")
         })?;
-        let g = self.net.backward(cache, d_deform, false)?;
+        let geometry: Vec<f32> = d_deform
+            .chunks_exact(DEFORM_DIM)
+            .flat_map(|r| r[..GEOMETRY_DIM].iter().copied())
+            .collect();
+        let g = self.net.backward(cache, &geometry, false)?;
         Ok(vec![g.mlp])
     }
 

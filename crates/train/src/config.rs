@@ -413,6 +413,16 @@ impl TrainConfig {
         if self.method == Method::Evogs {
             self.evogs.validate()?;
         }
+        let c = self.evogs.components;
+        if self.method == Method::Baseline && (c.opacity || c.colour) {
+            return Err(TrainError::config(
+                "evogs.components",
+                format!(
+                    "`{c}`: the baseline (D-3DGS) deforms position, rotation and scale only; \
+                     opacity and colour components need --method evogs"
+                ),
+            ));
+        }
         let lr = &self.lr;
         for (field, v) in [
             ("lr.position_init", lr.position_init),

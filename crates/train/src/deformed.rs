@@ -1,13 +1,28 @@
 //! Adding a backbone's deformation to canonical Gaussians: mean + Δposition, raw quaternion +
 //! Δrotation, log-scale + Δscale (D-3DGS adds `d_rotation` to the raw quaternion and `d_scaling`
-//! to the raw scale before activation, `gaussian_renderer/__init__.py`). Opacity and SH are the
-//! canonical ones.
+//! to the raw scale before activation, `gaussian_renderer/__init__.py`), and, where the backbone
+//! deforms appearance (EvoGS's optional components, SPEC §4), opacity logit + Δopacity and SH DC
+//! + Δcolour. Appearance that is not deformed is read from the canonical Gaussians, never copied.
 
-use splat_raster::{Gaussians, GaussiansView};
+use splat_raster::{Gaussians, GaussiansView, Gradients};
 
 use crate::backbone::DEFORM_DIM;
 
-/// The deformed geometric parameters of every Gaussian.
+/// Which appearance components a backbone deforms (geometry is always deformed).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Appearance {
+    /// Column 10 (opacity logit offset) is used.
+    pub opacity: bool,
+    /// Columns 11..14 (SH DC offset, r g b) are used.
+    pub colour: bool,
+}
+
+/// Column of the opacity-logit offset in a deformation row.
+pub const OPACITY_COLUMN: usize = 10;
+/// First column of the SH DC offset (3 columns) in a deformation row.
+pub const COLOUR_COLUMN: usize = 11;
+
+/// The deformed parameters of every Gaussian.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct DeformedGeometry {
     /// Means.
@@ -16,25 +31,34 @@ pub struct DeformedGeometry {
     pub log_scales: Vec<[f32; 3]>,
     /// Raw quaternions.
     pub rotations: Vec<[f32; 4]>,
+    /// Opacity logits, when the opacity is deformed (else the canonical ones are used).
+    pub opacity_logits: Option<Vec<f32>>,
+    /// SH coefficients, when the colour (SH DC) is deformed (else the canonical ones are used).
+    pub sh: Option<Vec<f32>>,
 }
 
 impl DeformedGeometry {
-    /// Canonical + `d` (N × [`DEFORM_DIM`]); `None` leaves the canonical geometry.
-    pub fn new(canonical: &Gaussians, d: Option<&[f32]>) -> Self {
+    /// Canonical + `d` (N × [`DEFORM_DIM`]; the appearance columns only where `appearance` says);
+    /// `None` leaves the canonical Gaussians.
+    pub fn new(canonical: &Gaussians, d: Option<&[f32]>, appearance: Appearance) -> Self {
         let Some(d) = d else {
             return Self {
                 means: canonical.means.clone(),
                 log_scales: canonical.log_scales.clone(),
                 rotations: canonical.rotations.clone(),
+                opacity_logits: None,
+                sh: None,
             };
         };
-        let rows = d.chunks_exact(DEFORM_DIM);
+        let n = canonical.len();
         let mut out = Self {
-            means: Vec::with_capacity(canonical.len()),
-            log_scales: Vec::with_capacity(canonical.len()),
-            rotations: Vec::with_capacity(canonical.len()),
+            means: Vec::with_capacity(n),
+            log_scales: Vec::with_capacity(n),
+            rotations: Vec::with_capacity(n),
+            opacity_logits: None,
+            sh: None,
         };
-        for (i, r) in rows.enumerate() {
+        for (i, r) in d.chunks_exact(DEFORM_DIM).enumerate() {
             let (m, q, s) = (
                 canonical.means[i],
                 canonical.rotations[i],
@@ -45,18 +69,42 @@ impl DeformedGeometry {
                 .push([q[0] + r[3], q[1] + r[4], q[2] + r[5], q[3] + r[6]]);
             out.log_scales.push([s[0] + r[7], s[1] + r[8], s[2] + r[9]]);
         }
+        if appearance.opacity {
+            out.opacity_logits = Some(
+                canonical
+                    .opacity_logits
+                    .iter()
+                    .zip(d.chunks_exact(DEFORM_DIM))
+                    .map(|(o, r)| o + r[OPACITY_COLUMN])
+                    .collect(),
+            );
+        }
+        if appearance.colour {
+            let stride = canonical.sh_stride();
+            let mut sh = canonical.sh.clone();
+            for (row, r) in sh.chunks_exact_mut(stride).zip(d.chunks_exact(DEFORM_DIM)) {
+                for c in 0..3 {
+                    row[c] += r[COLOUR_COLUMN + c];
+                }
+            }
+            out.sh = Some(sh);
+        }
         out
     }
 
-    /// The deformed Gaussians as the rasterizer reads them (opacity and SH from `canonical`).
+    /// The deformed Gaussians as the rasterizer reads them (undeformed appearance from
+    /// `canonical`).
     pub fn view<'a>(&'a self, canonical: &'a Gaussians) -> GaussiansView<'a> {
         GaussiansView {
             sh_degree: canonical.sh_degree,
             means: &self.means,
             log_scales: &self.log_scales,
             rotations: &self.rotations,
-            opacity_logits: &canonical.opacity_logits,
-            sh: &canonical.sh,
+            opacity_logits: self
+                .opacity_logits
+                .as_deref()
+                .unwrap_or(&canonical.opacity_logits),
+            sh: self.sh.as_deref().unwrap_or(&canonical.sh),
         }
     }
 
@@ -67,24 +115,27 @@ impl DeformedGeometry {
             means: self.means,
             log_scales: self.log_scales,
             rotations: self.rotations,
-            opacity_logits: canonical.opacity_logits.clone(),
-            sh: canonical.sh.clone(),
+            opacity_logits: self
+                .opacity_logits
+                .unwrap_or_else(|| canonical.opacity_logits.clone()),
+            sh: self.sh.unwrap_or_else(|| canonical.sh.clone()),
         }
     }
 }
 
-/// dL/d(deformation) rows from the rasterizer's gradients of the deformed mean, quaternion and
-/// log-scale (the deformation is added, so these are the same gradients).
-pub fn deformation_gradient(
-    means: &[[f32; 3]],
-    rotations: &[[f32; 4]],
-    log_scales: &[[f32; 3]],
-) -> Vec<f32> {
-    let mut out = Vec::with_capacity(means.len() * DEFORM_DIM);
-    for ((m, q), s) in means.iter().zip(rotations).zip(log_scales) {
-        out.extend_from_slice(m);
-        out.extend_from_slice(q);
-        out.extend_from_slice(s);
+/// dL/d(deformation) rows (N × [`DEFORM_DIM`]) from the rasterizer's gradients of the deformed
+/// parameters (the deformation is added, so these are the same gradients): mean, quaternion,
+/// log-scale, opacity logit and the SH DC coefficients (`sh_stride` values per Gaussian).
+pub fn deformation_gradient(grads: &Gradients, sh_stride: usize) -> Vec<f32> {
+    let n = grads.means.len();
+    let mut out = Vec::with_capacity(n * DEFORM_DIM);
+    for i in 0..n {
+        out.extend_from_slice(&grads.means[i]);
+        out.extend_from_slice(&grads.rotations[i]);
+        out.extend_from_slice(&grads.log_scales[i]);
+        out.push(grads.opacity_logits.get(i).copied().unwrap_or(0.0));
+        let dc = grads.sh.get(i * sh_stride..i * sh_stride + 3);
+        out.extend_from_slice(dc.unwrap_or(&[0.0; 3]));
     }
     out
 }
@@ -97,40 +148,63 @@ mod tests {
     proptest! {
         /// The deformation is added to the raw parameters, so for any per-parameter gradient G the
         /// first-order change of `Σ G·params` under a deformation δ is `deformation_gradient(G)·δ`:
-        /// both functions must agree on the order of the 10 components.
+        /// both functions must agree on the order of the 14 components (SH degree 1: only the DC
+        /// coefficients are deformed).
         #[test]
         fn gradient_rows_match_the_order_of_the_deformation(
             n in 1usize..6,
             seed in any::<u64>(),
+            opacity in any::<bool>(),
+            colour in any::<bool>(),
         ) {
             use rand::{RngExt, SeedableRng};
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
             let mut r = || rng.random_range(-1.0f32..1.0);
             let canonical = Gaussians {
-                sh_degree: 0,
+                sh_degree: 1,
                 means: (0..n).map(|_| [r(), r(), r()]).collect(),
                 log_scales: (0..n).map(|_| [r(), r(), r()]).collect(),
                 rotations: (0..n).map(|_| [r(), r(), r(), r()]).collect(),
                 opacity_logits: (0..n).map(|_| r()).collect(),
-                sh: (0..n * 3).map(|_| r()).collect(),
+                sh: (0..n * 12).map(|_| r()).collect(),
             };
-            let delta: Vec<f32> = (0..n * DEFORM_DIM).map(|_| r()).collect();
-            let gm: Vec<[f32; 3]> = (0..n).map(|_| [r(), r(), r()]).collect();
-            let gq: Vec<[f32; 4]> = (0..n).map(|_| [r(), r(), r(), r()]).collect();
-            let gs: Vec<[f32; 3]> = (0..n).map(|_| [r(), r(), r()]).collect();
-            let deformed = DeformedGeometry::new(&canonical, Some(&delta));
+            let appearance = Appearance { opacity, colour };
+            let mut delta: Vec<f32> = (0..n * DEFORM_DIM).map(|_| r()).collect();
+            // Columns of components that are off do nothing: zero them for the prediction.
+            for row in delta.chunks_exact_mut(DEFORM_DIM) {
+                if !opacity { row[OPACITY_COLUMN] = 0.0; }
+                if !colour { row[COLOUR_COLUMN..].fill(0.0); }
+            }
+            let grads = Gradients {
+                means: (0..n).map(|_| [r(), r(), r()]).collect(),
+                rotations: (0..n).map(|_| [r(), r(), r(), r()]).collect(),
+                log_scales: (0..n).map(|_| [r(), r(), r()]).collect(),
+                opacity_logits: (0..n).map(|_| r()).collect(),
+                sh: (0..n * 12).map(|_| r()).collect(),
+                ..Gradients::default()
+            };
+            let deformed = DeformedGeometry::new(&canonical, Some(&delta), appearance);
+            let view = deformed.view(&canonical);
             let dot = |a: &[f32], b: &[f32], c: &[f32]| -> f64 {
                 a.iter().zip(b).zip(c).map(|((g, x), y)| f64::from(*g) * f64::from(x - y)).sum()
             };
-            let change = dot(gm.as_flattened(), deformed.means.as_flattened(), canonical.means.as_flattened())
-                + dot(gq.as_flattened(), deformed.rotations.as_flattened(), canonical.rotations.as_flattened())
-                + dot(gs.as_flattened(), deformed.log_scales.as_flattened(), canonical.log_scales.as_flattened());
-            let rows = deformation_gradient(&gm, &gq, &gs);
+            let change = dot(grads.means.as_flattened(), view.means.as_flattened(), canonical.means.as_flattened())
+                + dot(grads.rotations.as_flattened(), view.rotations.as_flattened(), canonical.rotations.as_flattened())
+                + dot(grads.log_scales.as_flattened(), view.log_scales.as_flattened(), canonical.log_scales.as_flattened())
+                + dot(&grads.opacity_logits, view.opacity_logits, &canonical.opacity_logits)
+                + dot(&grads.sh, view.sh, &canonical.sh);
+            let rows = deformation_gradient(&grads, canonical.sh_stride());
             let predicted: f64 = rows.iter().zip(&delta).map(|(g, d)| f64::from(*g) * f64::from(*d)).sum();
             prop_assert!((change - predicted).abs() < 1e-4, "{change} vs {predicted}");
-            let view = deformed.view(&canonical);
-            prop_assert_eq!(view.opacity_logits, &canonical.opacity_logits[..]);
-            prop_assert_eq!(DeformedGeometry::new(&canonical, None).means, canonical.means.clone());
+            prop_assert_eq!(deformed.opacity_logits.is_some(), opacity);
+            prop_assert_eq!(deformed.sh.is_some(), colour);
+            // Higher SH bands are never deformed.
+            for (a, b) in view.sh.chunks_exact(12).zip(canonical.sh.chunks_exact(12)) {
+                prop_assert_eq!(&a[3..], &b[3..]);
+            }
+            let none = DeformedGeometry::new(&canonical, None, appearance);
+            prop_assert_eq!(none.view(&canonical).means, &canonical.means[..]);
+            prop_assert_eq!(none.into_gaussians(&canonical), canonical.clone());
         }
     }
 }

@@ -14,8 +14,9 @@
 //! state is a per-Gaussian container for densification ([`Backbone::rows_mut`]) and is saved and
 //! loaded whole with evo-state's safetensors format ([`Backbone::save_state`]).
 //!
-//! The trainer deforms position, rotation and scale (N × 10); the evolution layout holds any
-//! subset of them (D <= 10) and [`EvoBackbone`] maps its columns into the 10.
+//! The trainer's deformation rows are N × 14 (position, rotation, scale, opacity, colour); the
+//! evolution layout holds any subset of the components (D <= 14, only enabled ones cost
+//! anything) and [`EvoBackbone`] maps its columns into the 14.
 
 use std::path::Path;
 
@@ -29,6 +30,7 @@ use tiny_nn::{
 
 use crate::backbone::{Backbone, DEFORM_DIM, DensifyCues};
 use crate::config::TrainConfig;
+use crate::deformed::{Appearance, COLOUR_COLUMN, OPACITY_COLUMN};
 use crate::error::TrainError;
 use crate::evo_settings::EvoSettings;
 
@@ -48,6 +50,7 @@ pub fn evo_config(settings: &EvoSettings, extent: f32) -> EvoConfig {
         history: settings.history.to_mode(),
         lambda_sup: settings.lambda_sup,
         lambda_prior: settings.lambda_prior,
+        motion_floor: settings.motion_floor,
         ..EvoConfig::default()
     }
 }
@@ -122,12 +125,8 @@ impl EvoBackbone {
                 evo_state::Component::Position => 0,
                 evo_state::Component::Rotation => 3,
                 evo_state::Component::Scale => 7,
-                other => {
-                    return Err(TrainError::config(
-                        "evogs.components",
-                        format!("{other:?} is not a geometric component the trainer deforms"),
-                    ));
-                }
+                evo_state::Component::Opacity => OPACITY_COLUMN,
+                evo_state::Component::Colour => COLOUR_COLUMN,
             };
             deform_from_evo.extend((0..range.len()).map(|j| base + j));
         }
@@ -416,6 +415,26 @@ impl Backbone for EvoBackbone {
             residual_norm: residual_norms(&t.step, &t.z, &layout, extent)?,
             theta: thetas(&t.step),
         })
+    }
+
+    fn lr_scale(&self, name: &str) -> f32 {
+        if name.starts_with("phi.triplane") || name.starts_with("phi.bspline") {
+            self.settings.grid_lr_scale
+        } else {
+            1.0
+        }
+    }
+
+    fn appearance(&self) -> Appearance {
+        let c = self.settings.components;
+        Appearance {
+            opacity: c.opacity,
+            colour: c.colour,
+        }
+    }
+
+    fn motion_stats(&self) -> Option<&[evo_state::Stats]> {
+        self.training.as_ref().and_then(|t| t.step.stats())
     }
 
     fn latest_deformation(&self) -> Option<Deformation<'_>> {

@@ -11,12 +11,18 @@
 //! - [`state`]: canonical Gaussians, Adam groups and statistics, aligned through densify's plans;
 //! - [`trainer`]: the training loop; [`run`]: run directories, `train` and resume;
 //! - [`checkpoint`]: exact checkpoints; [`eval`], [`render`]: evaluation, rendering, export;
+//! - [`motion_report`]: a diagnostic of EvoGS's motion statistics (speeds and θ by decade);
 //! - [`metrics`]: PSNR, SSIM, the loss with its gradient, flicker, jitter; [`synth`]: synthetic
 //!   scenes in the D-NeRF layout.
 //!
 //! The recipe follows Deformable-3D-Gaussians (`ingra14m/Deformable-3D-Gaussians`: `train.py`,
 //! `arguments/__init__.py`, `scene/deform_model.py`, `utils/time_utils.py`) and 3DGS's
 //! `scene/gaussian_model.py`; each module says what it follows.
+//!
+//! Deliberate deviation from SPEC §4: EvoGS's motion floor is 1e-3 of the scene extent per frame
+//! spacing, not 1e-6 (evo-state keeps SPEC's default; the trainer sets its own, `--motion-floor`).
+//! Below it θ is measurement noise that would block the uncertainty trigger everywhere; see
+//! [`evo_settings::TRAINER_MOTION_FLOOR`] for the measurement and the reasoning.
 //!
 //! What it is not: a rasterizer, a network library, a file-format reader or a command line. Those
 //! are `splat-raster`, `tiny-nn`, `evogs-io` and `evogs-cli`.
@@ -34,6 +40,7 @@ pub mod evo_backbone;
 pub mod evo_settings;
 pub mod init;
 pub mod metrics;
+pub mod motion_report;
 pub mod render;
 pub mod run;
 pub mod state;

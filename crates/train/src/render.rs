@@ -1,5 +1,17 @@
 //! Rendering a run from any camera at any time, time sweeps, and exporting a frame's deformed
 //! Gaussians as a standard 3DGS PLY.
+//!
+//! Any finite time is accepted: between training frames, and before or beyond the training
+//! range [0, 1]. Rendering uses the backbone's read-only query (EvoGS: evo-state's forward,
+//! never committed; nothing is written to the buffer). Outside [0, 1]:
+//! - EvoGS's Φ clamps its cubic B-spline time encoding to [0, 1] (tiny-nn), so z = Φ(x, t) is the
+//!   observation at the nearest end; the evolution's prior uses the latest buffer frames strictly
+//!   before t and extrapolates them linearly, `d̂ = d̃_k1 + s (d̃_k1 − d̃_k2)` with
+//!   `s = (t − t_k1)/(t_k1 − t_k2)`, blended with z by the gain K. Before the first frame there
+//!   is no history and d̃ = z (Φ at t = 0).
+//! - The baseline's sinusoidal time encoding is evaluated as it is (D-3DGS does not clamp).
+//!
+//! Far outside [0, 1] both are extrapolations, not reconstructions.
 
 use std::path::{Path, PathBuf};
 
@@ -10,17 +22,17 @@ use crate::error::TrainError;
 use crate::run::LoadedRun;
 
 fn check_time(time: f32) -> Result<(), TrainError> {
-    if !(0.0..=1.0).contains(&time) {
+    if !time.is_finite() {
         return Err(TrainError::config(
             "time",
-            format!("{time} is outside [0, 1]"),
+            format!("{time} is not a finite number"),
         ));
     }
     Ok(())
 }
 
-/// Renders `run` from `camera` at `time` ∈ [0, 1] over the run's background, colours clamped to
-/// [0, 1].
+/// Renders `run` from `camera` at any finite `time` (see the module docs for times outside
+/// [0, 1]) over the run's background, colours clamped to [0, 1]. Read-only.
 pub fn render_at(run: &mut LoadedRun, camera: &Camera, time: f32) -> Result<ImageRgb, TrainError> {
     check_time(time)?;
     let g = run.deformed(time)?;
@@ -87,7 +99,7 @@ pub fn sweep(
     })
 }
 
-/// Writes the deformed Gaussians of `run` at `time` as a 3DGS PLY (atomically); returns how many.
+/// Writes the deformed Gaussians of `run` at any finite `time` as a 3DGS PLY (atomically); returns how many.
 pub fn export_frame(run: &mut LoadedRun, time: f32, out: &Path) -> Result<usize, TrainError> {
     check_time(time)?;
     let g = run.deformed(time)?;

@@ -98,6 +98,18 @@ pub fn network_schedule(lr: &LrSettings) -> LrSchedule {
     })
 }
 
+/// [`network_schedule`] with both ends multiplied by `scale` (a backbone's per-buffer factor,
+/// [`Backbone::lr_scale`]).
+pub fn scaled_network_schedule(lr: &LrSettings, scale: f32) -> LrSchedule {
+    LrSchedule::Exponential(ExponentialLr {
+        lr_init: lr.position_init * lr.spatial_lr_scale * scale,
+        lr_final: lr.position_final * scale,
+        delay_steps: 0,
+        delay_mult: lr.position_delay_mult,
+        max_steps: lr.deform_max_steps,
+    })
+}
+
 fn rest_width(g: &Gaussians) -> usize {
     g.sh_stride() - 3
 }
@@ -131,7 +143,7 @@ impl SceneState {
                 &format!("net.{name}"),
                 buf.len(),
                 1,
-                network_schedule(lr),
+                scaled_network_schedule(lr, backbone.lr_scale(&name)),
             )?);
         }
         Ok(Self {
@@ -379,6 +391,31 @@ mod tests {
         assert!(err.contains("expected 5"), "{err}");
         assert_eq!(s.gaussians, before);
         assert_eq!(s.adam.group(s.groups.xyz).m.len(), 12);
+    }
+
+    #[test]
+    fn grid_lr_scale_multiplies_only_phis_grid_and_spline() {
+        use crate::config::{Method, Preset, TrainConfig};
+        let mut c = TrainConfig::preset(Preset::Tiny);
+        c.method = Method::Evogs;
+        c.evogs.grid_lr_scale = 10.0;
+        let backbone = crate::evo_backbone::EvoBackbone::new(&c).unwrap();
+        let g = crate::init::random_gaussians(4, 1.0, 0, 0);
+        let s = SceneState::new(g, &backbone, &c.lr).unwrap();
+        let base = network_schedule(&c.lr);
+        let names: Vec<String> = backbone.params().into_iter().map(|(n, _)| n).collect();
+        let mut seen = [0usize; 2];
+        for (name, &id) in names.iter().zip(&s.net_groups) {
+            let sched = &s.adam.group(id).schedule;
+            let grid = name.starts_with("phi.triplane") || name.starts_with("phi.bspline");
+            let want = if grid { 10.0 } else { 1.0 };
+            seen[usize::from(grid)] += 1;
+            for step in [0, 500, 3_000] {
+                let ratio = sched.at(step) / base.at(step);
+                assert!((ratio - want).abs() < 1e-4, "{name} at {step}: {ratio}");
+            }
+        }
+        assert!(seen[0] > 0 && seen[1] > 0, "{names:?}");
     }
 
     #[test]

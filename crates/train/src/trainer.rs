@@ -34,6 +34,7 @@ use crate::error::TrainError;
 use crate::evo_settings::DensifyPolicy;
 use crate::init::random_gaussians;
 use crate::metrics::{ImageSize, photometric_loss, psnr};
+use crate::motion_report::{MotionReport, pixels_per_unit};
 use crate::state::SceneState;
 use crate::timers::{Phase, PhaseTimes};
 
@@ -214,7 +215,11 @@ impl Trainer {
             None
         };
         t = self.times.lap(Phase::NetForward, t);
-        let geometry = DeformedGeometry::new(&self.state.gaussians, d.as_deref());
+        let geometry = DeformedGeometry::new(
+            &self.state.gaussians,
+            d.as_deref(),
+            self.backbone.appearance(),
+        );
         let gview = geometry.view(&self.state.gaussians);
         let view = &self.train.views[vi];
         let opts = RenderOptions {
@@ -239,7 +244,7 @@ impl Trainer {
         )?;
         t = self.times.lap(Phase::RasterBackward, t);
         let net_grads = if deforms {
-            let dd = deformation_gradient(&grads.means, &grads.rotations, &grads.log_scales);
+            let dd = deformation_gradient(&grads, self.state.gaussians.sh_stride());
             Some(self.backbone.backward(&dd)?)
         } else {
             None
@@ -306,6 +311,33 @@ impl Trainer {
         })
     }
 
+    /// An empty [`MotionReport`] for this run: its extent, the training cameras' pixels per
+    /// scene unit at the centroid of the canonical means, and the trigger's τ_θ (densify's
+    /// default when the run has no trigger).
+    pub fn new_motion_report(&self) -> MotionReport {
+        let means = &self.state.gaussians.means;
+        let centre = if means.is_empty() {
+            glam::Vec3::ZERO
+        } else {
+            means
+                .iter()
+                .map(|m| glam::Vec3::from(*m))
+                .sum::<glam::Vec3>()
+                / means.len() as f32
+        };
+        let tau = self.densify.trigger.unwrap_or_default().tau_theta;
+        MotionReport::new(
+            self.extent,
+            pixels_per_unit(&self.train.cameras(), centre),
+            tau,
+        )
+    }
+
+    /// Motion statistics of the last training step (EvoGS with three history frames only).
+    pub fn motion_stats(&self) -> Option<&[evo_state::Stats]> {
+        self.backbone.motion_stats()
+    }
+
     /// The deformed Gaussians at `time` (canonical ones when the run has not reached the end of
     /// its warm-up: the network is not used then).
     pub fn deformed_at(&mut self, time: f32) -> Result<Gaussians, TrainError> {
@@ -327,7 +359,10 @@ pub fn deformed_gaussians(
     } else {
         None
     };
-    Ok(DeformedGeometry::new(canonical, d.as_deref()).into_gaussians(canonical))
+    Ok(
+        DeformedGeometry::new(canonical, d.as_deref(), backbone.appearance())
+            .into_gaussians(canonical),
+    )
 }
 
 #[cfg(test)]

@@ -4,8 +4,8 @@
 //! inputs are constants) match central differences of `L` recomputed from the public pieces (Φ's
 //! forward, evo-state's read-only forward and SPEC §4's loss formulas, summed in f64).
 
-use evogs_train::backbone::Backbone;
-use evogs_train::{EvoBackbone, GainSetting, Method, Preset, TrainConfig};
+use evogs_train::backbone::{Backbone, DEFORM_DIM};
+use evogs_train::{Components, EvoBackbone, GainSetting, Method, Preset, TrainConfig};
 use splat_raster::Gaussians;
 
 const TIMES: [f32; 5] = [0.0, 0.25, 0.5, 0.75, 1.0];
@@ -35,11 +35,12 @@ fn gaussians(rng: &mut Lcg) -> Gaussians {
     g
 }
 
-fn backbone(gain: GainSetting) -> EvoBackbone {
+fn backbone(gain: GainSetting, components: Components) -> EvoBackbone {
     let mut c = TrainConfig::preset(Preset::Tiny);
     c.method = Method::Evogs;
     c.net.width = 16;
     c.evogs.gain = gain;
+    c.evogs.components = components;
     c.evogs.triplane_channels = 2;
     c.evogs.triplane_resolutions = vec![4];
     c.evogs.bspline_controls = 5;
@@ -75,9 +76,13 @@ fn loss(b: &mut EvoBackbone, g: &Gaussians, w: &[f32], t: f32) -> f64 {
 }
 
 /// Randomises Φ's parameters (its output layer starts at zero) and commits frames 0..3.
-fn setup(gain: GainSetting, seed: u64) -> (EvoBackbone, Gaussians, Vec<f32>) {
+fn setup(
+    gain: GainSetting,
+    components: Components,
+    seed: u64,
+) -> (EvoBackbone, Gaussians, Vec<f32>) {
     let mut rng = Lcg(seed);
-    let mut b = backbone(gain);
+    let mut b = backbone(gain, components);
     let names: Vec<String> = b.params().into_iter().map(|(n, _)| n).collect();
     for (name, mut p) in b.params_mut() {
         if name.starts_with("phi.") {
@@ -89,15 +94,16 @@ fn setup(gain: GainSetting, seed: u64) -> (EvoBackbone, Gaussians, Vec<f32>) {
     let g = gaussians(&mut rng);
     for &t in &TIMES[..3] {
         b.forward(g.view(), t, true).unwrap();
-        b.backward(&[0.0; N * 10]).unwrap();
+        b.backward(&[0.0; N * DEFORM_DIM]).unwrap();
     }
-    let w: Vec<f32> = (0..N * 10).map(|_| rng.next()).collect();
+    // Weights in [-2, 2): gradients well above the checks' absolute tolerance.
+    let w: Vec<f32> = (0..N * DEFORM_DIM).map(|_| 2.0 * rng.next()).collect();
     (b, g, w)
 }
 
-fn check(gain: GainSetting, buffers: &dyn Fn(&str) -> bool) {
+fn check(gain: GainSetting, components: Components, buffers: &dyn Fn(&str) -> bool) {
     let t = TIMES[3];
-    let (mut b, g, w) = setup(gain, 11);
+    let (mut b, g, w) = setup(gain, components, 11);
     assert_eq!(b.evo().history(t).frames(), &[2, 1, 0]);
     let eps = 1e-3f32;
     let mut numeric = Vec::new();
@@ -143,10 +149,51 @@ fn check(gain: GainSetting, buffers: &dyn Fn(&str) -> bool) {
 
 #[test]
 fn phi_gradients_match_finite_differences_with_a_fixed_gain() {
-    check(GainSetting::Fixed(0.3), &|n| n.starts_with("phi."));
+    check(GainSetting::Fixed(0.3), Components::default(), &|n| {
+        n.starts_with("phi.")
+    });
 }
 
 #[test]
 fn psi_gradients_match_finite_differences_with_the_learned_gain() {
-    check(GainSetting::Learned, &|n| n == "psi");
+    check(GainSetting::Learned, Components::default(), &|n| n == "psi");
+}
+
+fn every_component() -> Components {
+    "pos,rot,scale,opacity,colour".parse().unwrap()
+}
+
+#[test]
+fn phi_gradients_through_opacity_and_colour_match_finite_differences() {
+    check(GainSetting::Fixed(0.3), every_component(), &|n| {
+        n.starts_with("phi.")
+    });
+}
+
+#[test]
+fn psi_gradients_with_opacity_and_colour_match_finite_differences() {
+    check(GainSetting::Learned, every_component(), &|n| n == "psi");
+}
+
+#[test]
+fn appearance_only_components_fill_their_columns_and_nothing_else() {
+    // Opacity and colour alone: D = 4; the geometric columns stay zero, the appearance ones
+    // carry Φ's output (Φ randomised by `setup`).
+    let comps: Components = "opacity,colour".parse().unwrap();
+    let (mut b, g, _) = setup(GainSetting::Fixed(0.3), comps, 5);
+    assert_eq!(b.evo().dim(), 4);
+    let d = b.forward(g.view(), TIMES[3], false).unwrap();
+    assert_eq!(d.len(), N * DEFORM_DIM);
+    for row in d.chunks_exact(DEFORM_DIM) {
+        assert!(row[..10].iter().all(|&v| v == 0.0), "{row:?}");
+    }
+    assert!(
+        d.chunks_exact(DEFORM_DIM)
+            .any(|r| r[10..].iter().any(|&v| v != 0.0))
+    );
+    let a = b.appearance();
+    assert!(a.opacity && a.colour);
+    // Geometry only: no appearance column is used.
+    let (b, _, _) = setup(GainSetting::Fixed(0.3), Components::default(), 5);
+    assert_eq!(b.appearance(), Default::default());
 }

@@ -8,6 +8,7 @@ mod common;
 use evo_state::EvoState;
 use evogs_io::Split;
 use evogs_train::data::load_split;
+use evogs_train::render::render_at;
 use evogs_train::run::{LoadedRun, RunPaths};
 use evogs_train::{Method, Preset, TrainConfig, TrainRequest, Trainer, train};
 
@@ -109,6 +110,37 @@ fn evogs_run_directory_resumes_bit_for_bit_and_reloads() {
     assert_eq!(run.backbone.state_rows(), Some(run.canonical.len()));
     let g = run.deformed(0.4).unwrap();
     assert!(g.means.as_flattened().iter().all(|v| v.is_finite()));
+    // Renders between training frames and beyond them (t = 1.2): deterministic, finite, and
+    // read-only (the evolution state saved afterwards equals the one on disk).
+    let camera = splat_raster::Camera::look_at(
+        24,
+        20,
+        0.8,
+        glam::Vec3::new(3.0, 0.5, 1.0),
+        glam::Vec3::ZERO,
+        glam::Vec3::Z,
+    );
+    let times = ea.frames().times().to_vec();
+    let between = 0.5 * (times[3] + times[4]);
+    assert!(times.iter().all(|&t| t != between));
+    for t in [between, 1.2] {
+        let a = render_at(&mut run, &camera, t).unwrap();
+        let b = render_at(&mut run, &camera, t).unwrap();
+        assert_eq!(a.pixels, b.pixels, "t = {t}");
+        assert!(a.pixels.as_flattened().iter().all(|v| v.is_finite()));
+    }
+    let saved = dir.path().join("after_render.safetensors");
+    assert!(run.backbone.save_state(&saved).unwrap());
+    assert_eq!(
+        EvoState::load(&saved).unwrap(),
+        ea,
+        "rendering wrote to the state"
+    );
+    let e = render_at(&mut run, &camera, f32::NAN)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("not a finite number"), "{e}");
     // A missing evolution state is named.
     std::fs::remove_file(a.evo_state()).unwrap();
     let e = LoadedRun::open(&a.root).err().unwrap().to_string();
@@ -124,7 +156,7 @@ fn every_switch_combination_trains_finitely_and_stays_aligned() {
     let base = config(80);
     let views = load_split(&data, Split::Train, base.background.rgb(), base.downscale).unwrap();
     type Edit = fn(&mut TrainConfig);
-    let cases: [(&str, Edit); 5] = [
+    let cases: [(&str, Edit); 6] = [
         ("requery", |c| c.evogs.history = HistorySetting::Requery),
         ("gain 0", |c| c.evogs.gain = GainSetting::Fixed(0.0)),
         ("gain 1, standard densify", |c| {
@@ -137,6 +169,9 @@ fn every_switch_combination_trains_finitely_and_stays_aligned() {
         }),
         ("position only", |c| {
             c.evogs.components = "pos".parse().unwrap()
+        }),
+        ("every component, opacity and colour included", |c| {
+            c.evogs.components = "pos,rot,scale,opacity,colour".parse().unwrap()
         }),
     ];
     for (name, edit) in cases {
