@@ -4,7 +4,7 @@ use std::path::Path;
 
 use anyhow::{Context, Result, bail};
 use evogs_io::{ImageRgb, read_nerfies_camera, read_ply, save_png};
-use splat_raster::{Camera, CpuRasterizer, Gaussians, Rasterizer, RenderOptions};
+use splat_raster::{Camera, Gaussians, RenderOptions, select_rasterizer};
 
 use crate::args::RenderArgs;
 use crate::demo_scene;
@@ -112,7 +112,9 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderReport> {
         background: args.background,
         sh_degree: None,
     };
-    let output = CpuRasterizer::new()
+    let (raster, backend) = select_rasterizer(args.backend)?;
+    println!("{backend}");
+    let output = raster
         .forward(gaussians.view(), &camera, &options)
         .with_context(|| format!("rendering {source} from {viewpoint}"))?;
     let image = ImageRgb {

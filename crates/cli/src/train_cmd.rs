@@ -50,6 +50,7 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
         e.components = v.parse()?;
     }
     config.seed = args.seed;
+    config.backend = args.backend.unwrap_or_default();
     config.validate()?;
     Ok(config)
 }
@@ -63,6 +64,7 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
         config,
         resume: args.resume,
         stop_after: args.stop_after,
+        resume_backend: if args.resume { args.backend } else { None },
     };
     if !args.resume {
         // Say which layout was detected (reading the cameras again inside `train` is cheap: no
@@ -85,7 +87,12 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
     );
     let started = Instant::now();
     let mut first = None;
+    let mut said_backend = false;
     let summary = train(&request, &mut |report, trainer| {
+        if !said_backend {
+            println!("{}", trainer.backend());
+            said_backend = true;
+        }
         let total = trainer.config.iterations;
         let start = *first.get_or_insert(report.iteration - 1);
         bar.set_length(total);

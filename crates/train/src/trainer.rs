@@ -24,7 +24,7 @@ use densify::{DensifyConfig, Schedule, make_plan};
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
-use splat_raster::{CpuRasterizer, Gaussians, Rasterizer, RenderOptions};
+use splat_raster::{BackendInfo, DynRasterizer, Gaussians, RenderOptions, select_rasterizer};
 
 use crate::backbone::{Backbone, D3dgsBackbone};
 use crate::config::{Method, TrainConfig};
@@ -110,7 +110,8 @@ pub struct Trainer {
     pub iteration: u64,
     /// Time spent per phase (this process only).
     pub times: PhaseTimes,
-    raster: CpuRasterizer,
+    raster: DynRasterizer,
+    backend: BackendInfo,
     densify: DensifyConfig,
     order: (u64, Vec<usize>),
 }
@@ -160,6 +161,7 @@ impl Trainer {
         densify.validate()?;
         let mut backbone = backbone;
         backbone.prepare(&train.times(), state.len(), extent)?;
+        let (raster, backend) = select_rasterizer(config.backend)?;
         Ok(Self {
             densify,
             config,
@@ -169,9 +171,15 @@ impl Trainer {
             backbone,
             iteration,
             times: PhaseTimes::default(),
-            raster: CpuRasterizer::new(),
+            raster,
+            backend,
             order: (u64::MAX, Vec::new()),
         })
+    }
+
+    /// The rasterizer backend in use (chosen from `config.backend`) and why.
+    pub fn backend(&self) -> &BackendInfo {
+        &self.backend
     }
 
     /// Whether the deformation is used at iteration `i` (after the warm-up).

@@ -26,7 +26,7 @@ use std::sync::Mutex;
 use wgpu::util::DeviceExt;
 
 #[doc(hidden)]
-pub use harness::{SortHarness, request_device};
+pub use harness::SortHarness;
 
 /// Elements per workgroup (block) in every kernel.
 const BLOCK: u32 = 1024;
