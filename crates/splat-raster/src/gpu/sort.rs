@@ -8,8 +8,9 @@
 //! 2. `scan_chunks` / `add_chunk_offsets`: an exclusive prefix sum of `counts`, hierarchical in
 //!    1024-element chunks (2 levels up to 2^26 keys, 3 up to 2^36), after which `counts[bin ·
 //!    blocks + block]` is where that block's first element of that bin goes;
-//! 3. `scatter`: each block ranks its elements stably within their digit (a local sort by one
-//!    1-bit split per digit bit) and writes them to their global places.
+//! 3. `scatter`: each block ranks its elements stably within their digit (a workgroup prefix sum
+//!    of per-invocation digit counts, 16 counters packed two per u32) and writes them to their
+//!    global places.
 //!
 //! Passes alternate between the caller's buffers and the sorter's scratch pair; after an odd
 //! number of passes the result is copied back. Workgroups are dispatched on a 2D grid, so the
