@@ -99,9 +99,10 @@ pub fn run_demo(args: &DemoArgs) -> Result<(u64, Vec<DemoRow>)> {
         .context("the embedded scene has no test view")?;
     let camera = args.out.join("sweep_camera.json");
     evogs_io::write_nerfies_camera(&camera, &evogs_io::CameraInfo::pinhole(first.camera))?;
-    // Say once which backend runs (and why); training and evaluation then open their own.
+    // Say once which backend runs (and why), on stderr beside the progress: stdout is the
+    // table. Training, evaluation and the sweeps then open their own.
     let (_, info) = splat_raster::select_rasterizer(args.backend)?;
-    println!("{info}");
+    eprintln!("evogs demo: {info}");
     let mut rows = Vec::new();
     for method in [Method::Baseline, Method::Evogs] {
         let mut config = TrainConfig::preset(Preset::Tiny).with_iterations(iterations);

@@ -18,6 +18,8 @@ pub const MAX_PIXELS: u64 = 8192 * 8192;
 pub struct RenderReport {
     /// Warnings about the inputs (non-finite rows, ignored camera distortion).
     pub warnings: Vec<String>,
+    /// The backend that rendered, and why (one line).
+    pub backend: String,
     /// The rasterizer's one-line culling statistics.
     pub stats: String,
     /// Output size.
@@ -113,7 +115,6 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderReport> {
         sh_degree: None,
     };
     let (raster, backend) = select_rasterizer(args.backend)?;
-    println!("{backend}");
     let output = raster
         .forward(gaussians.view(), &camera, &options)
         .with_context(|| format!("rendering {source} from {viewpoint}"))?;
@@ -125,6 +126,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderReport> {
     save_png(&args.out, &image)?;
     Ok(RenderReport {
         warnings,
+        backend: backend.to_string(),
         stats: output.stats.to_string(),
         width: output.width,
         height: output.height,

@@ -161,7 +161,10 @@ fn auto_says_what_it_chose_and_why() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = stdout(&o);
-    let line = text.lines().next().unwrap_or_default();
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("backend: "))
+        .unwrap_or_else(|| panic!("no backend line in {text}"));
     if adapter.hardware {
         assert!(line.starts_with("backend: wgpu on "), "{line}");
     } else {
@@ -225,7 +228,7 @@ fn wgpu_without_an_adapter_is_a_one_line_error() {
         .unwrap();
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
-        stdout(&o).starts_with("backend: cpu (auto: "),
+        stdout(&o).contains("\nbackend: cpu (auto: "),
         "{}",
         stdout(&o)
     );
