@@ -1,6 +1,8 @@
 //! Choosing the backend at run time: names, `cpu`, `wgpu` and `auto` (on this machine's adapter,
 //! which in CI is the software driver lavapipe, so `auto` must fall back to the CPU and say why).
 
+#![cfg(feature = "wgpu")]
+
 use glam::Vec3;
 use splat_raster::{
     BackendChoice, BackendKind, Camera, CpuRasterizer, Gaussians, GpuContext, RasterError,

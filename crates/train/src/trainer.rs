@@ -14,6 +14,9 @@
 //!    each step). As in 3DGS, the Gaussians are not stepped on an iteration that densified (the
 //!    replaced tensors carry no gradient), and the opacities not on one that reset them.
 //!
+//! The rasterizer is the backend `config.backend` names (`cpu`, `wgpu`, `auto`; see
+//! [`splat_raster::select_rasterizer`] and [`Trainer::backend`]); the CPU one is the default.
+//!
 //! Everything random is a pure function of (seed, iteration): the epoch's permutation is drawn
 //! from a generator seeded by (seed, epoch), densify's split sampling from (seed, iteration),
 //! so the checkpoint's RNG state is the seed and the iteration count.
