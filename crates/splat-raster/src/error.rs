@@ -77,7 +77,8 @@ pub enum RasterError {
     /// limits, or a failed read-back.
     #[error("wgpu backend ({stage}): {message}")]
     Gpu {
-        /// Where it failed: `adapter`, `device`, `pipelines`, `buffers` or `read-back`.
+        /// Where it failed: `adapter`, `device` (an error the device reported while running),
+        /// `pipelines`, `buffers` or `read-back`.
         stage: &'static str,
         /// What went wrong.
         message: String,

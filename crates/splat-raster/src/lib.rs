@@ -14,8 +14,9 @@
 //! - `d = pixel centre − projected mean` in `σ`; the 2D-mean gradient is dL/d(u, v) in pixels;
 //! - the 0.99 alpha cap and the `max(·, 0)` colour clamp pass zero gradient where active;
 //! - the screen radius is `3·sqrt(λ_max(Σ2d))` pixels (3DGS convention);
-//! - per-Gaussian geometry (covariance, Jacobian, `Σ2d`, conic) and its backward run in f64, since
-//!   `det(Σ2d)` of thin Gaussians cancels badly in f32; per-pixel work runs in f32;
+//! - per-Gaussian geometry (covariance, Jacobian, `Σ2d`, conic) and its backward run in f64 on
+//!   the CPU, since `det(Σ2d)` of thin Gaussians cancels badly in f32 (the wgpu backend runs it in
+//!   f32 in cancellation-free forms instead, see its module doc); per-pixel work runs in f32;
 //! - a pixel's loop stops at the first Gaussian that would take `T` below `1e-4` (not blended);
 //! - tiles are 16×16; a Gaussian is listed in a tile only if its opacity-aware ellipse
 //!   (`σ <= ln(255·o)`, with a small safety margin) reaches a pixel centre of the tile, and only

@@ -142,3 +142,32 @@ pub(crate) fn bind(
         entries: &entries,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::groups_1d;
+
+    #[test]
+    fn one_dimensional_grids_cover_every_item_within_the_limit() {
+        for (items, max) in [
+            (0, 65535),
+            (1, 65535),
+            (256, 4),
+            (257, 4),
+            (100_000, 7),
+            (1 << 30, 65535),
+        ] {
+            let (x, y) = groups_1d(items, max);
+            assert!(x <= max && x >= 1 && y >= 1, "{items} {max}: {x}x{y}");
+            assert!(
+                u64::from(x) * u64::from(y) * 256 >= u64::from(items),
+                "{items} {max}"
+            );
+            // No more than one extra row of workgroups.
+            assert!(
+                u64::from(x) * u64::from(y - 1) * 256 < u64::from(items.max(1)),
+                "{items} {max}"
+            );
+        }
+    }
+}

@@ -120,7 +120,7 @@ fn rotation(q: vec4<f32>) -> mat3x3<f32> {
 
 // Per-Gaussian geometry shared by the projection and its backward pass.
 //
-// Sigma2d = T T^T + 0.3 I with T = J W R S (2x3). T is scaled by k = max|T| so that huge scales
+// Sigma2d = T T^T + 0.3 I with T = J W R S (2x3). T is scaled by k = max(max|T|, 1) so that huge scales
 // do not overflow, and det(Sigma2d) / k^2 is formed without cancellation (Cauchy-Binet):
 // det(T T^T) = sum of the squared 2x2 minors of T, so
 // det / k^2 = sum (k m_ij)^2 + 0.3 tr(Tn Tn^T) + 0.09 / k^2 with Tn = T / k.
@@ -220,14 +220,11 @@ fn geometry(i: u32) -> Geo {
         jy * (g.v[1].y - g.ryc * g.v[1].z),
         jy * (g.v[2].y - g.ryc * g.v[2].z),
     );
-    var k = max(max(max(abs(g.t0.x), abs(g.t0.y)), max(abs(g.t0.z), abs(g.t1.x))), max(abs(g.t1.y), abs(g.t1.z)));
-    if !(k > 0.0) || !finite(k) {
-        if k == 0.0 {
-            k = 1.0;
-        } else {
-            g.reason = CULL_DEGENERATE;
-            return g;
-        }
+    // Scaled only when large: small entries cannot overflow, and 1 / k^2 must not either.
+    let k = max(max(max(max(abs(g.t0.x), abs(g.t0.y)), max(abs(g.t0.z), abs(g.t1.x))), max(abs(g.t1.y), abs(g.t1.z))), 1.0);
+    if !finite(k) {
+        g.reason = CULL_DEGENERATE;
+        return g;
     }
     g.k = k;
     let a0 = g.t0 / k;
@@ -252,8 +249,8 @@ fn geometry(i: u32) -> Geo {
 // without forming |t|^2, which under- or overflows for rows of very different sizes.
 fn axis_sigma(t: vec3<f32>) -> f32 {
     let k = max(max(abs(t.x), abs(t.y)), abs(t.z));
-    if k == 0.0 {
-        return sqrt(DILATION);
+    if k <= 1.0 {
+        return sqrt(dot(t, t) + DILATION);
     }
     let n = t / k;
     return k * sqrt(dot(n, n) + DILATION / k / k);

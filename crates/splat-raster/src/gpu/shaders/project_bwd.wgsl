@@ -47,41 +47,55 @@ fn project_backward(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_
     dp.y += dv * fy / z;
     dp.z += -du * fx * geo.rx / z - dv * fy * geo.ry / z;
 
-    // Conic Q = Sigma2d^-1: G_Sigma2d = -Q G_Q Q with G_Q = [[ga, gb/2], [gb/2, gc]].
+    // Conic Q = Sigma2d^-1, G_Sigma2d = -Q G_Q Q with G_Q = [[ga, gb/2], [gb/2, gc]], and
+    // Sigma2d = T T^T + 0.3 I, so dT = 2 G T = -2 Q G_Q (Q T). Formed naively in f32 this
+    // cancels badly for Gaussians elongated along the view ray (Q large, Q T small), so Q T is
+    // computed from the 2x2 minors of T: (adj Sigma2d) t_c = (sum_k T1k m_ck + 0.3 T0c,
+    // -sum_k T0k m_ck + 0.3 T1c) with m_ck = T0c T1k - T0k T1c; and every contraction of dT
+    // with T (the log-scale gradient, the depth scaling of J) as -2 (G_Q Q t_c) . (Q t_c).
     let qa = (geo.cn + DILATION * geo.ik2) / geo.dk;
     let qb = -geo.bn / geo.dk;
     let qc = (geo.an + DILATION * geo.ik2) / geo.dk;
     let ga = grads[gb + 2u];
     let gbh = 0.5 * grads[gb + 3u];
     let gc = grads[gb + 4u];
-    let x00 = ga * qa + gbh * qb;
-    let x01 = ga * qb + gbh * qc;
-    let x10 = gbh * qa + gc * qb;
-    let x11 = gbh * qb + gc * qc;
-    let g00 = -(qa * x00 + qb * x10);
-    let g01 = -(qa * x01 + qb * x11);
-    let g11 = -(qb * x01 + qc * x11);
-
-    // Sigma2d = T T^T + 0.3 I: dT = 2 G T; T = J V: dJ = dT V^T, dV = J^T dT.
-    let dt0 = 2.0 * (g00 * geo.t0 + g01 * geo.t1);
-    let dt1 = 2.0 * (g01 * geo.t0 + g11 * geo.t1);
+    let tn0 = geo.t0 / geo.k;
+    let tn1 = geo.t1 / geo.k;
+    var dt0 = vec3<f32>(0.0);
+    var dt1 = vec3<f32>(0.0);
+    var d_log_scale = vec3<f32>(0.0);
+    for (var c = 0u; c < 3u; c++) {
+        var s0 = 0.0;
+        var s1 = 0.0;
+        for (var kk = 0u; kk < 3u; kk++) {
+            let km = geo.k * (tn0[c] * tn1[kk] - tn0[kk] * tn1[c]);
+            s0 += tn1[kk] * km;
+            s1 -= tn0[kk] * km;
+        }
+        let w0 = (s0 + DILATION * tn0[c] / geo.k) / geo.dk;
+        let w1 = (s1 + DILATION * tn1[c] / geo.k) / geo.dk;
+        let x0 = ga * w0 + gbh * w1;
+        let x1 = gbh * w0 + gc * w1;
+        dt0[c] = -2.0 * (qa * x0 + qb * x1);
+        dt1[c] = -2.0 * (qb * x0 + qc * x1);
+        d_log_scale[c] = -2.0 * (x0 * w0 + x1 * w1);
+    }
+    // T = J V: dJ = dT V^T. With S = sum_c dT_c . t_c = dJ0 . j0 + dJ1 . j1, the CPU's chain
+    // through J = (1/z) [[fx, 0, -fx rxc], [0, fy, -fy ryc]] becomes dp.z += -S / z plus the
+    // terms of the unclamped x/z and y/z.
     let gj0 = dt0.x * geo.v[0] + dt0.y * geo.v[1] + dt0.z * geo.v[2];
     let gj1 = dt1.x * geo.v[0] + dt1.y * geo.v[1] + dt1.z * geo.v[2];
     let j0 = vec3<f32>(fx / z, 0.0, -fx * geo.rxc / z);
     let j1 = vec3<f32>(0.0, fy / z, -fy * geo.ryc / z);
     let z2 = z * z;
-    dp.z += -gj0.x * fx / z2 - gj1.y * fy / z2;
-    if geo.rx != geo.rxc {
-        dp.z += gj0.z * fx * geo.rxc / z2;
-    } else {
+    dp.z += -(d_log_scale.x + d_log_scale.y + d_log_scale.z) / z;
+    if geo.rx == geo.rxc {
         dp.x += -gj0.z * fx / z2;
-        dp.z += gj0.z * 2.0 * fx * geo.rx / z2;
+        dp.z += gj0.z * fx * geo.rx / z2;
     }
-    if geo.ry != geo.ryc {
-        dp.z += gj1.z * fy * geo.ryc / z2;
-    } else {
+    if geo.ry == geo.ryc {
         dp.y += -gj1.z * fy / z2;
-        dp.z += gj1.z * 2.0 * fy * geo.ry / z2;
+        dp.z += gj1.z * fy * geo.ry / z2;
     }
     let wt = transpose(mat3x3<f32>(
         vec3<f32>(frame.w00, frame.w10, frame.w20),
@@ -90,15 +104,12 @@ fn project_backward(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_
     ));
     let d_mean_geo = wt * dp;
 
-    // V = W R S: dM = W^T dV with dV col k = j0 dT0[k] + j1 dT1[k].
-    var g_scale = vec3<f32>(0.0);
+    // V = W R S: dM = W^T dV with dV col c = j0 dT0[c] + j1 dT1[c]; the rotation part.
     var g_rot: mat3x3<f32>;
     for (var c = 0u; c < 3u; c++) {
         let dm = wt * (j0 * dt0[c] + j1 * dt1[c]);
-        g_scale[c] = dot(dm, geo.rot[c]);
         g_rot[c] = dm * geo.scale[c];
     }
-    let d_log_scale = g_scale * geo.scale;
     let w = geo.qn.x;
     let x = geo.qn.y;
     let y = geo.qn.z;

@@ -1,5 +1,5 @@
 // Backward compositing: one 16x16 workgroup per tile, one thread per pixel, walking the tile's
-// list back to front from the largest last contributor, in shared-memory batches. Per pixel the
+// list back to front from the largest last contributor, in shared-memory batches of 128. Per pixel the
 // arithmetic of composite.rs `backward_tile` (T recovered by division, the outputs behind each
 // entry carried along); each pixel's contribution to a Gaussian's record gradient is added to
 // `grads` (10 floats per Gaussian: u, v, a, b, c, opacity, r, g, b, z) with `grad_add`, which the
@@ -15,8 +15,10 @@
 @group(0) @binding(9) var<storage, read> d_depth: array<f32>;
 // binding 10: `grads`, declared by the atomics snippet.
 
-var<workgroup> batch: array<Splat, 256>;
-var<workgroup> batch_ids: array<u32, 256>;
+const BATCH: u32 = 128u;
+
+var<workgroup> batch: array<Splat, BATCH>;
+var<workgroup> batch_ids: array<u32, BATCH>;
 var<workgroup> max_last: atomic<u32>;
 var<workgroup> max_last_plain: u32;
 
@@ -65,11 +67,11 @@ fn rasterize_backward(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invoc
         max_last_plain = atomicLoad(&max_last);
     }
     let total = workgroupUniformLoad(&max_last_plain);
-    let n_batches = (total + 255u) / 256u;
+    let n_batches = (total + BATCH - 1u) / BATCH;
     for (var b = 0u; b < n_batches; b++) {
-        let hi = total - b * 256u;
-        let lo = hi - min(256u, hi);
-        if lo + lid < hi {
+        let hi = total - b * BATCH;
+        let lo = hi - min(BATCH, hi);
+        if lid < BATCH && lo + lid < hi {
             let id = isect_ids[start + lo + lid];
             batch_ids[lid] = id;
             batch[lid] = splats[id];

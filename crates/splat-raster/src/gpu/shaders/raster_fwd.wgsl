@@ -1,5 +1,6 @@
 // Forward compositing: one 16x16 workgroup per tile, one thread per pixel, the tile's
-// depth-ordered list loaded into shared memory in batches of 256. Per pixel exactly the loop of
+// depth-ordered list loaded into shared memory in batches of 128 (8 KiB, well inside the 16 KiB
+// of workgroup memory every adapter offers). Per pixel exactly the loop of
 // composite.rs: bounding-box test, sigma cut-off, alpha with the 0.99 cap, stop before T < 1e-4.
 // Per tile it also counts the work as the CPU backend does (see `Counters`).
 
@@ -16,7 +17,9 @@
 // Per tile: [evaluations, blended].
 @group(0) @binding(10) var<storage, read_write> tile_counters: array<u32>;
 
-var<workgroup> batch: array<Splat, 256>;
+const BATCH: u32 = 128u;
+
+var<workgroup> batch: array<Splat, BATCH>;
 var<workgroup> count_plain: u32;
 var<workgroup> n_done: atomic<u32>;
 var<workgroup> n_done_plain: u32;
@@ -54,7 +57,7 @@ fn rasterize(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id)
     var last = 0u;
     var stop = 0u;
     var blended = 0u;
-    let n_batches = (count + 255u) / 256u;
+    let n_batches = (count + BATCH - 1u) / BATCH;
     for (var b = 0u; b < n_batches; b++) {
         if lid == 0u {
             n_done_plain = atomicLoad(&n_done);
@@ -63,12 +66,12 @@ fn rasterize(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id)
         if all_done == 256u {
             break;
         }
-        let base = b * 256u;
-        if base + lid < count {
+        let base = b * BATCH;
+        if lid < BATCH && base + lid < count {
             batch[lid] = splats[isect_ids[start + base + lid]];
         }
         workgroupBarrier();
-        let in_batch = min(256u, count - base);
+        let in_batch = min(BATCH, count - base);
         for (var k = 0u; k < in_batch; k++) {
             if done {
                 break;

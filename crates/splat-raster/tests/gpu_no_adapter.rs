@@ -1,0 +1,28 @@
+//! Without an adapter the wgpu backend is a clear error, never a panic. Its own test binary
+//! (one test, one thread), because it narrows wgpu's backends through the environment.
+
+use splat_raster::{GpuContext, RasterError, WgpuRasterizer};
+
+#[test]
+fn no_adapter_is_an_error_naming_the_stage_and_the_remedy() {
+    // SAFETY: this binary runs this single test on one thread, and no other thread of the
+    // process reads or writes the environment while it is changed.
+    unsafe {
+        // A backend this build does not compile in: wgpu finds no adapter at all.
+        std::env::set_var("WGPU_BACKEND", "gl");
+    }
+    let err = GpuContext::new().unwrap_err();
+    match &err {
+        RasterError::Gpu { stage, message } => {
+            assert_eq!(*stage, "adapter");
+            assert!(message.contains("no GPU adapter"), "{message}");
+            assert!(message.contains("CPU backend"), "{message}");
+        }
+        other => panic!("expected a Gpu error, got {other:?}"),
+    }
+    assert!(
+        err.to_string().starts_with("wgpu backend (adapter): "),
+        "{err}"
+    );
+    assert_eq!(WgpuRasterizer::new().unwrap_err(), err);
+}
