@@ -176,6 +176,61 @@ fn auto_says_what_it_chose_and_why() {
         );
     }
     assert!(out.is_file());
+
+    // Training says the same, and records `auto` (not what it resolved to).
+    let data = synth(dir.path());
+    let run = dir.path().join("auto");
+    let o = evogs(&[
+        "train",
+        "--data",
+        s(&data),
+        "--out",
+        s(&run),
+        "--preset",
+        "tiny",
+        "--iterations",
+        "2",
+        "--backend",
+        "auto",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    let expected = if adapter.hardware {
+        "backend: wgpu on "
+    } else {
+        "backend: cpu (auto: adapter "
+    };
+    assert!(text.lines().any(|l| l.starts_with(expected)), "{text}");
+    assert_eq!(json(&run.join("config.json"))["train"]["backend"], "auto");
+}
+
+#[test]
+fn demo_runs_on_wgpu() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo");
+    let o = evogs(&[
+        "demo",
+        "--iterations",
+        "10",
+        "--backend",
+        "wgpu",
+        "--out",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("evogs demo: backend: wgpu on "),
+        "{}",
+        stderr(&o)
+    );
+    assert!(stdout(&o).contains("| evogs |"), "{}", stdout(&o));
+    for m in ["baseline", "evogs"] {
+        assert_eq!(
+            json(&out.join(m).join("config.json"))["train"]["backend"],
+            "wgpu"
+        );
+        assert!(out.join(m).join("sweep/strip.png").is_file(), "{m} strip");
+    }
 }
 
 #[test]
