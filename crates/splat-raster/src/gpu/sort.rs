@@ -255,7 +255,12 @@ impl RadixSorter {
         }
         let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
         if guard.as_ref().is_none_or(|s| s.capacity < n) {
-            let capacity = n.checked_next_power_of_two().unwrap_or(n);
+            // Grow by half again (amortised), but never past the device's buffer size limit.
+            let max_words = u32::try_from(device.limits().max_buffer_size / 4).unwrap_or(u32::MAX);
+            let grown = guard
+                .as_ref()
+                .map_or(0, |s| s.capacity.saturating_add(s.capacity / 2));
+            let capacity = n.max(grown.min(max_words));
             *guard = Some(Scratch {
                 capacity,
                 keys: storage_buffer(device, "radix sort keys scratch", capacity),
