@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
+use splat_raster::BackendChoice;
 
 /// Dynamic 3D Gaussian Splatting with EvoGS: train on D-NeRF scenes, evaluate, render, export.
 #[derive(Debug, Parser)]
@@ -121,6 +122,12 @@ pub struct TrainArgs {
     #[arg(long, value_name = "white|black")]
     pub background: Option<String>,
 
+    /// Rasterizer backend: cpu, wgpu (the GPU through wgpu, any adapter; an error without
+    /// one) or auto (wgpu on a hardware GPU, cpu otherwise). Recorded in the run; --resume keeps
+    /// the run's unless given [default: cpu].
+    #[arg(long, value_name = "cpu|wgpu|auto", value_parser = parse_backend)]
+    pub backend: Option<BackendChoice>,
+
     /// Stop after this many iterations in total (the run stays resumable).
     #[arg(long, value_name = "N", hide = true)]
     pub stop_after: Option<u64>,
@@ -136,6 +143,11 @@ pub struct EvalArgs {
     /// Split to evaluate.
     #[arg(long, default_value = "test", value_name = "test|val|train")]
     pub split: String,
+
+    /// Rasterizer backend: cpu, wgpu (any adapter; an error without one) or auto (wgpu on a
+    /// hardware GPU, cpu otherwise).
+    #[arg(long, value_name = "cpu|wgpu|auto", default_value = "cpu", value_parser = parse_backend)]
+    pub backend: BackendChoice,
 }
 
 /// Arguments of `evogs export`.
@@ -208,6 +220,17 @@ pub struct RenderArgs {
     /// this height (intrinsics scaled to match).
     #[arg(long, value_name = "PIXELS", value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub height: Option<u32>,
+
+    /// Rasterizer backend: cpu, wgpu (any adapter; an error without one) or auto (wgpu on a
+    /// hardware GPU, cpu otherwise).
+    #[arg(long, value_name = "cpu|wgpu|auto", default_value = "cpu", value_parser = parse_backend)]
+    pub backend: BackendChoice,
+}
+
+/// Parses `cpu`, `wgpu` or `auto`.
+pub fn parse_backend(text: &str) -> Result<BackendChoice, String> {
+    text.parse()
+        .map_err(|e: splat_raster::RasterError| e.to_string())
 }
 
 /// Parses `R,G,B` with each channel a number in [0, 1].

@@ -14,6 +14,7 @@ use evogs_train::ablate::train_and_evaluate;
 use evogs_train::data::load_split;
 use evogs_train::synth::{embedded_scene, write_dnerf};
 use evogs_train::{Method, Preset, TrainConfig};
+use splat_raster::BackendChoice;
 
 use crate::args::RenderArgs;
 use crate::render_run::render_run;
@@ -28,6 +29,11 @@ pub struct DemoArgs {
     /// Output directory (scene, both runs, renders, `demo.md`).
     #[arg(long, value_name = "DIR", default_value = "evogs-demo")]
     pub out: PathBuf,
+
+    /// Rasterizer backend for training, evaluation and the sweeps: cpu, wgpu (any adapter; an
+    /// error without one) or auto (wgpu on a hardware GPU, cpu otherwise).
+    #[arg(long, value_name = "cpu|wgpu|auto", default_value = "cpu", value_parser = crate::args::parse_backend)]
+    pub backend: BackendChoice,
 
     /// Iterations per method (overrides --quick).
     #[arg(long, value_name = "N", hide = true, value_parser = clap::value_parser!(u64).range(1..))]
@@ -93,10 +99,15 @@ pub fn run_demo(args: &DemoArgs) -> Result<(u64, Vec<DemoRow>)> {
         .context("the embedded scene has no test view")?;
     let camera = args.out.join("sweep_camera.json");
     evogs_io::write_nerfies_camera(&camera, &evogs_io::CameraInfo::pinhole(first.camera))?;
+    // Say once which backend runs (and why), on stderr beside the progress: stdout is the
+    // table. Training, evaluation and the sweeps then open their own.
+    let (_, info) = splat_raster::select_rasterizer(args.backend)?;
+    eprintln!("evogs demo: {info}");
     let mut rows = Vec::new();
     for method in [Method::Baseline, Method::Evogs] {
         let mut config = TrainConfig::preset(Preset::Tiny).with_iterations(iterations);
         config.method = method;
+        config.backend = args.backend;
         let out = args.out.join(method.to_string());
         let scores = train_and_evaluate(&data, &out, config, false)?;
         rows.push(DemoRow {
@@ -121,6 +132,7 @@ pub fn run_demo(args: &DemoArgs) -> Result<(u64, Vec<DemoRow>)> {
                 background: [0.0; 3],
                 width: None,
                 height: None,
+                backend: args.backend,
             },
         )?;
     }

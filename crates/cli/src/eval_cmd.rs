@@ -14,5 +14,6 @@ pub fn run_eval(args: &EvalArgs) -> Result<EvalReport> {
         .parse()
         .map_err(|e: String| anyhow!("--split: {e}"))?;
     let mut run = LoadedRun::open(&args.run)?;
+    println!("{}", run.use_backend(args.backend)?);
     Ok(evaluate(&mut run, split)?)
 }

@@ -83,6 +83,7 @@ fn main() -> ExitCode {
                 eprintln!("evogs: warning: {}", one_line(warning));
             }
             println!("{}", report.stats);
+            println!("{}", report.backend);
             println!(
                 "wrote {} ({}x{})",
                 args.out.display(),

@@ -4,7 +4,7 @@ use std::path::Path;
 
 use anyhow::{Context, Result, bail};
 use evogs_io::{ImageRgb, read_nerfies_camera, read_ply, save_png};
-use splat_raster::{Camera, CpuRasterizer, Gaussians, Rasterizer, RenderOptions};
+use splat_raster::{Camera, Gaussians, RenderOptions, select_rasterizer};
 
 use crate::args::RenderArgs;
 use crate::demo_scene;
@@ -18,6 +18,8 @@ pub const MAX_PIXELS: u64 = 8192 * 8192;
 pub struct RenderReport {
     /// Warnings about the inputs (non-finite rows, ignored camera distortion).
     pub warnings: Vec<String>,
+    /// The backend that rendered, and why (one line).
+    pub backend: String,
     /// The rasterizer's one-line culling statistics.
     pub stats: String,
     /// Output size.
@@ -112,7 +114,8 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderReport> {
         background: args.background,
         sh_degree: None,
     };
-    let output = CpuRasterizer::new()
+    let (raster, backend) = select_rasterizer(args.backend)?;
+    let output = raster
         .forward(gaussians.view(), &camera, &options)
         .with_context(|| format!("rendering {source} from {viewpoint}"))?;
     let image = ImageRgb {
@@ -123,6 +126,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderReport> {
     save_png(&args.out, &image)?;
     Ok(RenderReport {
         warnings,
+        backend: backend.to_string(),
         stats: output.stats.to_string(),
         width: output.width,
         height: output.height,

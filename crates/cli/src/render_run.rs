@@ -14,6 +14,7 @@ use crate::render::{RenderReport, check_output_name, resize_camera};
 pub fn render_run(run: &Path, args: &RenderArgs) -> Result<RenderReport> {
     let camera_path = args.camera.as_ref().context("--run needs --camera")?;
     let mut loaded = LoadedRun::open(run)?;
+    let backend = loaded.use_backend(args.backend)?;
     let info = read_nerfies_camera(camera_path)?;
     let mut warnings = Vec::new();
     if let Some(w) = info.warning() {
@@ -38,6 +39,7 @@ pub fn render_run(run: &Path, args: &RenderArgs) -> Result<RenderReport> {
     };
     Ok(RenderReport {
         warnings,
+        backend: backend.to_string(),
         stats,
         width: camera.width,
         height: camera.height,

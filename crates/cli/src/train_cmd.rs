@@ -56,6 +56,7 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
         e.grid_lr_scale = v;
     }
     config.seed = args.seed;
+    config.backend = args.backend.unwrap_or_default();
     config.validate()?;
     Ok(config)
 }
@@ -69,6 +70,7 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
         config,
         resume: args.resume,
         stop_after: args.stop_after,
+        resume_backend: if args.resume { args.backend } else { None },
     };
     if !args.resume {
         // Say which layout was detected (reading the cameras again inside `train` is cheap: no
@@ -91,8 +93,13 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
     );
     let started = Instant::now();
     let mut first = None;
+    let mut said_backend = false;
     let mut motion: Option<evogs_train::motion_report::MotionReport> = None;
     let summary = train(&request, &mut |report, trainer| {
+        if !said_backend {
+            println!("{}", trainer.backend());
+            said_backend = true;
+        }
         if args.motion_report
             && let Some(stats) = trainer.motion_stats()
         {

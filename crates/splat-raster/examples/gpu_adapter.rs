@@ -2,13 +2,9 @@
 //! error when there is none. `scripts/test` runs it before the tests.
 
 fn main() -> std::process::ExitCode {
-    match splat_raster::request_device() {
-        Ok((adapter, _, _)) => {
-            let info = adapter.get_info();
-            println!(
-                "wgpu adapter: {} ({:?}, {:?}, driver {} {})",
-                info.name, info.backend, info.device_type, info.driver, info.driver_info
-            );
+    match splat_raster::GpuContext::new() {
+        Ok(ctx) => {
+            println!("wgpu adapter: {}", ctx.adapter());
             std::process::ExitCode::SUCCESS
         }
         Err(e) => {

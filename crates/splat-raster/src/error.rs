@@ -83,6 +83,9 @@ pub enum RasterError {
         /// What went wrong.
         message: String,
     },
+    /// A backend name that is not `cpu`, `wgpu` or `auto`.
+    #[error("unknown backend `{0}`; expected cpu, wgpu or auto")]
+    UnknownBackend(String),
     /// A thread pool could not be built.
     #[error("could not build a thread pool of {threads} threads: {message}")]
     ThreadPool {

@@ -5,7 +5,8 @@
 //! project's SPEC §3, over plain structure-of-arrays inputs ([`GaussiansView`]) and an OpenCV-axes
 //! pinhole [`Camera`]. The [`Rasterizer`] trait is the backend interface; [`CpuRasterizer`] is the
 //! rayon-parallel CPU backend, and `WgpuRasterizer` (cargo feature `wgpu`, on by default) the
-//! GPU backend with WGSL compute kernels, checked against the CPU one.
+//! GPU backend with WGSL compute kernels, checked against the CPU one; [`select_rasterizer`] picks
+//! one at run time from a [`BackendChoice`] (`cpu`, `wgpu`, `auto`).
 //!
 //! Conventions beyond SPEC §3, fixed here:
 //! - depth output is the un-normalised expected depth `Σ z·α·T` (camera-space z); divide by the
@@ -29,6 +30,7 @@
 //! What it is not: a trainer, an optimiser, a file reader or a deformation model. Those live in
 //! other crates of the workspace and hand this crate slices.
 
+mod backend;
 pub mod camera;
 mod composite;
 mod cpu;
@@ -43,13 +45,14 @@ pub mod sh;
 mod tiles;
 mod validate;
 
+pub use backend::{BackendChoice, BackendInfo, BackendKind, DynRasterizer, select_rasterizer};
 pub use camera::Camera;
 pub use cpu::CpuRasterizer;
 pub use error::RasterError;
 pub use gaussians::{Gaussians, GaussiansView, sh_coeff_count};
 #[cfg(feature = "wgpu")]
 #[doc(hidden)]
-pub use gpu::sort::{SortHarness, request_device};
+pub use gpu::sort::SortHarness;
 #[cfg(feature = "wgpu")]
 pub use gpu::{AdapterSummary, AtomicMode, GpuContext, WgpuRasterizer};
 pub use options::{CullStats, RenderOptions};

@@ -207,6 +207,7 @@ pub fn train_and_evaluate(
     config: TrainConfig,
     with_val: bool,
 ) -> Result<Scores, TrainError> {
+    let backend = config.backend;
     let summary = train(
         &TrainRequest {
             data: data.to_path_buf(),
@@ -214,10 +215,13 @@ pub fn train_and_evaluate(
             config,
             resume: false,
             stop_after: None,
+            resume_backend: None,
         },
         &mut |_, _| {},
     )?;
     let mut run = LoadedRun::open(out)?;
+    // Evaluated on the backend it trained on.
+    run.use_backend(backend)?;
     let report = evaluate(&mut run, Split::Test)?;
     let (val_psnr, val_ssim) = if with_val {
         let val = evaluate(&mut run, Split::Val)?;

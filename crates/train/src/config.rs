@@ -274,6 +274,10 @@ pub struct TrainConfig {
     /// EvoGS's switches and Φ's shape (used by `method = evogs`; recorded for every run).
     #[serde(default)]
     pub evogs: crate::evo_settings::EvoSettings,
+    /// Rasterizer backend (`cpu`, `wgpu`, `auto`); runs written before it existed read as `cpu`.
+    /// A resumed run keeps it unless the resume asks for another.
+    #[serde(default)]
+    pub backend: splat_raster::BackendChoice,
 }
 
 impl TrainConfig {
@@ -303,6 +307,7 @@ impl TrainConfig {
             densify: DensifySettings::default(),
             checkpoint_every: 5_000,
             evogs: crate::evo_settings::EvoSettings::default(),
+            backend: splat_raster::BackendChoice::Cpu,
         };
         match preset {
             Preset::Paper => paper,

@@ -12,7 +12,7 @@ use std::fmt::Write as _;
 
 use evogs_io::{ImageRgb, Split, save_png};
 use serde::{Deserialize, Serialize};
-use splat_raster::{CpuRasterizer, Rasterizer, RenderOptions};
+use splat_raster::RenderOptions;
 
 use crate::data::load_split;
 use crate::error::TrainError;
@@ -73,7 +73,6 @@ pub struct EvalReport {
 pub fn evaluate(run: &mut LoadedRun, split: Split) -> Result<EvalReport, TrainError> {
     let cfg = run.run.train.clone();
     let views = load_split(&run.run.data, split, cfg.background.rgb(), cfg.downscale)?;
-    let raster = CpuRasterizer::new();
     let opts = RenderOptions {
         background: cfg.background.rgb(),
         sh_degree: None,
@@ -83,7 +82,7 @@ pub fn evaluate(run: &mut LoadedRun, split: Split) -> Result<EvalReport, TrainEr
     let mut images = Vec::with_capacity(views.views.len());
     for (k, view) in views.views.iter().enumerate() {
         let g = run.deformed(view.time)?;
-        let out = raster.forward(g.view(), &view.camera, &opts)?;
+        let out = run.raster.forward(g.view(), &view.camera, &opts)?;
         let size = ImageSize::new(view.image.width as usize, view.image.height as usize);
         let clamped: Vec<[f32; 3]> = out
             .color
@@ -111,7 +110,7 @@ pub fn evaluate(run: &mut LoadedRun, split: Split) -> Result<EvalReport, TrainEr
     let count = images.len().max(1) as f64;
     let mean_psnr = images.iter().map(|s| s.psnr).sum::<f64>() / count;
     let mean_ssim = images.iter().map(|s| s.ssim).sum::<f64>() / count;
-    let temporal = temporal_metrics(run, &views, &raster, &opts)?;
+    let temporal = temporal_metrics(run, &views, &opts)?;
     let report = EvalReport {
         split: split.name().to_string(),
         iteration: run.summary.iteration,
@@ -129,7 +128,6 @@ pub fn evaluate(run: &mut LoadedRun, split: Split) -> Result<EvalReport, TrainEr
 fn temporal_metrics(
     run: &mut LoadedRun,
     views: &crate::data::SplitViews,
-    raster: &CpuRasterizer,
     opts: &RenderOptions,
 ) -> Result<Option<Temporal>, TrainError> {
     let times = views.times();
@@ -143,7 +141,7 @@ fn temporal_metrics(
     let mut visible = Vec::with_capacity(times.len());
     for &t in &times {
         let g = run.deformed(t)?;
-        let out = raster.forward(g.view(), camera, opts)?;
+        let out = run.raster.forward(g.view(), camera, opts)?;
         visible.push(out.radii().iter().map(|&r| r > 0.0).collect::<Vec<bool>>());
         renders.push(out.color);
         positions.push(g.means);

@@ -16,7 +16,7 @@
 use std::path::{Path, PathBuf};
 
 use evogs_io::{ImageRgb, save_png, write_ply};
-use splat_raster::{Camera, CpuRasterizer, Rasterizer, RenderOptions};
+use splat_raster::{Camera, RenderOptions};
 
 use crate::error::TrainError;
 use crate::run::LoadedRun;
@@ -40,7 +40,7 @@ pub fn render_at(run: &mut LoadedRun, camera: &Camera, time: f32) -> Result<Imag
         background: run.run.train.background.rgb(),
         sh_degree: None,
     };
-    let out = CpuRasterizer::new().forward(g.view(), camera, &opts)?;
+    let out = run.raster.forward(g.view(), camera, &opts)?;
     Ok(ImageRgb {
         width: camera.width,
         height: camera.height,

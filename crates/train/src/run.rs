@@ -19,7 +19,9 @@ use std::time::Instant;
 
 use evogs_io::Split;
 use serde::{Deserialize, Serialize};
-use splat_raster::Gaussians;
+use splat_raster::{
+    BackendChoice, BackendInfo, CpuRasterizer, DynRasterizer, Gaussians, select_rasterizer,
+};
 
 use crate::backbone::Backbone;
 use crate::checkpoint::{load_checkpoint, save_checkpoint};
@@ -151,6 +153,9 @@ pub struct TrainRequest {
     /// Stop after this many iterations in total even if the run plans more (an interruption;
     /// outputs and checkpoint are written as usual).
     pub stop_after: Option<u64>,
+    /// When resuming: the rasterizer backend to continue on instead of the one the run recorded
+    /// (then recorded in `config.json`). `None` keeps the run's. New runs use `config.backend`.
+    pub resume_backend: Option<splat_raster::BackendChoice>,
 }
 
 /// Trains (or resumes) a run, calling `progress` after every iteration, and writes the run
@@ -161,7 +166,11 @@ pub fn train(
 ) -> Result<TrainSummary, TrainError> {
     let paths = RunPaths::new(&request.out);
     let mut trainer = if request.resume {
-        let run: RunFile = read_json(&paths.config())?;
+        let mut run: RunFile = read_json(&paths.config())?;
+        let recorded_backend = run.train.backend;
+        if let Some(backend) = request.resume_backend {
+            run.train.backend = backend;
+        }
         let train = load_split(
             &run.data,
             Split::Train,
@@ -181,7 +190,13 @@ pub fn train(
         }
         let meta = load_checkpoint(&ckpt, &mut state, backbone.as_mut())?;
         backbone.load_state(&paths.evo_state())?;
-        Trainer::from_parts(run.train, train, state, backbone, meta.iteration)?
+        let trainer =
+            Trainer::from_parts(run.train.clone(), train, state, backbone, meta.iteration)?;
+        if run.train.backend != recorded_backend {
+            // Recorded only once the new backend is up, so that a failed switch changes nothing.
+            write_json(&paths.config(), &run)?;
+        }
+        trainer
     } else {
         request.config.validate()?;
         std::fs::create_dir_all(&request.out).map_err(|e| TrainError::io(&request.out, e))?;
@@ -278,6 +293,9 @@ pub struct LoadedRun {
     pub canonical: Gaussians,
     /// Backbone with the run's weights.
     pub backbone: Box<dyn Backbone>,
+    /// The rasterizer evaluation and rendering use: the CPU one unless
+    /// [`LoadedRun::use_backend`] chose another.
+    pub raster: DynRasterizer,
 }
 
 impl LoadedRun {
@@ -300,7 +318,15 @@ impl LoadedRun {
             summary,
             canonical,
             backbone,
+            raster: Box::new(CpuRasterizer::new()),
         })
+    }
+
+    /// Renders with the backend `choice` from now on; says which it is.
+    pub fn use_backend(&mut self, choice: BackendChoice) -> Result<BackendInfo, TrainError> {
+        let (raster, info) = select_rasterizer(choice)?;
+        self.raster = raster;
+        Ok(info)
     }
 
     /// Whether the run got past its warm-up (the network is used only then).

@@ -14,6 +14,9 @@
 //!    each step). As in 3DGS, the Gaussians are not stepped on an iteration that densified (the
 //!    replaced tensors carry no gradient), and the opacities not on one that reset them.
 //!
+//! The rasterizer is the backend `config.backend` names (`cpu`, `wgpu`, `auto`; see
+//! [`splat_raster::select_rasterizer`] and [`Trainer::backend`]); the CPU one is the default.
+//!
 //! Everything random is a pure function of (seed, iteration): the epoch's permutation is drawn
 //! from a generator seeded by (seed, epoch), densify's split sampling from (seed, iteration),
 //! so the checkpoint's RNG state is the seed and the iteration count.
@@ -24,7 +27,7 @@ use densify::{DensifyConfig, Schedule, make_plan};
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
-use splat_raster::{CpuRasterizer, Gaussians, Rasterizer, RenderOptions};
+use splat_raster::{BackendInfo, DynRasterizer, Gaussians, RenderOptions, select_rasterizer};
 
 use crate::backbone::{Backbone, D3dgsBackbone};
 use crate::config::{Method, TrainConfig};
@@ -111,7 +114,8 @@ pub struct Trainer {
     pub iteration: u64,
     /// Time spent per phase (this process only).
     pub times: PhaseTimes,
-    raster: CpuRasterizer,
+    raster: DynRasterizer,
+    backend: BackendInfo,
     densify: DensifyConfig,
     order: (u64, Vec<usize>),
 }
@@ -161,6 +165,7 @@ impl Trainer {
         densify.validate()?;
         let mut backbone = backbone;
         backbone.prepare(&train.times(), state.len(), extent)?;
+        let (raster, backend) = select_rasterizer(config.backend)?;
         Ok(Self {
             densify,
             config,
@@ -170,9 +175,15 @@ impl Trainer {
             backbone,
             iteration,
             times: PhaseTimes::default(),
-            raster: CpuRasterizer::new(),
+            raster,
+            backend,
             order: (u64::MAX, Vec::new()),
         })
+    }
+
+    /// The rasterizer backend in use (chosen from `config.backend`) and why.
+    pub fn backend(&self) -> &BackendInfo {
+        &self.backend
     }
 
     /// Whether the deformation is used at iteration `i` (after the warm-up).

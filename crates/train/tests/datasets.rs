@@ -80,6 +80,7 @@ fn colmap_dataset_trains_from_its_point_cloud() {
             config: config.clone(),
             resume: false,
             stop_after: Some(1),
+            resume_backend: None,
         };
         train(&request, &mut |_, _| {}).unwrap();
         evogs_io::read_ply(&dir.path().join(out).join("canonical.ply"))

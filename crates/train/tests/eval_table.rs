@@ -36,6 +36,7 @@ fn eval_table_of_a_tiny_run() {
             config,
             resume: false,
             stop_after: None,
+            resume_backend: None,
         },
         &mut |_, _| {},
     )

@@ -87,6 +87,7 @@ fn evogs_run_directory_resumes_bit_for_bit_and_reloads() {
         config: c.clone(),
         resume,
         stop_after,
+        resume_backend: None,
     };
     pool.install(|| {
         train(&request("straight", false, None), &mut |_, _| {}).unwrap();

@@ -63,6 +63,7 @@ fn resumed_run_matches_uninterrupted_run_bit_for_bit() {
         config: config(),
         resume,
         stop_after,
+        resume_backend: None,
     };
     pool(1).install(|| train(&request("straight", false, None), &mut |_, _| {}).unwrap());
     pool(3).install(|| {
@@ -136,6 +137,7 @@ fn resume_without_checkpoint_names_the_file() {
             config: config(),
             resume: true,
             stop_after: None,
+            resume_backend: None,
         },
         &mut |_, _| {},
     )

@@ -8,8 +8,9 @@
 //! 2. `scan_chunks` / `add_chunk_offsets`: an exclusive prefix sum of `counts`, hierarchical in
 //!    1024-element chunks (2 levels up to 2^26 keys, 3 up to 2^36), after which `counts[bin ·
 //!    blocks + block]` is where that block's first element of that bin goes;
-//! 3. `scatter`: each block ranks its elements stably within their digit (a local sort by one
-//!    1-bit split per digit bit) and writes them to their global places.
+//! 3. `scatter`: each block ranks its elements stably within their digit (a workgroup prefix sum
+//!    of per-invocation digit counts, 16 counters packed two per u32) and writes them to their
+//!    global places.
 //!
 //! Passes alternate between the caller's buffers and the sorter's scratch pair; after an odd
 //! number of passes the result is copied back. Workgroups are dispatched on a 2D grid, so the
@@ -26,7 +27,7 @@ use std::sync::Mutex;
 use wgpu::util::DeviceExt;
 
 #[doc(hidden)]
-pub use harness::{SortHarness, request_device};
+pub use harness::SortHarness;
 
 /// Elements per workgroup (block) in every kernel.
 const BLOCK: u32 = 1024;
@@ -254,7 +255,12 @@ impl RadixSorter {
         }
         let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
         if guard.as_ref().is_none_or(|s| s.capacity < n) {
-            let capacity = n.checked_next_power_of_two().unwrap_or(n);
+            // Grow by half again (amortised), but never past the device's buffer size limit.
+            let max_words = u32::try_from(device.limits().max_buffer_size / 4).unwrap_or(u32::MAX);
+            let grown = guard
+                .as_ref()
+                .map_or(0, |s| s.capacity.saturating_add(s.capacity / 2));
+            let capacity = n.max(grown.min(max_words));
             *guard = Some(Scratch {
                 capacity,
                 keys: storage_buffer(device, "radix sort keys scratch", capacity),

@@ -1,10 +1,11 @@
-// Radix sort pass 3: stable scatter. Each workgroup sorts its block's digits locally with one
-// stable 1-bit split per digit bit (a workgroup prefix sum each), so that the block's elements are
-// in (digit, original position) order; an element's rank among the block's elements of its digit
-// is then its local position minus the local start of its digit, and its output index is the
-// scanned global offset of (digit, block) plus that rank. Elements past `n` in the last block take
-// the largest digit: being last in the block, the stable splits keep them after every real element,
-// so they never shift a real element's rank, and they are not written.
+// Radix sort pass 3: stable scatter. Invocation `lid` owns the block's elements 4·lid..4·lid+3,
+// so block order is (invocation, element) order. Each invocation counts its digits into 16
+// counters packed two per u32 (16 bits each: a count never exceeds the block's 1024 elements);
+// an inclusive prefix sum of these packed vectors over the workgroup (Hillis-Steele, lane-wise
+// additions never carry across the 16-bit halves) gives, per digit, how many elements of that
+// digit come before the invocation's. An element's output index is the scanned global offset of
+// (digit, block), plus that count, plus the elements of its digit earlier in its own four.
+// Elements past `n` in the last block are neither counted nor written.
 
 @group(0) @binding(1) var<storage, read> keys_in: array<u32>;
 @group(0) @binding(2) var<storage, read> values_in: array<u32>;
@@ -12,9 +13,9 @@
 @group(0) @binding(4) var<storage, read_write> keys_out: array<u32>;
 @group(0) @binding(5) var<storage, read_write> values_out: array<u32>;
 
-// Per local slot: digit << 16 | original local index (0..1024).
-var<workgroup> s_item: array<u32, BLOCK>;
-var<workgroup> s_start: array<u32, BINS>;
+const WORDS: u32 = BINS / 2u;
+
+var<workgroup> s_counts: array<array<u32, WORDS>, WG>;
 
 @compute @workgroup_size(256)
 fn scatter(
@@ -26,60 +27,50 @@ fn scatter(
     if (block >= params.num_blocks) {
         return;
     }
-    let base = block * BLOCK;
-    let max_digit = (1u << params.bits) - 1u;
-    for (var j = 0u; j < PER; j++) {
-        let local = lid * PER + j;
-        var d = max_digit;
-        if (base + local < params.n) {
-            d = digit_of(keys_in[base + local]);
-        }
-        s_item[local] = (d << 16u) | local;
+    let first = block * BLOCK + lid * PER;
+    var own: array<u32, WORDS>;
+    for (var w = 0u; w < WORDS; w++) {
+        own[w] = 0u;
     }
-    workgroupBarrier();
-
-    for (var b = 0u; b < params.bits; b++) {
-        var items: array<u32, 4>;
-        var zeros = 0u;
-        for (var j = 0u; j < PER; j++) {
-            items[j] = s_item[lid * PER + j];
-            zeros += 1u - ((items[j] >> (16u + b)) & 1u);
+    for (var j = 0u; j < PER; j++) {
+        if (first + j < params.n) {
+            let d = digit_of(keys_in[first + j]);
+            own[d >> 1u] += 1u << ((d & 1u) * 16u);
         }
-        // Every read of s_item above happens before the scan's first barrier.
-        let scan = workgroup_exclusive_scan(lid, zeros);
-        var zeros_before = scan.x;
-        for (var j = 0u; j < PER; j++) {
-            let pos = lid * PER + j;
-            var dst: u32;
-            if (((items[j] >> (16u + b)) & 1u) == 0u) {
-                dst = zeros_before;
-                zeros_before += 1u;
-            } else {
-                dst = scan.y + (pos - zeros_before);
+    }
+    s_counts[lid] = own;
+    workgroupBarrier();
+    for (var off = 1u; off < WG; off = off << 1u) {
+        var t: array<u32, WORDS>;
+        if (lid >= off) {
+            t = s_counts[lid - off];
+        } else {
+            for (var w = 0u; w < WORDS; w++) {
+                t[w] = 0u;
             }
-            s_item[dst] = items[j];
+        }
+        workgroupBarrier();
+        for (var w = 0u; w < WORDS; w++) {
+            s_counts[lid][w] += t[w];
         }
         workgroupBarrier();
     }
-
-    for (var j = 0u; j < PER; j++) {
-        let pos = lid * PER + j;
-        let d = s_item[pos] >> 16u;
-        if (pos == 0u || (s_item[pos - 1u] >> 16u) != d) {
-            s_start[d] = pos;
-        }
+    // Exclusive counts before this invocation, then bumped as its own elements are placed.
+    var before = s_counts[lid];
+    for (var w = 0u; w < WORDS; w++) {
+        before[w] -= own[w];
     }
-    workgroupBarrier();
-
     for (var j = 0u; j < PER; j++) {
-        let pos = lid * PER + j;
-        let item = s_item[pos];
-        let d = item >> 16u;
-        let src = base + (item & 0xffffu);
-        if (src < params.n) {
-            let dst = offsets[d * params.num_blocks + block] + pos - s_start[d];
-            keys_out[dst] = keys_in[src];
-            values_out[dst] = values_in[src];
+        let i = first + j;
+        if (i < params.n) {
+            let key = keys_in[i];
+            let d = digit_of(key);
+            let shift = (d & 1u) * 16u;
+            let rank = (before[d >> 1u] >> shift) & 0xffffu;
+            before[d >> 1u] += 1u << shift;
+            let dst = offsets[d * params.num_blocks + block] + rank;
+            keys_out[dst] = key;
+            values_out[dst] = values_in[i];
         }
     }
 }

@@ -4,36 +4,8 @@
 use wgpu::util::DeviceExt;
 
 use super::RadixSorter;
-
-/// Opens the default adapter (honouring `WGPU_BACKEND`, `WGPU_POWER_PREF` and the driver
-/// variables such as `VK_DRIVER_FILES`) with all of its limits. An error says what was missing.
-pub fn request_device() -> Result<(wgpu::Adapter, wgpu::Device, wgpu::Queue), String> {
-    let instance =
-        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-    let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-        power_preference:
-            wgpu::PowerPreference::from_env().unwrap_or(wgpu::PowerPreference::HighPerformance),
-        ..Default::default()
-    }))
-    .map_err(|e| {
-        format!(
-            "no wgpu adapter: {e} (install a Vulkan driver, e.g. Mesa's lavapipe: \
-             apt-get install mesa-vulkan-drivers libvulkan1)"
-        )
-    })?;
-    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-        label: Some("splat-raster"),
-        required_limits: adapter.limits(),
-        ..Default::default()
-    }))
-    .map_err(|e| {
-        format!(
-            "wgpu adapter {:?}: cannot open a device: {e}",
-            adapter.get_info().name
-        )
-    })?;
-    Ok((adapter, device, queue))
-}
+use crate::error::RasterError;
+use crate::gpu::GpuContext;
 
 /// Pairs resident on the device for repeated sorting (the bench).
 struct Loaded {
@@ -47,35 +19,31 @@ struct Loaded {
 /// A device plus a [`RadixSorter`] (hidden test and bench hook, not a public API).
 #[doc(hidden)]
 pub struct SortHarness {
-    adapter_name: String,
-    device: wgpu::Device,
-    queue: wgpu::Queue,
+    ctx: GpuContext,
     sorter: RadixSorter,
     loaded: Option<Loaded>,
 }
 
 impl SortHarness {
-    /// Opens a device (see [`request_device`]) and builds a sorter on it.
-    pub fn new() -> Result<Self, String> {
+    /// Opens a device ([`GpuContext::new`]) and builds a sorter on it.
+    pub fn new() -> Result<Self, RasterError> {
         Self::build(None)
     }
 
     /// As [`SortHarness::new`], with at most `max_groups_per_dim` workgroups along a dispatch's
     /// x axis, to exercise the 2D grid on small inputs.
-    pub fn with_max_groups_per_dim(max_groups_per_dim: u32) -> Result<Self, String> {
+    pub fn with_max_groups_per_dim(max_groups_per_dim: u32) -> Result<Self, RasterError> {
         Self::build(Some(max_groups_per_dim))
     }
 
-    fn build(max_groups_per_dim: Option<u32>) -> Result<Self, String> {
-        let (adapter, device, queue) = request_device()?;
+    fn build(max_groups_per_dim: Option<u32>) -> Result<Self, RasterError> {
+        let ctx = GpuContext::new()?;
         let sorter = match max_groups_per_dim {
-            Some(m) => RadixSorter::with_max_groups_per_dim(&device, m),
-            None => RadixSorter::new(&device),
+            Some(m) => RadixSorter::with_max_groups_per_dim(&ctx.device, m),
+            None => RadixSorter::new(&ctx.device),
         };
         Ok(Self {
-            adapter_name: adapter.get_info().name,
-            device,
-            queue,
+            ctx,
             sorter,
             loaded: None,
         })
@@ -83,13 +51,14 @@ impl SortHarness {
 
     /// The adapter's name, as the driver reports it.
     pub fn adapter_name(&self) -> &str {
-        &self.adapter_name
+        &self.ctx.summary.name
     }
 
     fn upload(&self, label: &str, data: &[u32]) -> wgpu::Buffer {
         // A zero-sized buffer cannot be bound: always at least one word.
         let contents: &[u32] = if data.is_empty() { &[0] } else { data };
-        self.device
+        self.ctx
+            .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
                 contents: bytemuck::cast_slice(contents),
@@ -104,23 +73,25 @@ impl SortHarness {
             return Vec::new();
         }
         let bytes = 4 * n as u64;
-        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+        let staging = self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("sort read-back"),
             size: bytes,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let mut encoder = self
+            .ctx
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
         encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, bytes);
-        self.queue.submit([encoder.finish()]);
+        self.ctx.queue.submit([encoder.finish()]);
         let (tx, rx) = std::sync::mpsc::channel();
         staging.map_async(wgpu::MapMode::Read, .., move |r| {
             // The receiver waits below; a send error cannot happen while it does.
             let _ = tx.send(r);
         });
-        self.device
+        self.ctx
+            .device
             .poll(wgpu::PollType::wait_indefinitely())
             .expect("wgpu device poll");
         rx.recv()
@@ -140,11 +111,12 @@ impl SortHarness {
         let k = self.upload("sort keys", keys);
         let v = self.upload("sort values", values);
         let mut encoder = self
+            .ctx
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
         self.sorter
-            .encode(&self.device, &mut encoder, &k, &v, n, key_bits);
-        self.queue.submit([encoder.finish()]);
+            .encode(&self.ctx.device, &mut encoder, &k, &v, n, key_bits);
+        self.ctx.queue.submit([encoder.finish()]);
         (
             self.read_back(&k, keys.len()),
             self.read_back(&v, keys.len()),
@@ -169,20 +141,22 @@ impl SortHarness {
         let l = self.loaded.as_ref().expect("SortHarness::load first");
         let bytes = 4 * u64::from(l.n.max(1));
         let mut encoder = self
+            .ctx
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
         encoder.copy_buffer_to_buffer(&l.original_keys, 0, &l.keys, 0, bytes);
         encoder.copy_buffer_to_buffer(&l.original_values, 0, &l.values, 0, bytes);
         self.sorter.encode(
-            &self.device,
+            &self.ctx.device,
             &mut encoder,
             &l.keys,
             &l.values,
             l.n,
             key_bits,
         );
-        self.queue.submit([encoder.finish()]);
-        self.device
+        self.ctx.queue.submit([encoder.finish()]);
+        self.ctx
+            .device
             .poll(wgpu::PollType::wait_indefinitely())
             .expect("wgpu device poll");
     }

@@ -1,0 +1,302 @@
+//! `--backend cpu|wgpu|auto` through the binary: training on the wgpu backend (lavapipe in CI)
+//! lands within a small margin of the CPU backend with the same seed; the choice is recorded and
+//! kept by `--resume` unless overridden; `auto` says what it chose and why; `wgpu` without an
+//! adapter is a one-line error.
+
+mod support;
+
+use std::path::Path;
+use std::process::Command;
+
+use support::{evogs, s, stderr};
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+fn stdout(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn synth(dir: &Path) -> std::path::PathBuf {
+    let data = dir.join("scene");
+    let o = evogs(&[
+        "synth",
+        "--preset",
+        "rigid",
+        "--out",
+        s(&data),
+        "--size",
+        "32",
+        "--frames",
+        "8",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    data
+}
+
+fn train(data: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec![
+        "train",
+        "--data",
+        s(data),
+        "--out",
+        s(out),
+        "--preset",
+        "tiny",
+        "--iterations",
+        "60",
+        "--seed",
+        "5",
+    ];
+    args.extend_from_slice(extra);
+    evogs(&args)
+}
+
+#[test]
+fn wgpu_training_matches_cpu_training_and_resume_keeps_the_backend() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = synth(dir.path());
+
+    let cpu_run = dir.path().join("cpu");
+    let o = train(&data, &cpu_run, &["--backend", "cpu"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("backend: cpu (asked: cpu)"),
+        "{}",
+        stdout(&o)
+    );
+
+    // The wgpu run stops half-way and is resumed without --backend: it stays on wgpu.
+    let gpu_run = dir.path().join("wgpu");
+    let o = train(
+        &data,
+        &gpu_run,
+        &["--backend", "wgpu", "--stop-after", "30"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("backend: wgpu on "), "{}", stdout(&o));
+    assert_eq!(
+        json(&gpu_run.join("config.json"))["train"]["backend"],
+        "wgpu"
+    );
+    let o = evogs(&["train", "--out", s(&gpu_run), "--resume"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("backend: wgpu on "), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains("trained 60 iterations (30 in this process"),
+        "{}",
+        stdout(&o)
+    );
+
+    let cpu_psnr = json(&cpu_run.join("train_metrics.json"))["last_psnr"]
+        .as_f64()
+        .unwrap();
+    let gpu_psnr = json(&gpu_run.join("train_metrics.json"))["last_psnr"]
+        .as_f64()
+        .unwrap();
+    eprintln!("training PSNR after 60 iterations: cpu {cpu_psnr:.3} dB, wgpu {gpu_psnr:.3} dB");
+    assert!(cpu_psnr.is_finite() && cpu_psnr > 10.0, "{cpu_psnr}");
+    assert!(
+        (cpu_psnr - gpu_psnr).abs() < 0.5,
+        "cpu {cpu_psnr:.3} dB vs wgpu {gpu_psnr:.3} dB"
+    );
+
+    // A resume may switch the backend; the switch is recorded.
+    let o = evogs(&[
+        "train",
+        "--out",
+        s(&gpu_run),
+        "--resume",
+        "--backend",
+        "cpu",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        json(&gpu_run.join("config.json"))["train"]["backend"],
+        "cpu"
+    );
+
+    // Evaluation on either backend scores the same run alike.
+    let o = evogs(&["eval", "--run", s(&cpu_run), "--backend", "wgpu"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("backend: wgpu on "), "{}", stdout(&o));
+    let gpu_eval = json(&cpu_run.join("eval_test.json"))["mean_psnr"]
+        .as_f64()
+        .unwrap();
+    let o = evogs(&["eval", "--run", s(&cpu_run)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("backend: cpu (asked: cpu)"),
+        "{}",
+        stdout(&o)
+    );
+    let cpu_eval = json(&cpu_run.join("eval_test.json"))["mean_psnr"]
+        .as_f64()
+        .unwrap();
+    assert!(
+        (gpu_eval - cpu_eval).abs() < 0.01,
+        "{gpu_eval} vs {cpu_eval}"
+    );
+}
+
+#[test]
+fn auto_says_what_it_chose_and_why() {
+    let adapter = splat_raster::GpuContext::new()
+        .unwrap_or_else(|e| panic!("this test needs an adapter (CI installs lavapipe): {e}"))
+        .adapter()
+        .clone();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo.png");
+    let o = evogs(&[
+        "render",
+        "--backend",
+        "auto",
+        "--out",
+        s(&out),
+        "--width",
+        "64",
+        "--height",
+        "48",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("backend: "))
+        .unwrap_or_else(|| panic!("no backend line in {text}"));
+    if adapter.hardware {
+        assert!(line.starts_with("backend: wgpu on "), "{line}");
+    } else {
+        // lavapipe (this machine, CI): software, so the CPU, naming the adapter.
+        assert!(line.starts_with("backend: cpu (auto: adapter "), "{line}");
+        assert!(
+            line.contains(&adapter.name) && line.contains("software"),
+            "{line}"
+        );
+    }
+    assert!(out.is_file());
+
+    // Training says the same, and records `auto` (not what it resolved to).
+    let data = synth(dir.path());
+    let run = dir.path().join("auto");
+    let o = evogs(&[
+        "train",
+        "--data",
+        s(&data),
+        "--out",
+        s(&run),
+        "--preset",
+        "tiny",
+        "--iterations",
+        "2",
+        "--backend",
+        "auto",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    let expected = if adapter.hardware {
+        "backend: wgpu on "
+    } else {
+        "backend: cpu (auto: adapter "
+    };
+    assert!(text.lines().any(|l| l.starts_with(expected)), "{text}");
+    assert_eq!(json(&run.join("config.json"))["train"]["backend"], "auto");
+}
+
+#[test]
+fn demo_runs_on_wgpu() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo");
+    let o = evogs(&[
+        "demo",
+        "--iterations",
+        "10",
+        "--backend",
+        "wgpu",
+        "--out",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("evogs demo: backend: wgpu on "),
+        "{}",
+        stderr(&o)
+    );
+    assert!(stdout(&o).contains("| evogs |"), "{}", stdout(&o));
+    for m in ["baseline", "evogs"] {
+        assert_eq!(
+            json(&out.join(m).join("config.json"))["train"]["backend"],
+            "wgpu"
+        );
+        assert!(out.join(m).join("sweep/strip.png").is_file(), "{m} strip");
+    }
+}
+
+#[test]
+fn wgpu_without_an_adapter_is_a_one_line_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo.png");
+    // Only Vulkan, and a driver list that names no existing driver: no adapter at all.
+    let o = Command::new(env!("CARGO_BIN_EXE_evogs"))
+        .args([
+            "render",
+            "--backend",
+            "wgpu",
+            "--out",
+            s(&out),
+            "--width",
+            "32",
+            "--height",
+            "32",
+        ])
+        .env("WGPU_BACKEND", "vulkan")
+        .env("VK_DRIVER_FILES", dir.path().join("none.json"))
+        .env("VK_ICD_FILENAMES", dir.path().join("none.json"))
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = stderr(&o);
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.starts_with("evogs: error: "), "{err}");
+    assert!(err.contains("adapter"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(!out.exists());
+
+    // auto falls back to the CPU instead.
+    let o = Command::new(env!("CARGO_BIN_EXE_evogs"))
+        .args([
+            "render",
+            "--backend",
+            "auto",
+            "--out",
+            s(&out),
+            "--width",
+            "32",
+            "--height",
+            "32",
+        ])
+        .env("WGPU_BACKEND", "vulkan")
+        .env("VK_DRIVER_FILES", dir.path().join("none.json"))
+        .env("VK_ICD_FILENAMES", dir.path().join("none.json"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("\nbackend: cpu (auto: "),
+        "{}",
+        stdout(&o)
+    );
+    assert!(out.is_file());
+}
+
+#[test]
+fn unknown_backend_is_a_usage_error() {
+    let o = evogs(&["render", "--backend", "gpu", "--out", "x.png"]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = stderr(&o);
+    assert!(
+        err.contains("unknown backend `gpu`; expected cpu, wgpu or auto"),
+        "{err}"
+    );
+}
