@@ -8,47 +8,14 @@
 //! over all threads (`cpu/...`, from `/proc/self/task/*/schedstat`), which is far less disturbed
 //! by other processes competing for the cores than wall-clock time.
 
+mod common;
+
 use std::hint::black_box;
 
 use bench_support::CpuTime;
 use criterion::measurement::{Measurement, WallTime};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use glam::Vec3;
-use rand::{RngExt, SeedableRng};
-use rand_chacha::ChaCha8Rng;
-use splat_raster::{Camera, CpuRasterizer, Gaussians, Rasterizer, RenderOptions, sh_coeff_count};
-
-fn scene(n: usize, size: u32, seed: u64) -> (Gaussians, Camera) {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let degree = 3;
-    let spacing = (8.0 / n as f32).cbrt();
-    let mut g = Gaussians::with_degree(degree);
-    for _ in 0..n {
-        g.means
-            .push(std::array::from_fn(|_| rng.random_range(-1.0f32..1.0)));
-        g.log_scales.push(std::array::from_fn(|_| {
-            (spacing * rng.random_range(0.2f32..0.8)).ln()
-        }));
-        g.rotations
-            .push(std::array::from_fn(|_| rng.random_range(-1.0f32..1.0)));
-        g.opacity_logits.push(rng.random_range(-1.0f32..3.0));
-        for c in 0..sh_coeff_count(degree) {
-            let amp = if c == 0 { 1.0 } else { 0.1 };
-            for _ in 0..3 {
-                g.sh.push(rng.random_range(-amp..amp));
-            }
-        }
-    }
-    let cam = Camera::look_at(
-        size,
-        size,
-        0.8,
-        Vec3::new(0.5, -4.0, 1.0),
-        Vec3::ZERO,
-        Vec3::Z,
-    );
-    (g, cam)
-}
+use splat_raster::{CpuRasterizer, Rasterizer, RenderOptions};
 
 fn bench_wall(c: &mut Criterion<WallTime>) {
     bench(c, "wall");
@@ -65,7 +32,7 @@ fn bench<M: Measurement>(c: &mut Criterion<M>, clock: &str) {
         sh_degree: None,
     };
     for (n, size) in [(10_000usize, 256u32), (100_000, 800)] {
-        let (g, cam) = scene(n, size, 7);
+        let (g, cam) = common::scene(n, size, 7);
         let fwd = r.forward(g.view(), &cam, &opts).unwrap();
         let evals = fwd.pair_evaluations();
         if clock == "wall" {

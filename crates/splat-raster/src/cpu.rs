@@ -17,7 +17,7 @@ use crate::options::{CullStats, RenderOptions};
 use crate::output::{BackendState, BackwardState, CpuState, ForwardOutput, Gradients};
 use crate::project::{self, CullReason, Frame, Splat, SplatGrad, TILE};
 use crate::tiles;
-use crate::validate::{check_pixels, validate};
+use crate::validate::{validate, validate_backward};
 
 /// The CPU rasterizer. By default it runs on rayon's global pool.
 #[derive(Clone, Debug, Default)]
@@ -193,42 +193,13 @@ impl CpuRasterizer {
         d_alpha: Option<&[f32]>,
         d_depth: Option<&[f32]>,
     ) -> Result<Gradients, RasterError> {
-        let active = validate(&g, cam, opts)?;
+        let active = validate_backward(&g, cam, opts, fwd, d_color, d_alpha, d_depth)?;
         let st = &fwd.state;
-        let mismatch = |what: String| Err(RasterError::ForwardMismatch(what));
-        if st.n_gaussians != g.len() {
-            return mismatch(format!(
-                "forward saw {} Gaussians, backward got {}",
-                st.n_gaussians,
-                g.len()
-            ));
-        }
-        if (fwd.width, fwd.height) != (cam.width, cam.height) {
-            return mismatch(format!(
-                "forward image is {}x{}, camera is {}x{}",
-                fwd.width, fwd.height, cam.width, cam.height
-            ));
-        }
-        if st.sh_degree != g.sh_degree || st.active_degree != active {
-            return mismatch("SH degree differs".into());
-        }
-        if st.background.map(f32::to_bits) != opts.background.map(f32::to_bits) {
-            return mismatch("background differs".into());
-        }
-        let npix = cam.pixel_count();
-        check_pixels("d_color", d_color, npix, |c: [f32; 3]| {
-            c.iter().all(|v| v.is_finite())
-        })?;
-        if let Some(d) = d_alpha {
-            check_pixels("d_alpha", d, npix, f32::is_finite)?;
-        }
-        if let Some(d) = d_depth {
-            check_pixels("d_depth", d, npix, f32::is_finite)?;
-        }
+        let mismatch = |what: &str| Err(RasterError::ForwardMismatch(what.into()));
         #[allow(unreachable_patterns)]
         let cpu = match &st.backend {
             BackendState::Cpu(cpu) => cpu,
-            _ => return mismatch("the forward pass ran on another backend".into()),
+            _ => return mismatch("the forward pass ran on another backend"),
         };
         let frame = Frame::new(cam);
         let pixel_grads = PixelGrads {

@@ -5,6 +5,7 @@ use crate::camera::Camera;
 use crate::error::RasterError;
 use crate::gaussians::GaussiansView;
 use crate::options::RenderOptions;
+use crate::output::ForwardOutput;
 
 /// Checks the inputs and returns the active SH degree.
 pub(crate) fn validate(
@@ -101,4 +102,53 @@ pub(crate) fn check_pixels<T: Copy>(
         Some(pixel) => Err(RasterError::NonFiniteGradient { field, pixel }),
         None => Ok(()),
     }
+}
+
+/// Checks the inputs of a backward pass: those of [`validate`], that `fwd` came from a forward
+/// pass on the same Gaussians, camera size, SH degrees and background, and the pixel gradient
+/// images (length and finiteness). Returns the active SH degree. Which backend ran the forward
+/// pass is for the caller to check.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn validate_backward(
+    g: &GaussiansView<'_>,
+    cam: &Camera,
+    opts: &RenderOptions,
+    fwd: &ForwardOutput,
+    d_color: &[[f32; 3]],
+    d_alpha: Option<&[f32]>,
+    d_depth: Option<&[f32]>,
+) -> Result<u32, RasterError> {
+    let active = validate(g, cam, opts)?;
+    let st = &fwd.state;
+    let mismatch = |what: String| Err(RasterError::ForwardMismatch(what));
+    if st.n_gaussians != g.len() {
+        return mismatch(format!(
+            "forward saw {} Gaussians, backward got {}",
+            st.n_gaussians,
+            g.len()
+        ));
+    }
+    if (fwd.width, fwd.height) != (cam.width, cam.height) {
+        return mismatch(format!(
+            "forward image is {}x{}, camera is {}x{}",
+            fwd.width, fwd.height, cam.width, cam.height
+        ));
+    }
+    if st.sh_degree != g.sh_degree || st.active_degree != active {
+        return mismatch("SH degree differs".into());
+    }
+    if st.background.map(f32::to_bits) != opts.background.map(f32::to_bits) {
+        return mismatch("background differs".into());
+    }
+    let npix = cam.pixel_count();
+    check_pixels("d_color", d_color, npix, |c: [f32; 3]| {
+        c.iter().all(|v| v.is_finite())
+    })?;
+    if let Some(d) = d_alpha {
+        check_pixels("d_alpha", d, npix, f32::is_finite)?;
+    }
+    if let Some(d) = d_depth {
+        check_pixels("d_depth", d, npix, f32::is_finite)?;
+    }
+    Ok(active)
 }

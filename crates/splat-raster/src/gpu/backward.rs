@@ -6,7 +6,7 @@ use crate::error::RasterError;
 use crate::gaussians::GaussiansView;
 use crate::options::RenderOptions;
 use crate::output::{BackendState, ForwardOutput, Gradients};
-use crate::validate::{check_pixels, validate};
+use crate::validate::validate_backward;
 
 use super::WgpuRasterizer;
 use super::buffers::{read_back, storage, storage_init, uniform};
@@ -29,47 +29,18 @@ impl WgpuRasterizer {
         d_alpha: Option<&[f32]>,
         d_depth: Option<&[f32]>,
     ) -> Result<Gradients, RasterError> {
-        let active = validate(&g, cam, opts)?;
+        validate_backward(&g, cam, opts, fwd, d_color, d_alpha, d_depth)?;
         let st = &fwd.state;
-        let mismatch = |what: String| Err(RasterError::ForwardMismatch(what));
-        if st.n_gaussians != g.len() {
-            return mismatch(format!(
-                "forward saw {} Gaussians, backward got {}",
-                st.n_gaussians,
-                g.len()
-            ));
-        }
-        if (fwd.width, fwd.height) != (cam.width, cam.height) {
-            return mismatch(format!(
-                "forward image is {}x{}, camera is {}x{}",
-                fwd.width, fwd.height, cam.width, cam.height
-            ));
-        }
-        if st.sh_degree != g.sh_degree || st.active_degree != active {
-            return mismatch("SH degree differs".into());
-        }
-        if st.background.map(f32::to_bits) != opts.background.map(f32::to_bits) {
-            return mismatch("background differs".into());
-        }
+        let mismatch = |what: &str| Err(RasterError::ForwardMismatch(what.into()));
         let gpu = match &st.backend {
             BackendState::Gpu(gpu) if gpu.context_id == self.ctx.id => gpu,
             BackendState::Gpu(_) => {
-                return mismatch("the forward pass ran on another GPU context".into());
+                return mismatch("the forward pass ran on another GPU context");
             }
             BackendState::Cpu(_) => {
-                return mismatch("the forward pass ran on another backend".into());
+                return mismatch("the forward pass ran on another backend");
             }
         };
-        let npix = cam.pixel_count();
-        check_pixels("d_color", d_color, npix, |c: [f32; 3]| {
-            c.iter().all(|v| v.is_finite())
-        })?;
-        if let Some(d) = d_alpha {
-            check_pixels("d_alpha", d, npix, f32::is_finite)?;
-        }
-        if let Some(d) = d_depth {
-            check_pixels("d_depth", d, npix, f32::is_finite)?;
-        }
 
         let device = &self.ctx.device;
         let queue = &self.ctx.queue;
