@@ -21,6 +21,8 @@
 
 mod common;
 
+use common::{Q, concat, one};
+
 use std::sync::{Arc, OnceLock};
 
 use glam::{Mat3, Vec3};
@@ -290,41 +292,9 @@ fn lower_active_sh_degree_and_a_large_image_match_the_cpu() {
     check_scene(&g, &cam, &opts, 11, &[], GRAD_FLOOR, IMAGE_TOL);
 }
 
-fn one(
-    mean: [f32; 3],
-    log_scale: [f32; 3],
-    q: [f32; 4],
-    logit: f32,
-    degree: u32,
-) -> splat_raster::Gaussians {
-    let k = splat_raster::sh_coeff_count(degree);
-    splat_raster::Gaussians {
-        sh_degree: degree,
-        means: vec![mean],
-        log_scales: vec![log_scale],
-        rotations: vec![q],
-        opacity_logits: vec![logit],
-        sh: (0..3 * k).map(|i| 0.3 - 0.05 * i as f32).collect(),
-    }
-}
-
-fn concat(parts: &[splat_raster::Gaussians]) -> splat_raster::Gaussians {
-    let mut g = splat_raster::Gaussians::with_degree(parts[0].sh_degree);
-    for p in parts {
-        g.means.extend_from_slice(&p.means);
-        g.log_scales.extend_from_slice(&p.log_scales);
-        g.rotations.extend_from_slice(&p.rotations);
-        g.opacity_logits.extend_from_slice(&p.opacity_logits);
-        g.sh.extend_from_slice(&p.sh);
-    }
-    g
-}
-
 fn hard_camera() -> Camera {
     Camera::from_center(40, 30, 35.0, 33.0, 21.0, 14.0, Mat3::IDENTITY, Vec3::ZERO)
 }
-
-const Q: [f32; 4] = [1.0, 0.0, 0.0, 0.0];
 
 #[test]
 fn hard_cases_match_the_cpu() {
@@ -380,19 +350,7 @@ fn hard_cases_match_the_cpu() {
     parts.push(bright);
     // NaN / +Inf / -Inf in every field.
     let good = one([0.1, -0.1, 3.0], [-1.5; 3], Q, 1.0, d);
-    for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
-        for field in 0..5 {
-            let mut g = good.clone();
-            match field {
-                0 => g.means[0][1] = bad,
-                1 => g.log_scales[0][2] = bad,
-                2 => g.rotations[0][3] = bad,
-                3 => g.opacity_logits[0] = bad,
-                _ => g.sh[40] = bad,
-            }
-            parts.push(g);
-        }
-    }
+    parts.extend(common::poisoned_copies(&good));
     parts.push(good);
     let g = concat(&parts);
     let opts = RenderOptions {

@@ -4,6 +4,8 @@
 
 mod common;
 
+use common::{Q, concat, one};
+
 use glam::{Mat3, Vec3};
 use proptest::prelude::*;
 use splat_raster::{
@@ -13,30 +15,6 @@ use splat_raster::{
 fn camera() -> Camera {
     // At the origin looking down +z (world = camera axes).
     Camera::from_center(40, 30, 35.0, 33.0, 21.0, 14.0, Mat3::IDENTITY, Vec3::ZERO)
-}
-
-fn one(mean: [f32; 3], log_scale: [f32; 3], q: [f32; 4], logit: f32, degree: u32) -> Gaussians {
-    let k = splat_raster::sh_coeff_count(degree);
-    Gaussians {
-        sh_degree: degree,
-        means: vec![mean],
-        log_scales: vec![log_scale],
-        rotations: vec![q],
-        opacity_logits: vec![logit],
-        sh: (0..3 * k).map(|i| 0.3 - 0.05 * i as f32).collect(),
-    }
-}
-
-fn concat(parts: &[Gaussians]) -> Gaussians {
-    let mut g = Gaussians::with_degree(parts[0].sh_degree);
-    for p in parts {
-        g.means.extend_from_slice(&p.means);
-        g.log_scales.extend_from_slice(&p.log_scales);
-        g.rotations.extend_from_slice(&p.rotations);
-        g.opacity_logits.extend_from_slice(&p.opacity_logits);
-        g.sh.extend_from_slice(&p.sh);
-    }
-    g
 }
 
 /// Forward and backward with a dense upstream gradient; asserts everything out is finite.
@@ -78,8 +56,6 @@ fn render_all_finite(g: &Gaussians, cam: &Camera) -> (CullStats, Gradients) {
     assert!(finite, "gradients must be finite");
     (s, grads)
 }
-
-const Q: [f32; 4] = [1.0, 0.0, 0.0, 0.0];
 
 #[test]
 fn needle_thin_and_huge_gaussians_render_finitely() {
@@ -142,19 +118,7 @@ fn zero_quaternion_and_low_opacity_are_culled_and_counted() {
 fn nan_or_inf_in_any_field_is_culled_and_counted() {
     let good = one([0.0, 0.0, 3.0], [-1.0; 3], Q, 1.0, 3);
     let mut parts = Vec::new();
-    for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
-        for field in 0..5 {
-            let mut g = good.clone();
-            match field {
-                0 => g.means[0][1] = bad,
-                1 => g.log_scales[0][2] = bad,
-                2 => g.rotations[0][3] = bad,
-                3 => g.opacity_logits[0] = bad,
-                _ => g.sh[40] = bad,
-            }
-            parts.push(g);
-        }
-    }
+    parts.extend(common::poisoned_copies(&good));
     parts.push(good);
     let (s, grads) = render_all_finite(&concat(&parts), &camera());
     assert_eq!(s.non_finite, 15, "{s}");
