@@ -10,7 +10,7 @@
 use std::f32::consts::{PI, TAU};
 
 use glam::{Quat, Vec3};
-use splat_raster::sh::{SH_C0, SH_C1};
+use splat_core::sh::{SH_C1, dc_from_rgb};
 use splat_raster::{Camera, Gaussians};
 
 /// Default image width of the demo render.
@@ -172,8 +172,7 @@ pub fn build() -> Gaussians {
         let q = Quat::from_rotation_arc(Vec3::Z, s.normal.normalize());
         g.rotations.push([q.w, q.x, q.y, q.z]);
         g.opacity_logits.push((0.97f32 / 0.03).ln());
-        let dc = (colour - Vec3::splat(0.5)) / SH_C0;
-        g.sh.extend(dc.to_array());
+        g.sh.extend(colour.to_array().map(dc_from_rgb));
         // Degree-1 basis: −C1·y, C1·z, −C1·x (Sloan order).
         for coeff in [-v.y / SH_C1, v.z / SH_C1, -v.x / SH_C1] {
             g.sh.extend([coeff; 3]);

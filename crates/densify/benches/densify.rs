@@ -7,10 +7,11 @@ use densify::{
     Deformation, DensifyConfig, DensifyStats, OptimiserMoments, PerGaussian, PlanInput, apply_plan,
     make_plan,
 };
-use evo_state::{EvoConfig, EvoState, Frames, Layout, Storage};
+use evo_state::{EvoConfig, EvoState, Frames, Storage};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use splat_raster::Gaussians;
+use splat_core::Gaussians;
+use splat_core::Layout;
 use std::hint::black_box;
 use tiny_nn::adam::{Adam, GroupId, LrSchedule};
 

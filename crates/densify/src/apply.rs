@@ -17,10 +17,10 @@
 use crate::error::DensifyError;
 use crate::plan::DensifyPlan;
 use crate::stats::DensifyStats;
-use evo_state::rows::RowPlanError;
-use evo_state::{EvoState, NewRows, RowPlan};
+use evo_state::EvoState;
 use rayon::prelude::*;
-use splat_raster::Gaussians;
+use splat_core::Gaussians;
+use splat_core::{NewRows, RowPlan, RowPlanError};
 use tiny_nn::adam::{Adam, AdamGroup, GroupId};
 
 /// A container of per-Gaussian rows that a plan can be applied to.

@@ -1,7 +1,7 @@
 //! The crate's error type.
 
 use evo_state::EvoError;
-use evo_state::rows::RowPlanError;
+use splat_core::RowPlanError;
 use thiserror::Error;
 
 /// Why statistics could not be accumulated, a plan made, or a plan applied.

@@ -3,7 +3,7 @@
 
 use crate::error::DensifyError;
 use glam::Vec3;
-use splat_raster::Camera;
+use splat_core::Camera;
 
 /// 1.1 × the largest distance of a camera centre from their mean.
 ///

@@ -6,7 +6,7 @@
 //!    screen radii; [`DensifyStats::add_evolution`] with [`residual_norms`] and [`thetas`] of
 //!    evo-state's step (EvoGS trigger).
 //! 2. When [`Schedule::acts`], [`make_plan`] decides, deterministically for a seed, and returns a
-//!    [`DensifyPlan`]: an evo-state [`evo_state::RowPlan`], the new rows' parameter values, and
+//!    [`DensifyPlan`]: a [`splat_core::RowPlan`], the new rows' parameter values, and
 //!    the rows whose opacity is reset.
 //! 3. [`apply_plan`] applies it to every per-Gaussian container through one trait,
 //!    [`PerGaussian`] (Gaussians, Adam moments, evolution state, statistics, any other rows), and

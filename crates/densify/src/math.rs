@@ -1,16 +1,8 @@
-//! Small numeric helpers: activations and the rotation of a raw quaternion.
+//! Small numeric helpers: the rotation of a raw quaternion and the largest activated scale (the
+//! opacity activations are `splat_core`'s [`sigmoid`](splat_core::sigmoid) and
+//! [`logit`](splat_core::logit)).
 
 use glam::{Mat3, Quat};
-
-/// `1 / (1 + e^-x)`.
-pub fn sigmoid(x: f32) -> f32 {
-    1.0 / (1.0 + (-x).exp())
-}
-
-/// Inverse of [`sigmoid`], `ln(p / (1 - p))`.
-pub fn logit(p: f32) -> f32 {
-    (p / (1.0 - p)).ln()
-}
 
 /// Rotation matrix of a raw quaternion `w, x, y, z` after normalisation; the identity when the
 /// quaternion is (nearly) zero or not finite.

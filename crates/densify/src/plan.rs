@@ -1,7 +1,7 @@
 //! The output of a densification step: a [`RowPlan`] plus the values of the new rows'
 //! overridden parameters and the rows whose opacity is reset.
 
-use evo_state::RowPlan;
+use splat_core::RowPlan;
 use std::fmt;
 
 /// Parameter values of the appended rows, one entry per row of `rows.parent_from_new`, in that
@@ -169,6 +169,6 @@ impl DensifyPlan {
 
     /// The reset value as an opacity logit.
     pub fn reset_logit(&self) -> f32 {
-        crate::math::logit(self.reset_opacity)
+        splat_core::logit(self.reset_opacity)
     }
 }

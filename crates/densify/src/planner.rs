@@ -25,16 +25,17 @@
 
 use crate::config::DensifyConfig;
 use crate::error::DensifyError;
-use crate::math::{logit, rotation};
+use crate::math::rotation;
 use crate::plan::{DensifyPlan, NewValues, PlanSummary, Values};
 use crate::stats::DensifyStats;
-use evo_state::{Component, Layout, RowPlan};
 use glam::Vec3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
-use splat_raster::GaussiansView;
+use splat_core::GaussiansView;
+use splat_core::logit;
+use splat_core::{Component, Layout, RowPlan};
 
 /// The latest corrected deformation d̃ (N × D, from evo-state's step) and its layout.
 #[derive(Debug, Clone, Copy)]
@@ -105,9 +106,9 @@ pub fn make_plan(
 ) -> Result<DensifyPlan, DensifyError> {
     config.validate()?;
     let g = &input.gaussians;
-    g.check_lengths().map_err(|problem| DensifyError::Input {
+    g.check_lengths().map_err(|e| DensifyError::Input {
         field: "gaussians",
-        problem,
+        problem: e.to_string(),
     })?;
     let n = g.len();
     input.stats.check()?;

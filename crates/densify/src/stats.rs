@@ -9,8 +9,9 @@
 //!   evo-state's forward outputs ([`residual_norms`], [`thetas`]).
 
 use crate::error::DensifyError;
-use evo_state::{Component, Layout, Step};
+use evo_state::Step;
 use rayon::prelude::*;
+use splat_core::{Component, Layout};
 
 /// Per-Gaussian statistics since the last densification step.
 #[derive(Debug, Clone, Default, PartialEq)]

@@ -7,14 +7,15 @@
 
 mod common;
 
-use common::logit;
 use densify::{
     Deformation, DensifyConfig, DensifyStats, Moments, PlanInput, Rows, Trigger, apply_plan,
     make_plan,
 };
-use evo_state::{EvoConfig, EvoState, Frames, Layout, NewRows, Storage};
+use evo_state::{EvoConfig, EvoState, Frames, Storage};
 use proptest::prelude::*;
-use splat_raster::Gaussians;
+use splat_core::Gaussians;
+use splat_core::logit;
+use splat_core::{Layout, NewRows};
 use tiny_nn::adam::{Adam, LrSchedule};
 
 #[derive(Debug, Clone)]

@@ -8,9 +8,8 @@ use densify::{
     Deformation, DensifyConfig, DensifyError, DensifyStats, Moments, PerGaussian, PlanInput, Rows,
     Schedule, Trigger, apply_plan, make_plan, scene_extent,
 };
-use evo_state::{Layout, NewRows};
 use glam::{Mat3, Vec3};
-use splat_raster::{Camera, Gaussians};
+use splat_core::{Camera, Gaussians, Layout, NewRows, logit, sigmoid};
 use tiny_nn::adam::{Adam, LrSchedule};
 
 const EXTENT: f32 = 1.0;

@@ -2,14 +2,14 @@
 
 mod common;
 
-use common::logit;
 use densify::{
     Deformation, DensifyConfig, DensifyStats, PlanInput, Trigger, apply_plan, make_plan,
 };
-use evo_state::Layout;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use splat_raster::Gaussians;
+use splat_core::Gaussians;
+use splat_core::Layout;
+use splat_core::logit;
 use std::fmt::Write;
 
 fn scene() -> (Gaussians, DensifyStats, Vec<f32>) {

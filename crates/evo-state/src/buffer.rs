@@ -5,7 +5,7 @@ use half::f16;
 use rayon::prelude::*;
 
 use crate::config::Storage;
-use crate::rows::{NewRows, RowPlan, RowPlanError};
+use splat_core::{NewRows, RowPlan, RowPlanError};
 
 /// Largest finite f16 value; f16 storage saturates here.
 pub const F16_MAX: f32 = 65504.0;

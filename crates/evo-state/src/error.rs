@@ -6,7 +6,7 @@ use thiserror::Error;
 
 use crate::config::ConfigError;
 use crate::frames::FramesError;
-use crate::rows::RowPlanError;
+use splat_core::RowPlanError;
 
 /// Anything that can go wrong in a step, a row plan, or saving/loading.
 #[derive(Debug, Error)]

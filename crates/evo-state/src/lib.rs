@@ -5,7 +5,7 @@
 //! time-scaled prior, the motion statistics, the gain `K` (warm-up rules, or the network Ψ, a
 //! [`tiny_nn::Mlp`]), the correction `d̃ = (1-K) d̂ + K z`, the losses `L_sup`, `L_prior` with
 //! their gradients to the observation `z` and to Ψ, committing training steps, row maintenance
-//! for densification ([`rows::RowPlan`], shared by every per-Gaussian array), and saving/loading
+//! for densification ([`RowPlan`] of `splat-core`, shared by every per-Gaussian array), and saving/loading
 //! the whole state as safetensors, bit-exact.
 //!
 //! What it is not: the observation network Φ (the caller produces `z`, N × D, with any network),
@@ -82,7 +82,6 @@ pub mod frames;
 pub mod gain;
 mod kernel;
 pub mod persist;
-pub mod rows;
 pub mod state;
 pub mod step;
 
@@ -92,6 +91,6 @@ pub use error::EvoError;
 pub use frames::{Frames, History};
 pub use gain::GainNet;
 pub use kernel::PSI_INPUT_CLAMP;
-pub use rows::{NewRows, RowPlan};
+pub use splat_core::{NewRows, RowPlan, RowPlanError};
 pub use state::{EvoState, ObservationSource, WARMUP_GAIN};
 pub use step::{Backward, Gains, Losses, Stats, Step};

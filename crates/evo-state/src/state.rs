@@ -10,8 +10,8 @@ use crate::error::EvoError;
 use crate::frames::{Frames, History};
 use crate::gain::GainNet;
 use crate::kernel::{RowContext, fin};
-use crate::rows::{NewRows, RowPlan};
 use crate::step::{Gains, Stats, Step};
+use splat_core::{NewRows, RowPlan};
 
 /// Rows per parallel task.
 pub(crate) const CHUNK: usize = 1024;

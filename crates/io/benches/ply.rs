@@ -5,7 +5,7 @@ use std::path::Path;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use evogs_io::{read_ply, read_ply_bytes, write_ply, write_ply_to};
-use splat_raster::Gaussians;
+use splat_core::Gaussians;
 
 const COUNT: usize = 1_000_000;
 

@@ -1,7 +1,7 @@
 //! A pinhole [`Camera`] with the parts of a real camera model it cannot express: skew and lens
 //! distortion. They are kept so nothing is silently dropped, and reported as warnings.
 
-use splat_raster::Camera;
+use splat_core::Camera;
 
 /// Lens distortion coefficients (nerfies / OpenCV convention).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

@@ -8,7 +8,7 @@ use std::path::Path;
 
 use glam::{Mat3, Vec3};
 use serde::Serialize;
-use splat_raster::Camera;
+use splat_core::Camera;
 
 use crate::IoError;
 use crate::atomic::write_atomically;

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 use glam::{Mat3, Vec3};
-use splat_raster::Camera;
+use splat_core::Camera;
 
 use crate::IoError;
 use crate::camera_json::image_side;

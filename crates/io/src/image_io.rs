@@ -5,7 +5,7 @@ use std::io::Write;
 use std::path::Path;
 
 use image::{DynamicImage, ImageFormat, ImageReader, Rgb32FImage};
-use splat_raster::Camera;
+use splat_core::Camera;
 
 use crate::IoError;
 use crate::atomic::write_atomically;

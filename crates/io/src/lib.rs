@@ -9,7 +9,7 @@
 //! names the file and the field or problem; every write is atomic (temporary file, then rename).
 //!
 //! What it is not: a renderer, a trainer or a data augmenter. Cameras come out as
-//! [`splat_raster::Camera`] (pinhole); skew and lens distortion are kept beside them in
+//! [`splat_core::Camera`] (pinhole); skew and lens distortion are kept beside them in
 //! [`CameraInfo`] and reported, never applied.
 
 pub mod atomic;

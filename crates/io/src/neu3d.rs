@@ -31,7 +31,7 @@
 use std::path::{Path, PathBuf};
 
 use glam::{Mat3, Vec3};
-use splat_raster::Camera;
+use splat_core::Camera;
 
 use crate::IoError;
 use crate::camera_info::CameraInfo;

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use evogs_io::{CameraInfo, Distortion, IoError, read_nerfies_camera, write_nerfies_camera};
 use glam::{Mat3, Quat, Vec3};
 use proptest::prelude::*;
-use splat_raster::Camera;
+use splat_core::Camera;
 
 const HYPERNERF_SAMPLE: &str = r#"{
   "orientation": [

@@ -233,7 +233,7 @@ fn nerfies_errors_name_file_and_field() {
     assert_names(&m, "dataset.json", "`ids`");
     assert!(m.contains("camera/a.json"), "{m}");
     // A camera whose image_size does not match its image.
-    let camera = splat_raster::Camera::look_at(
+    let camera = splat_core::Camera::look_at(
         8,
         6,
         1.0,

@@ -15,7 +15,7 @@ use evogs_io::{
     detect_format, load_dataset, load_image, save_png, write_nerfies_camera,
 };
 use glam::{DMat3, DQuat, Vec3};
-use splat_raster::Camera;
+use splat_core::Camera;
 
 const W: u32 = 8;
 const H: u32 = 6;

@@ -7,7 +7,7 @@ use evogs_io::image_io::to_u8;
 use evogs_io::{ImageRgb, IoError, load_image, load_view, resize_image, save_png};
 use glam::Vec3;
 use proptest::prelude::*;
-use splat_raster::Camera;
+use splat_core::Camera;
 
 fn save_rgba(path: &Path, w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 4]) {
     image::RgbaImage::from_fn(w, h, |x, y| image::Rgba(f(x, y)))

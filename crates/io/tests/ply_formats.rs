@@ -9,7 +9,7 @@ use common::{assert_bits_equal, encode_ply, names_3dgs, random_gaussians, rows_3
 use evogs_io::ply::{Encoding, PlyProblem, ply_header};
 use evogs_io::{IoError, read_ply, read_ply_bytes, write_ply, write_ply_to};
 use proptest::prelude::*;
-use splat_raster::Gaussians;
+use splat_core::Gaussians;
 
 fn to_bytes(g: &Gaussians) -> Vec<u8> {
     let mut out = Vec::new();

@@ -31,11 +31,9 @@
 //! other crates of the workspace and hand this crate slices.
 
 mod backend;
-pub mod camera;
 mod composite;
 mod cpu;
 mod error;
-pub mod gaussians;
 #[cfg(feature = "wgpu")]
 mod gpu;
 mod options;
@@ -46,10 +44,8 @@ mod tiles;
 mod validate;
 
 pub use backend::{BackendChoice, BackendInfo, BackendKind, DynRasterizer, select_rasterizer};
-pub use camera::Camera;
 pub use cpu::CpuRasterizer;
 pub use error::RasterError;
-pub use gaussians::{Gaussians, GaussiansView, sh_coeff_count};
 #[cfg(feature = "wgpu")]
 #[doc(hidden)]
 pub use gpu::sort::SortHarness;
@@ -60,6 +56,9 @@ pub use output::{ForwardOutput, Gradients};
 pub use project::{
     ALPHA_MAX, ALPHA_MIN, DILATION, MAX_COLOR, NEAR_PLANE, QUAT_NORM2_MIN, T_MIN, TILE,
 };
+/// The plain types of `splat-core` the rasterizer reads, re-exported for convenience (defined
+/// there, once).
+pub use splat_core::{Camera, Gaussians, GaussiansView, camera, gaussians, sh_coeff_count};
 
 /// A rasterizer backend: [`CpuRasterizer`], or `WgpuRasterizer` (feature `wgpu`).
 pub trait Rasterizer {

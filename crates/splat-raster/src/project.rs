@@ -2,6 +2,7 @@
 //! Jacobian and 0.3 dilation, conic, opacity-aware screen extent, SH colour; and its backward pass.
 
 use glam::{DMat3, DVec3, Vec3};
+use splat_core::sigmoid;
 
 use crate::camera::Camera;
 use crate::gaussians::GaussiansView;
@@ -207,10 +208,6 @@ fn rotation(q: [f64; 4]) -> DMat3 {
             1.0 - 2.0 * (x * x + y * y),
         ),
     )
-}
-
-fn sigmoid(x: f32) -> f32 {
-    1.0 / (1.0 + (-x).exp())
 }
 
 /// Intermediate values of one Gaussian's projection, shared by forward and backward.

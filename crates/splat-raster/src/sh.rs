@@ -1,28 +1,7 @@
 //! Real spherical harmonics up to degree 3 in the Sloan basis order with the constants of the
 //! 3DGS reference implementation, and the basis gradient with respect to the view direction.
 
-/// Degree-0 constant, `1 / (2 sqrt(pi))`.
-pub const SH_C0: f32 = 0.282_094_8;
-/// Degree-1 constant.
-pub const SH_C1: f32 = 0.488_602_52;
-/// Degree-2 constants.
-pub const SH_C2: [f32; 5] = [
-    1.092_548_5,
-    -1.092_548_5,
-    0.315_391_57,
-    -1.092_548_5,
-    0.546_274_24,
-];
-/// Degree-3 constants.
-pub const SH_C3: [f32; 7] = [
-    -0.590_043_6,
-    2.890_611_4,
-    -0.457_045_8,
-    0.373_176_33,
-    -0.457_045_8,
-    1.445_305_7,
-    -0.590_043_6,
-];
+pub use splat_core::sh::{SH_C0, SH_C1, SH_C2, SH_C3};
 
 /// The basis values for the unit direction `d` at `degree` (entries past `(degree+1)²` are 0).
 pub fn basis(d: [f32; 3], degree: u32) -> [f32; 16] {

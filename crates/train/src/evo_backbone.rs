@@ -22,7 +22,7 @@ use std::path::Path;
 
 use densify::{Deformation, PerGaussian, residual_norms, thetas};
 use evo_state::{Backward, EvoConfig, EvoError, EvoState, Frames, Step};
-use splat_raster::GaussiansView;
+use splat_core::{GaussiansView, sigmoid};
 use tiny_nn::{
     BSplineConfig, ObservationCache, ObservationConfig, ObservationNet, Parameters, PlaneCombine,
     StoreMut, StoreRef, TriPlaneConfig,
@@ -231,10 +231,6 @@ impl EvoBackbone {
         }
         out
     }
-}
-
-fn sigmoid(x: f32) -> f32 {
-    1.0 / (1.0 + (-x).exp())
 }
 
 impl Parameters for EvoBackbone {

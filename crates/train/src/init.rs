@@ -6,7 +6,8 @@
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use splat_raster::{Gaussians, sh_coeff_count};
+use splat_core::sh::dc_from_rgb;
+use splat_core::{Gaussians, logit, sh_coeff_count};
 
 /// `count` random Gaussians in `[-half, half]³` at SH degree `sh_degree`, deterministic for a
 /// seed.
@@ -25,12 +26,11 @@ pub fn random_gaussians(count: usize, half: f32, sh_degree: u32, seed: u64) -> G
 /// Gaussians from a dataset's point cloud (3DGS `create_from_pcd`): one per point, SH DC
 /// `RGB2SH(colour) = (colour − 0.5) / C0`, higher bands zero.
 pub fn gaussians_from_point_cloud(points: &evogs_io::PointCloud, sh_degree: u32) -> Gaussians {
-    const SH_C0: f32 = 0.282_094_8;
     let means = points.positions.iter().map(|p| p.to_array()).collect();
     let dc: Vec<[f32; 3]> = points
         .colours
         .iter()
-        .map(|c| ((*c - 0.5) / SH_C0).to_array())
+        .map(|c| c.to_array().map(dc_from_rgb))
         .collect();
     from_points(means, &dc, sh_degree)
 }
@@ -48,7 +48,7 @@ fn from_points(means: Vec<[f32; 3]>, dc: &[[f32; 3]], sh_degree: u32) -> Gaussia
         .into_iter()
         .map(|d2| [0.5 * d2.max(1e-7).ln(); 3])
         .collect();
-    let opacity = (0.1f32 / 0.9).ln();
+    let opacity = logit(0.1);
     Gaussians {
         sh_degree,
         means,

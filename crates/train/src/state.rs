@@ -303,7 +303,7 @@ mod tests {
     use crate::backbone::D3dgsBackbone;
     use crate::config::{NetSettings, Preset, TrainConfig};
     use densify::{NewValues, PlanSummary};
-    use evo_state::RowPlan;
+    use splat_core::RowPlan;
 
     fn state(n: usize) -> (SceneState, D3dgsBackbone) {
         let c = TrainConfig::preset(Preset::Tiny);

@@ -2,7 +2,7 @@
 #![allow(dead_code)]
 
 use densify::{DensifyConfig, DensifyStats};
-use splat_raster::Gaussians;
+use splat_core::Gaussians;
 
 /// `n` Gaussians at x = i, isotropic scale `scale`, identity rotation, opacity 0.5, SH degree 1
 /// with coefficients tagged by row (row + k/100).
@@ -29,14 +29,6 @@ pub fn stats_with_grads(grads: &[f32]) -> DensifyStats {
         s.visible[i] = 1;
     }
     s
-}
-
-pub fn logit(p: f32) -> f32 {
-    (p / (1.0 - p)).ln()
-}
-
-pub fn sigmoid(x: f32) -> f32 {
-    1.0 / (1.0 + (-x).exp())
 }
 
 /// Default 3DGS configuration.

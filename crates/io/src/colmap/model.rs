@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use glam::{DQuat, Mat3, Vec3};
-use splat_raster::Camera;
+use splat_core::Camera;
 
 use crate::IoError;
 use crate::camera_info::{CameraInfo, Distortion};

@@ -1,8 +1,8 @@
 //! The original 3DGS vertex layout (SPEC §2) and how its properties map to [`Gaussians`] fields.
 //!
-//! [`Gaussians`]: splat_raster::Gaussians
+//! [`Gaussians`]: splat_core::Gaussians
 
-use splat_raster::sh_coeff_count;
+use splat_core::sh_coeff_count;
 
 /// Number of `f_rest_*` properties at an SH degree: `3 · ((deg + 1)² − 1)`.
 pub(crate) fn rest_count(degree: u32) -> usize {

@@ -4,7 +4,7 @@ use std::fs::File;
 use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
-use splat_raster::Gaussians;
+use splat_core::Gaussians;
 
 use super::header::{Element, Encoding, Header, PropertyKind, ScalarType, parse_header_lines};
 use super::layout::{RecordLayout, degree_from_rest_count, is_rest_name};

@@ -3,7 +3,7 @@
 use std::io::Write;
 use std::path::Path;
 
-use splat_raster::GaussiansView;
+use splat_core::GaussiansView;
 
 use super::layout::{property_names, rest_count};
 use crate::IoError;
@@ -30,12 +30,12 @@ pub fn write_ply_to<W: Write>(
 ) -> Result<(), IoError> {
     gaussians
         .check_lengths()
-        .map_err(|problem| IoError::InvalidData {
+        .map_err(|e| IoError::InvalidData {
             path: path.to_path_buf(),
-            problem,
+            problem: e.to_string(),
         })?;
     let degree = gaussians.sh_degree;
-    let coeffs = splat_raster::sh_coeff_count(degree);
+    let coeffs = splat_core::sh_coeff_count(degree);
     let stride = gaussians.sh_stride();
     let floats_per_row = 14 + rest_count(degree);
     let io = |e| IoError::io(path, e);
@@ -73,9 +73,9 @@ pub fn write_ply(path: &Path, gaussians: GaussiansView<'_>) -> Result<(), IoErro
     // Check before creating the temporary file, so bad data leaves no trace at all.
     gaussians
         .check_lengths()
-        .map_err(|problem| IoError::InvalidData {
+        .map_err(|e| IoError::InvalidData {
             path: path.to_path_buf(),
-            problem,
+            problem: e.to_string(),
         })?;
     write_atomically(path, |w| write_ply_to(w, gaussians, path))
 }

@@ -3,7 +3,7 @@
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use splat_raster::Gaussians;
+use splat_core::Gaussians;
 
 /// The 3DGS property names for a degree, written out independently of the crate.
 pub fn names_3dgs(degree: u32) -> Vec<String> {

@@ -4,8 +4,8 @@ use std::f32::consts::{PI, TAU};
 
 use glam::{Quat, Vec3};
 use serde::Serialize;
+use splat_core::sh::{dc_from_rgb, rgb_from_dc};
 use splat_raster::Gaussians;
-use splat_raster::sh::SH_C0;
 
 use super::SceneSpec;
 use super::effects::{AppearanceChange, Jump, LargeMotion, Occlusion, RigidMotion, Wave};
@@ -137,8 +137,8 @@ impl MotionModel {
             if let (Some((a, s)), Part::Body) = (blend, part) {
                 let dc = &mut out.sh[i * stride..i * stride + 3];
                 for (v, tint) in dc.iter_mut().zip(a.tint) {
-                    let rgb = *v * SH_C0 + 0.5;
-                    *v = (rgb + s * (tint - rgb) - 0.5) / SH_C0;
+                    let rgb = rgb_from_dc(*v);
+                    *v = dc_from_rgb(rgb + s * (tint - rgb));
                 }
             }
         }

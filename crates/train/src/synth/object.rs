@@ -4,8 +4,9 @@
 use std::f32::consts::{PI, TAU};
 
 use glam::{Quat, Vec3};
+use splat_core::logit;
+use splat_core::sh::dc_from_rgb;
 use splat_raster::Gaussians;
-use splat_raster::sh::SH_C0;
 
 use super::effects::Occlusion;
 use super::motion::Part;
@@ -44,8 +45,8 @@ fn push(
     g.log_scales
         .push([sigma.ln(), sigma.ln(), (0.2 * sigma).ln()]);
     g.rotations.push([q.w, q.x, q.y, q.z]);
-    g.opacity_logits.push((OPACITY / (1.0 - OPACITY)).ln());
-    g.sh.extend(rgb.map(|c| (c - 0.5) / SH_C0));
+    g.opacity_logits.push(logit(OPACITY));
+    g.sh.extend(rgb.map(dc_from_rgb));
     parts.push(part);
 }
 

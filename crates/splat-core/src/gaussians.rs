@@ -4,6 +4,26 @@
 //! logit (1), and SH coefficients `[(deg+1)²][3]`, coefficient-major (all three channels of
 //! coefficient 0, then coefficient 1, ...).
 
+use thiserror::Error;
+
+/// Why a [`GaussiansView`] is not a consistent set of Gaussians.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Error)]
+pub enum ShapeError {
+    /// The SH degree is above 3.
+    #[error("SH degree {0} is above 3")]
+    ShDegree(u32),
+    /// An array's length does not match the number of means.
+    #[error("{field} has {got} entries, expected {expected}")]
+    Length {
+        /// The array (field of [`GaussiansView`]).
+        field: &'static str,
+        /// Its length.
+        got: usize,
+        /// The length the means imply.
+        expected: usize,
+    },
+}
+
 /// Number of SH coefficients per channel for a degree: `(deg + 1)²`.
 pub const fn sh_coeff_count(degree: u32) -> usize {
     ((degree + 1) * (degree + 1)) as usize
@@ -54,17 +74,17 @@ impl Gaussians {
 
     /// Number of Gaussians.
     pub fn len(&self) -> usize {
-        self.means.len()
+        self.view().len()
     }
 
     /// True when there are no Gaussians.
     pub fn is_empty(&self) -> bool {
-        self.means.is_empty()
+        self.view().is_empty()
     }
 
     /// Floats of SH per Gaussian: `sh_coeff_count(sh_degree) * 3`.
     pub fn sh_stride(&self) -> usize {
-        sh_coeff_count(self.sh_degree) * 3
+        self.view().sh_stride()
     }
 
     /// Borrow as slices.
@@ -97,10 +117,10 @@ impl GaussiansView<'_> {
     }
 
     /// Checks that every array has the length the means imply and the degree is 0..=3.
-    pub fn check_lengths(&self) -> Result<(), String> {
+    pub fn check_lengths(&self) -> Result<(), ShapeError> {
         let n = self.len();
         if self.sh_degree > 3 {
-            return Err(format!("SH degree {} is above 3", self.sh_degree));
+            return Err(ShapeError::ShDegree(self.sh_degree));
         }
         let checks = [
             ("log_scales", self.log_scales.len(), n),
@@ -108,9 +128,13 @@ impl GaussiansView<'_> {
             ("opacity_logits", self.opacity_logits.len(), n),
             ("sh", self.sh.len(), n * self.sh_stride()),
         ];
-        for (name, got, want) in checks {
-            if got != want {
-                return Err(format!("{name} has {got} entries, expected {want}"));
+        for (field, got, expected) in checks {
+            if got != expected {
+                return Err(ShapeError::Length {
+                    field,
+                    got,
+                    expected,
+                });
             }
         }
         Ok(())
