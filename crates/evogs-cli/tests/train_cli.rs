@@ -1,7 +1,7 @@
 //! `evogs train`, `eval`, `render --run` and `export` end to end through the binary on a tiny
 //! dynamic scene, and one-line errors naming the file for bad input.
 
-#[path = "../../train/tests/common/mod.rs"]
+#[path = "../../evogs-train/tests/common/mod.rs"]
 mod common;
 mod support;
 

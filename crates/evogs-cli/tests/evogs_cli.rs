@@ -1,7 +1,7 @@
 //! `evogs train --method evogs` (with non-default switches), then `eval`, `render --run`,
 //! `export` and `--resume` on the run, through the binary on the tiny moving-block scene.
 
-#[path = "../../train/tests/common/mod.rs"]
+#[path = "../../evogs-train/tests/common/mod.rs"]
 mod common;
 mod support;
 
