@@ -615,16 +615,17 @@ fn summaries_snapshot() {
 
 #[test]
 fn real_lego_scene_is_detected_and_loaded() {
+    // Seven real lego frames at 100×100 (see `tests/data/README.md`).
     let lego = Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/dnerf-lego"
+        "/tests/data/dnerf-lego"
     ));
     assert_eq!(detect_format(lego).unwrap(), Format::Dnerf);
     let d = load(lego, &LoadOptions::default());
-    assert_eq!((d.train.len(), d.test.len(), d.val.len()), (34, 20, 11));
+    assert_eq!((d.train.len(), d.test.len(), d.val.len()), (3, 2, 2));
     assert_eq!(
         d.summary(),
-        "dnerf: 34 train, 20 test, 11 val frames, no point cloud"
+        "dnerf: 3 train, 2 test, 2 val frames, no point cloud"
     );
     assert!(
         d.all_frames()

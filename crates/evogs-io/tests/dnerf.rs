@@ -1,5 +1,5 @@
-//! D-NeRF datasets: the real lego scene (counts, sizes, camera geometry) and errors naming the
-//! file and field for broken datasets.
+//! D-NeRF datasets: real lego frames (the fixture `tests/data/dnerf-lego`: counts, sizes, camera
+//! geometry) and errors naming the file and field for broken datasets.
 
 use std::path::{Path, PathBuf};
 
@@ -7,10 +7,11 @@ use evogs_io::dnerf::camera_from_opengl_c2w;
 use evogs_io::{IoError, Split, read_dnerf_split, read_transforms};
 use glam::Vec3;
 
+/// Seven real lego frames at 100×100 (see `tests/data/README.md`).
 fn lego() -> PathBuf {
     Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/dnerf-lego"
+        "/tests/data/dnerf-lego"
     ))
     .to_path_buf()
 }
@@ -22,17 +23,17 @@ fn lego_splits_have_the_expected_frames() {
         .iter()
         .map(|&split| read_dnerf_split(&root, split).unwrap().len())
         .collect();
-    assert_eq!(counts, vec![34, 20, 11]);
+    assert_eq!(counts, vec![3, 2, 2]);
     let train = read_dnerf_split(&root, Split::Train).unwrap();
     let json: serde_json::Value =
         serde_json::from_slice(&std::fs::read(root.join("transforms_train.json")).unwrap())
             .unwrap();
     let angle = json["camera_angle_x"].as_f64().unwrap();
-    let focal = (0.5 * 800.0 / (0.5 * angle).tan()) as f32;
+    let focal = (0.5 * 100.0 / (0.5 * angle).tan()) as f32;
     for (frame, raw) in train.iter().zip(json["frames"].as_array().unwrap()) {
         let c = &frame.camera;
-        assert_eq!((c.width, c.height), (800, 800));
-        assert_eq!((c.fx, c.fy, c.cx, c.cy), (focal, focal, 400.0, 400.0));
+        assert_eq!((c.width, c.height), (100, 100));
+        assert_eq!((c.fx, c.fy, c.cx, c.cy), (focal, focal, 50.0, 50.0));
         assert!(frame.image_path.is_file(), "{}", frame.image_path.display());
         assert_eq!(frame.time, raw["time"].as_f64().unwrap() as f32);
         assert!((0.0..=1.0).contains(&frame.time));
@@ -55,30 +56,30 @@ fn lego_splits_have_the_expected_frames() {
         let p = c.world_to_camera(Vec3::ZERO);
         let (u, v) = (c.fx * p.x / p.z + c.cx, c.fy * p.y / p.z + c.cy);
         assert!(
-            (u - 400.0).abs() < 80.0 && (v - 400.0).abs() < 80.0,
+            (u - 50.0).abs() < 10.0 && (v - 50.0).abs() < 10.0,
             "origin at ({u}, {v})"
         );
         // OpenCV axes: world up (+z in Blender) appears towards the top of the image.
         assert!(c.world_to_camera(Vec3::Z).y < p.y);
         assert!((c.rotation.determinant() - 1.0).abs() < 1e-5);
     }
-    assert_eq!(train[0].image_path.file_name().unwrap(), "r_8.png");
+    assert_eq!(train[0].image_path.file_name().unwrap(), "r_0.png");
     // The images are RGBA: at half size over a white background, the corner is background and
     // the centre holds the (non-white) model.
     let (img, cam) =
         evogs_io::load_view(&train[0].image_path, &train[0].camera, [1.0; 3], 0.5).unwrap();
     assert_eq!(
         (img.width, img.height, cam.width, cam.height),
-        (400, 400, 400, 400)
+        (50, 50, 50, 50)
     );
-    assert_eq!((cam.fx, cam.cx), (focal * 0.5, 200.0));
+    assert_eq!((cam.fx, cam.cx), (focal * 0.5, 25.0));
     assert_eq!(img.get(0, 0), [1.0; 3]);
     let non_white = img
         .pixels
         .iter()
         .filter(|p| p.iter().any(|&c| c < 0.9))
         .count();
-    assert!(non_white > 400 * 400 / 20, "{non_white}");
+    assert!(non_white > 50 * 50 / 20, "{non_white}");
 }
 
 #[test]
