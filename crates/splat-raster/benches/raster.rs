@@ -4,6 +4,10 @@
 //! Gaussian-pixel evaluations: per tile, for each list entry processed, the pixels of the
 //! Gaussian's bounding box inside the tile (what the inner loop visits).
 //!
+//! Each case runs the default SIMD kernels (`forward`, `forward_backward`) and, for the ratio
+//! in the same run, the scalar reference kernels (`scalar_forward`, `scalar_forward_backward`:
+//! the CPU backend's kernels before the SIMD ones, `CpuKernel::Scalar`).
+//!
 //! Each case is measured twice: in wall-clock time (`wall/...`) and in process CPU time summed
 //! over all threads (`cpu/...`, from `/proc/self/task/*/schedstat`), which is far less disturbed
 //! by other processes competing for the cores than wall-clock time.
@@ -15,7 +19,7 @@ use std::hint::black_box;
 use bench_support::CpuTime;
 use criterion::measurement::{Measurement, WallTime};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use splat_raster::{CpuRasterizer, Rasterizer, RenderOptions};
+use splat_raster::{CpuKernel, CpuRasterizer, Rasterizer, RenderOptions};
 
 fn bench_wall(c: &mut Criterion<WallTime>) {
     bench(c, "wall");
@@ -47,16 +51,19 @@ fn bench<M: Measurement>(c: &mut Criterion<M>, clock: &str) {
         let d_alpha = vec![0.05f32; cam.pixel_count()];
         let mut group = c.benchmark_group(format!("{clock}/{}k_{size}", n / 1000));
         group.throughput(Throughput::Elements(evals));
-        group.bench_function("forward", |b| {
-            b.iter(|| r.forward(black_box(g.view()), &cam, &opts).unwrap())
-        });
-        group.bench_function("forward_backward", |b| {
-            b.iter(|| {
-                let f = r.forward(black_box(g.view()), &cam, &opts).unwrap();
-                r.backward(g.view(), &cam, &opts, &f, &d_color, Some(&d_alpha), None)
-                    .unwrap()
-            })
-        });
+        for (prefix, kernel) in [("", CpuKernel::Simd), ("scalar_", CpuKernel::Scalar)] {
+            let r = CpuRasterizer::new().with_kernel(kernel);
+            group.bench_function(format!("{prefix}forward"), |b| {
+                b.iter(|| r.forward(black_box(g.view()), &cam, &opts).unwrap())
+            });
+            group.bench_function(format!("{prefix}forward_backward"), |b| {
+                b.iter(|| {
+                    let f = r.forward(black_box(g.view()), &cam, &opts).unwrap();
+                    r.backward(g.view(), &cam, &opts, &f, &d_color, Some(&d_alpha), None)
+                        .unwrap()
+                })
+            });
+        }
         group.finish();
     }
 }

@@ -10,25 +10,80 @@ use rayon::prelude::*;
 
 use crate::Rasterizer;
 use crate::camera::Camera;
-use crate::composite::{self, Counters, LANES, PixelGrads, TileOut};
+use crate::composite::{Counters, LANES, PixelGrads, TileOut, lanes, scalar};
 use crate::error::RasterError;
 use crate::gaussians::GaussiansView;
 use crate::options::{CullStats, RenderOptions};
 use crate::output::{BackendState, BackwardState, CpuState, ForwardOutput, Gradients};
 use crate::project::{self, CullReason, Frame, Splat, SplatGrad, TILE};
+use crate::simd::{self, Isa};
 use crate::tiles;
 use crate::validate::{validate, validate_backward};
 
-/// The CPU rasterizer. By default it runs on rayon's global pool.
-#[derive(Clone, Debug, Default)]
+/// Which compositing kernels [`CpuRasterizer`] runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum CpuKernel {
+    /// Eight pixels at a time with a vectorised `exp`, compiled for AVX2 + FMA when the CPU has
+    /// them (chosen at run time) and for the baseline target otherwise, with identical results.
+    #[default]
+    Simd,
+    /// The plain reference kernels, one pixel at a time with the standard library's `exp`: the
+    /// CPU backend's kernels before the SIMD ones, kept to check and to measure those against.
+    Scalar,
+}
+
+/// The kernels that run: the scalar ones with an `exp`, or the SIMD ones built for an
+/// instruction set.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Kernels {
+    Scalar { exp: fn(f32) -> f32 },
+    Lanes(Isa),
+}
+
+impl Kernels {
+    fn of(kernel: CpuKernel) -> Self {
+        match kernel {
+            CpuKernel::Simd => Kernels::Lanes(Isa::best()),
+            CpuKernel::Scalar => Kernels::Scalar { exp: f32::exp },
+        }
+    }
+}
+
+/// The CPU rasterizer. By default it runs the SIMD kernels on rayon's global pool.
+#[derive(Clone, Debug)]
 pub struct CpuRasterizer {
     pool: Option<Arc<rayon::ThreadPool>>,
+    kernels: Kernels,
+}
+
+impl Default for CpuRasterizer {
+    fn default() -> Self {
+        Self {
+            pool: None,
+            kernels: Kernels::of(CpuKernel::Simd),
+        }
+    }
 }
 
 impl CpuRasterizer {
     /// A rasterizer on rayon's global thread pool.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// The same rasterizer running `kernel`. A backward pass runs the kernels its forward pass
+    /// ran, whatever this says.
+    pub fn with_kernel(self, kernel: CpuKernel) -> Self {
+        Self {
+            kernels: Kernels::of(kernel),
+            ..self
+        }
+    }
+
+    /// The same rasterizer running `kernels` (tests of each build against the reference).
+    #[cfg(test)]
+    pub(crate) fn with_kernels(self, kernels: Kernels) -> Self {
+        Self { kernels, ..self }
     }
 
     /// A rasterizer on its own pool of `threads` threads.
@@ -42,6 +97,7 @@ impl CpuRasterizer {
             })?;
         Ok(Self {
             pool: Some(Arc::new(pool)),
+            ..Self::default()
         })
     }
 
@@ -62,6 +118,16 @@ fn count(stats: &mut CullStats, reason: CullReason) {
         CullReason::DegenerateCovariance => stats.degenerate_covariance += 1,
         CullReason::OffScreen => stats.off_screen += 1,
     }
+}
+
+/// What the backward pass made of one Gaussian.
+enum Outcome {
+    /// Culled in the forward pass: zero gradient.
+    Culled,
+    /// Its gradient overflowed `f32`: set to zero and counted.
+    Zeroed,
+    /// Its raw-parameter gradient and dL/d(u, v).
+    Drawn(project::RawGrad, [f32; 2]),
 }
 
 /// Row-major pixel index → (tile, lane).
@@ -126,37 +192,52 @@ impl CpuRasterizer {
             .zip(last.par_chunks_mut(LANES))
             .enumerate()
             .map(|(tile, (((color, depth), final_t), last))| {
-                composite::forward_tile(
-                    &frame,
-                    tile,
-                    lists.tile(tile),
-                    &splats,
-                    opts.background,
-                    TileOut {
-                        color,
-                        depth,
-                        final_t,
-                        last,
-                    },
-                )
+                let out = TileOut {
+                    color,
+                    depth,
+                    final_t,
+                    last,
+                };
+                let (ids, background) = (lists.tile(tile), opts.background);
+                match self.kernels {
+                    Kernels::Scalar { exp } => {
+                        scalar::forward_tile(&frame, tile, ids, &splats, background, out, exp)
+                    }
+                    Kernels::Lanes(isa) => simd::dispatch(
+                        isa,
+                        lanes::Forward {
+                            frame: &frame,
+                            tile,
+                            ids,
+                            splats: &splats,
+                            background,
+                            out,
+                        },
+                    ),
+                }
             })
             .reduce(Counters::default, |a, b| Counters {
                 evaluations: a.evaluations + b.evaluations,
                 blended: a.blended + b.blended,
             });
         let (w, h) = (cam.width as usize, cam.height as usize);
-        let mut color = Vec::with_capacity(w * h);
-        let mut alpha = Vec::with_capacity(w * h);
-        let mut depth_img = Vec::with_capacity(w * h);
-        for y in 0..h {
-            for x in 0..w {
-                let (t, l) = tile_lane(&frame, x, y);
-                let k = t * LANES + l;
-                color.push(color_t[k]);
-                alpha.push(1.0 - final_t[k]);
-                depth_img.push(depth_t[k]);
-            }
-        }
+        let mut color = vec![[0.0f32; 3]; w * h];
+        let mut alpha = vec![0.0f32; w * h];
+        let mut depth_img = vec![0.0f32; w * h];
+        color
+            .par_chunks_mut(w)
+            .zip(alpha.par_chunks_mut(w))
+            .zip(depth_img.par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(y, ((color, alpha), depth))| {
+                for x in 0..w {
+                    let (t, l) = tile_lane(&frame, x, y);
+                    let k = t * LANES + l;
+                    color[x] = color_t[k];
+                    alpha[x] = 1.0 - final_t[k];
+                    depth[x] = depth_t[k];
+                }
+            });
         Ok(ForwardOutput {
             width: cam.width,
             height: cam.height,
@@ -173,6 +254,7 @@ impl CpuRasterizer {
                 counters,
                 tile_pairs: lists.ids.len(),
                 backend: BackendState::Cpu(CpuState {
+                    kernels: self.kernels,
                     splats,
                     lists,
                     final_t,
@@ -219,53 +301,71 @@ impl CpuRasterizer {
             rest = tail;
         }
         slots.into_par_iter().enumerate().for_each(|(tile, out)| {
-            let lanes = tile * LANES..(tile + 1) * LANES;
-            composite::backward_tile(
-                &frame,
-                tile,
-                lists.tile(tile),
-                &cpu.splats,
-                st.background,
-                &cpu.final_t[lanes.clone()],
-                &cpu.last[lanes],
-                pixel_grads,
-                out,
-            );
+            let range = tile * LANES..(tile + 1) * LANES;
+            let (final_t, last) = (&cpu.final_t[range.clone()], &cpu.last[range]);
+            let ids = lists.tile(tile);
+            match cpu.kernels {
+                Kernels::Scalar { exp } => scalar::backward_tile(
+                    &frame,
+                    tile,
+                    ids,
+                    &cpu.splats,
+                    st.background,
+                    final_t,
+                    last,
+                    pixel_grads,
+                    out,
+                    exp,
+                ),
+                Kernels::Lanes(isa) => simd::dispatch(
+                    isa,
+                    lanes::Backward {
+                        frame: &frame,
+                        tile,
+                        ids,
+                        splats: &cpu.splats,
+                        background: st.background,
+                        final_t,
+                        last,
+                        grads: pixel_grads,
+                        out,
+                    },
+                ),
+            }
         });
-        // Fixed-order reduction per Gaussian.
+        // Per Gaussian, its entries summed in tile order (a fixed order), then chained to the
+        // raw parameters.
         let n = g.len();
-        let mut per_gaussian = vec![SplatGrad::default(); n];
-        for (entry, &id) in entries.iter().zip(&lists.ids) {
-            per_gaussian[id as usize].add(entry);
-        }
-
         let stride = g.sh_stride();
         let mut sh = vec![0.0f32; n * stride];
-        let raw: Vec<Option<project::RawGrad>> = sh
+        let outcomes: Vec<Outcome> = sh
             .par_chunks_mut(stride)
             .enumerate()
             .map(|(i, sh_out)| {
                 // Culled in the forward pass (off screen included): zero gradient.
                 if cpu.splats[i].opacity <= 0.0 {
-                    return None;
+                    return Outcome::Culled;
                 }
-                let grad =
-                    project::project_backward(&frame, &g, active, i, &per_gaussian[i], sh_out)?;
+                let mut d = SplatGrad::default();
+                for &e in lists.entries_of(i) {
+                    d.add(&entries[e as usize]);
+                }
+                let Some(grad) = project::project_backward(&frame, &g, active, i, &d, sh_out)
+                else {
+                    return Outcome::Culled;
+                };
                 let finite = grad.mean.iter().all(|v| v.is_finite())
                     && grad.log_scale.iter().all(|v| v.is_finite())
                     && grad.q.iter().all(|v| v.is_finite())
                     && grad.logit.is_finite()
                     && sh_out.iter().all(|v| v.is_finite())
-                    && per_gaussian[i].u.is_finite()
-                    && per_gaussian[i].v.is_finite();
+                    && d.u.is_finite()
+                    && d.v.is_finite();
                 if finite {
-                    Some(grad)
+                    Outcome::Drawn(grad, [d.u, d.v])
                 } else {
                     sh_out.fill(0.0);
-                    Some(project::RawGrad {
-                        logit: f32::NAN,
-                        ..project::RawGrad::default()
-                    })
+                    Outcome::Zeroed
                 }
             })
             .collect();
@@ -279,17 +379,18 @@ impl CpuRasterizer {
             radii: st.radii.clone(),
             zeroed_non_finite: 0,
         };
-        for (i, grad) in raw.into_iter().enumerate() {
-            let Some(grad) = grad else { continue };
-            if grad.logit.is_nan() {
-                out.zeroed_non_finite += 1;
-                continue;
+        for (i, outcome) in outcomes.into_iter().enumerate() {
+            match outcome {
+                Outcome::Culled => {}
+                Outcome::Zeroed => out.zeroed_non_finite += 1,
+                Outcome::Drawn(grad, uv) => {
+                    out.means[i] = grad.mean;
+                    out.log_scales[i] = grad.log_scale;
+                    out.rotations[i] = grad.q;
+                    out.opacity_logits[i] = grad.logit;
+                    out.means2d[i] = uv;
+                }
             }
-            out.means[i] = grad.mean;
-            out.log_scales[i] = grad.log_scale;
-            out.rotations[i] = grad.q;
-            out.opacity_logits[i] = grad.logit;
-            out.means2d[i] = [per_gaussian[i].u, per_gaussian[i].v];
         }
         Ok(out)
     }
@@ -316,5 +417,146 @@ impl Rasterizer for CpuRasterizer {
         d_depth: Option<&[f32]>,
     ) -> Result<Gradients, RasterError> {
         self.install(|| self.backward_impl(g, cam, opts, fwd, d_color, d_alpha, d_depth))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{Mat3, Vec3};
+    use proptest::prelude::*;
+
+    use super::*;
+    use crate::gaussians::Gaussians;
+    use crate::simd::{F8, dispatch};
+
+    /// The vectorised `exp` on one value (the same value in any build).
+    fn approx_exp(x: f32) -> f32 {
+        crate::simd::exp(F8::splat(x)).0[0]
+    }
+
+    fn isas() -> Vec<Isa> {
+        let mut v = vec![Isa::Portable];
+        if Isa::best() != Isa::Portable {
+            v.push(Isa::best());
+        }
+        v
+    }
+
+    /// Raw parameters of one Gaussian: mean (z in front of the camera), log-scales, quaternion,
+    /// opacity logit, three SH DC values.
+    fn gaussian() -> impl Strategy<Value = ([f32; 3], [f32; 3], [f32; 4], f32, [f32; 3])> {
+        (
+            (-1.5f32..1.5, -1.2f32..1.2, 2.0f32..5.0),
+            prop_oneof![
+                3 => (-3.5f32..-1.5, -3.5f32..-1.5, -3.5f32..-1.5),
+                1 => (-7.0f32..-4.0, -1.5f32..0.5, -3.0f32..-1.0),
+                1 => (-0.5f32..1.5, -0.5f32..1.5, -0.5f32..1.5),
+            ],
+            (-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0, 0.1f32..1.0),
+            prop_oneof![2 => -2.0f32..3.0, 1 => 4.0f32..9.0],
+            (-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0),
+        )
+            .prop_map(|(m, s, q, o, c)| {
+                (
+                    [m.0, m.1, m.2],
+                    [s.0, s.1, s.2],
+                    [q.3, q.0, q.1, q.2],
+                    o,
+                    [c.0, c.1, c.2],
+                )
+            })
+    }
+
+    fn scene(parts: &[([f32; 3], [f32; 3], [f32; 4], f32, [f32; 3])]) -> Gaussians {
+        let mut g = Gaussians::with_degree(0);
+        for &(m, s, q, o, c) in parts {
+            g.means.push(m);
+            g.log_scales.push(s);
+            g.rotations.push(q);
+            g.opacity_logits.push(o);
+            g.sh.extend(c);
+        }
+        g
+    }
+
+    fn assert_close(what: &str, fast: &[f32], reference: &[f32]) {
+        let scale = reference.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        for (k, (a, b)) in fast.iter().zip(reference).enumerate() {
+            let tol = 1e-4 * b.abs() + 2e-5 * scale + 1e-30;
+            assert!(
+                (a - b).abs() <= tol,
+                "{what}[{k}]: {a} vs {b} (scale {scale})"
+            );
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+
+        /// The SIMD kernels against the scalar reference kernels with the same `exp`: the
+        /// forward pass bit for bit, the gradients within rounding of their sums; and the
+        /// builds of the SIMD kernels against each other, bit for bit.
+        #[test]
+        fn simd_kernels_match_the_scalar_reference(
+            parts in proptest::collection::vec(gaussian(), 1..60),
+            width in 1u32..50,
+            height in 1u32..40,
+            background in (-0.5f32..1.5, -0.5f32..1.5, -0.5f32..1.5),
+        ) {
+            let g = scene(&parts);
+            let cam = Camera::from_center(
+                width, height, 30.0, 28.0, 0.45 * width as f32, 0.55 * height as f32,
+                Mat3::IDENTITY, Vec3::ZERO,
+            );
+            let opts = RenderOptions { background: [background.0, background.1, background.2], sh_degree: None };
+            let npix = cam.pixel_count();
+            let dc: Vec<[f32; 3]> = (0..npix).map(|p| [0.3, -0.7, 0.5].map(|v: f32| v * ((p % 5) as f32 - 1.7))).collect();
+            let da: Vec<f32> = (0..npix).map(|p| 0.2 * ((p % 3) as f32 - 1.1)).collect();
+            let dd: Vec<f32> = (0..npix).map(|p| 0.05 * ((p % 7) as f32 - 3.2)).collect();
+            let run = |kernels: Kernels| {
+                let r = CpuRasterizer::new().with_kernels(kernels);
+                let fwd = r.forward(g.view(), &cam, &opts).unwrap();
+                let grads = r.backward(g.view(), &cam, &opts, &fwd, &dc, Some(&da), Some(&dd)).unwrap();
+                (fwd, grads)
+            };
+            let (rf, rg) = run(Kernels::Scalar { exp: approx_exp });
+            let BackendState::Cpu(rs) = &rf.state.backend else { unreachable!() };
+            let mut first: Option<Gradients> = None;
+            for isa in isas() {
+                let (f, gr) = run(Kernels::Lanes(isa));
+                let BackendState::Cpu(fs) = &f.state.backend else { unreachable!() };
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                prop_assert_eq!(bits(f.color.as_flattened()), bits(rf.color.as_flattened()));
+                prop_assert_eq!(bits(&f.alpha), bits(&rf.alpha));
+                prop_assert_eq!(bits(&f.depth), bits(&rf.depth));
+                prop_assert_eq!(&fs.last, &rs.last);
+                prop_assert_eq!(f.state.counters, rf.state.counters);
+                assert_close("means", gr.means.as_flattened(), rg.means.as_flattened());
+                assert_close("log_scales", gr.log_scales.as_flattened(), rg.log_scales.as_flattened());
+                assert_close("rotations", gr.rotations.as_flattened(), rg.rotations.as_flattened());
+                assert_close("opacity_logits", &gr.opacity_logits, &rg.opacity_logits);
+                assert_close("sh", &gr.sh, &rg.sh);
+                assert_close("means2d", gr.means2d.as_flattened(), rg.means2d.as_flattened());
+                if let Some(first) = &first {
+                    prop_assert_eq!(first, &gr);
+                }
+                first = Some(gr);
+            }
+        }
+    }
+
+    #[test]
+    fn dispatch_runs_every_available_build() {
+        struct Sum(Vec<f32>);
+        impl crate::simd::Kernel for Sum {
+            type Output = f32;
+            #[inline(always)]
+            fn run(self) -> f32 {
+                self.0.iter().sum()
+            }
+        }
+        for isa in isas() {
+            assert_eq!(dispatch(isa, Sum(vec![1.0, 2.5, 3.0])), 6.5);
+        }
     }
 }

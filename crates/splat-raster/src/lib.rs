@@ -40,11 +40,12 @@ mod options;
 mod output;
 mod project;
 pub mod sh;
+mod simd;
 mod tiles;
 mod validate;
 
 pub use backend::{BackendChoice, BackendInfo, BackendKind, DynRasterizer, select_rasterizer};
-pub use cpu::CpuRasterizer;
+pub use cpu::{CpuKernel, CpuRasterizer};
 pub use error::RasterError;
 #[cfg(feature = "wgpu")]
 #[doc(hidden)]

@@ -56,6 +56,8 @@ pub(crate) enum BackendState {
 /// The CPU backend's backward state.
 #[derive(Clone, Debug)]
 pub(crate) struct CpuState {
+    /// The kernels the forward pass ran (the backward pass runs the same).
+    pub kernels: crate::cpu::Kernels,
     pub splats: Vec<Splat>,
     pub lists: TileLists,
     /// Tile-major (tile, lane) final transmittance.

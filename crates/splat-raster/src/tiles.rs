@@ -3,18 +3,33 @@
 
 use rayon::prelude::*;
 
-/// Per-tile Gaussian lists in one flat array: tile `t` owns `ids[offsets[t]..offsets[t + 1]]`.
+/// Per-tile Gaussian lists in one flat array: tile `t` owns `ids[offsets[t]..offsets[t + 1]]`;
+/// and, per Gaussian, where its entries went: Gaussian `i`'s entries are
+/// `ids[entry_from_pair[p]]` for `p` in `pairs_of[i]..pairs_of[i + 1]`, in ascending tile order.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub(crate) struct TileLists {
     pub offsets: Vec<usize>,
     pub ids: Vec<u32>,
+    /// Per Gaussian (by index), the start of its pairs in `entry_from_pair`; `n + 1` long.
+    pub pairs_of: Vec<usize>,
+    /// Per (Gaussian, tile) pair, Gaussian-major, its position in `ids`.
+    pub entry_from_pair: Vec<u32>,
 }
 
 impl TileLists {
     pub fn tile(&self, t: usize) -> &[u32] {
         &self.ids[self.offsets[t]..self.offsets[t + 1]]
     }
+
+    /// Positions in `ids` of Gaussian `i`'s entries, in ascending tile order.
+    pub fn entries_of(&self, i: usize) -> &[u32] {
+        &self.entry_from_pair[self.pairs_of[i]..self.pairs_of[i + 1]]
+    }
 }
+
+/// Gaussians per task when listing the tiles they touch (fixed, so the work split does not
+/// depend on the thread count; the result never does).
+const CHUNK: usize = 256;
 
 /// Bins drawn Gaussians into tiles. `rects[i]` is Gaussian `i`'s inclusive tile rectangle
 /// `[x0, y0, x1, y1]` (None when culled) and `depth[i]` its camera z (> 0 when drawn); within the
@@ -24,9 +39,44 @@ pub(crate) fn bin(
     depth: &[f32],
     tiles_x: u32,
     tiles_y: u32,
-    touches: impl Fn(u32, u32, u32) -> bool,
+    touches: impl Fn(u32, u32, u32) -> bool + Sync,
 ) -> TileLists {
-    // z > 0 is finite and positive, so its bit pattern orders like the number.
+    let n = rects.len();
+    // The tiles each Gaussian touches, in row-major tile order, Gaussian by Gaussian.
+    let touched: Vec<(Vec<u32>, Vec<u32>)> = rects
+        .par_chunks(CHUNK)
+        .enumerate()
+        .map(|(c, rects)| {
+            let mut counts = Vec::with_capacity(rects.len());
+            let mut tiles = Vec::new();
+            for (k, rect) in rects.iter().enumerate() {
+                let before = tiles.len();
+                if let Some([x0, y0, x1, y1]) = *rect {
+                    let id = (c * CHUNK + k) as u32;
+                    for ty in y0..=y1 {
+                        for tx in x0..=x1 {
+                            if touches(id, tx, ty) {
+                                tiles.push(ty * tiles_x + tx);
+                            }
+                        }
+                    }
+                }
+                counts.push((tiles.len() - before) as u32);
+            }
+            (counts, tiles)
+        })
+        .collect();
+    let mut pairs_of = Vec::with_capacity(n + 1);
+    pairs_of.push(0usize);
+    for (counts, _) in &touched {
+        for &k in counts {
+            pairs_of.push(pairs_of.last().unwrap() + k as usize);
+        }
+    }
+    let tile_of_pair: Vec<u32> = touched.into_iter().flat_map(|(_, tiles)| tiles).collect();
+
+    // Depth order: z > 0 is finite and positive, so its bit pattern orders like the number;
+    // ties are broken by index.
     let mut keys: Vec<u64> = rects
         .iter()
         .enumerate()
@@ -34,34 +84,34 @@ pub(crate) fn bin(
         .map(|(i, _)| (u64::from(depth[i].to_bits()) << 32) | i as u64)
         .collect();
     keys.par_sort_unstable();
+
+    // A stable counting sort of the pairs by tile, visiting Gaussians in depth order.
     let n_tiles = tiles_x as usize * tiles_y as usize;
-    // (tile, id) pairs in depth order, then a stable counting sort by tile.
-    let mut pairs: Vec<(u32, u32)> = Vec::new();
-    for &key in &keys {
-        let id = (key & 0xffff_ffff) as u32;
-        let [x0, y0, x1, y1] = rects[id as usize].unwrap_or_default();
-        for ty in y0..=y1 {
-            for tx in x0..=x1 {
-                if touches(id, tx, ty) {
-                    pairs.push((ty * tiles_x + tx, id));
-                }
-            }
-        }
-    }
     let mut offsets = vec![0usize; n_tiles + 1];
-    for &(t, _) in &pairs {
+    for &t in &tile_of_pair {
         offsets[t as usize + 1] += 1;
     }
     for t in 0..n_tiles {
         offsets[t + 1] += offsets[t];
     }
     let mut cursor = offsets[..n_tiles].to_vec();
-    let mut ids = vec![0u32; pairs.len()];
-    for &(t, id) in &pairs {
-        ids[cursor[t as usize]] = id;
-        cursor[t as usize] += 1;
+    let mut ids = vec![0u32; tile_of_pair.len()];
+    let mut entry_from_pair = vec![0u32; tile_of_pair.len()];
+    for &key in &keys {
+        let id = (key & 0xffff_ffff) as usize;
+        for p in pairs_of[id]..pairs_of[id + 1] {
+            let t = tile_of_pair[p] as usize;
+            ids[cursor[t]] = id as u32;
+            entry_from_pair[p] = cursor[t] as u32;
+            cursor[t] += 1;
+        }
     }
-    TileLists { offsets, ids }
+    TileLists {
+        offsets,
+        ids,
+        pairs_of,
+        entry_from_pair,
+    }
 }
 
 #[cfg(test)]
@@ -80,5 +130,9 @@ mod tests {
         let lists = bin(&rects, &depth, 2, 1, |id, tx, _| id != 0 || tx == 1);
         assert_eq!(lists.tile(0), &[3]);
         assert_eq!(lists.tile(1), &[0, 2]);
+        assert_eq!(lists.entries_of(0), &[1]);
+        assert!(lists.entries_of(1).is_empty());
+        assert_eq!(lists.entries_of(2), &[2]);
+        assert_eq!(lists.entries_of(3), &[0]);
     }
 }

@@ -1,11 +1,11 @@
-//! Per-tile compositing kernels: front-to-back blending of a tile's depth-ordered list over a
-//! block of 16×16 pixels (Gaussian-major, one lane per pixel), and its back-to-front backward
-//! pass that recovers each pixel's transmittance by division.
+//! The reference compositing kernels: one pixel at a time, Gaussian-major over a tile (for each
+//! list entry, the pixels of its bounding box), with `exp` passed in. With `f32::exp` they are
+//! the CPU backend's original kernels, kept as the readable definition and to measure the fast
+//! kernels of [`super::lanes`] against; with [`crate::simd::exp`] they make the same blending
+//! decisions as the fast ones, pixel for pixel, which the tests compare.
 
-use crate::project::{ALPHA_MAX, ALPHA_MIN, Frame, Splat, SplatGrad, T_MIN, TILE};
-
-/// Pixels per tile.
-pub(crate) const LANES: usize = (TILE * TILE) as usize;
+use super::{Counters, LANES, PixelGrads, TileOut, TileRect};
+use crate::project::{ALPHA_MAX, ALPHA_MIN, Frame, Splat, SplatGrad, T_MIN};
 
 /// `σ = 0.5 (a dx² + c dy²) + b dx dy` with `d = pixel centre − projected mean`.
 #[inline(always)]
@@ -18,73 +18,11 @@ fn sigma(s: &Splat, px: f32, py: f32) -> f32 {
 /// SPEC §3 alpha at a pixel with power `sig`, as `(α, exp(-σ), blendable)`: `blendable` is false
 /// when the pixel is skipped (σ < 0 or α < 1/255).
 #[inline(always)]
-fn alpha_at(s: &Splat, sig: f32) -> (f32, f32, bool) {
-    let g = (-sig).exp();
+fn alpha_at(s: &Splat, sig: f32, exp: impl Fn(f32) -> f32) -> (f32, f32, bool) {
+    let g = exp(-sig);
     let alpha = (s.opacity * g).min(ALPHA_MAX);
     let ok = (sig >= 0.0) & (alpha >= ALPHA_MIN);
     (alpha, g, ok)
-}
-
-/// A tile's pixel range `[x0, x_end) × [y0, y_end)`, clipped to the image.
-#[derive(Clone, Copy)]
-struct TileRect {
-    x0: u32,
-    y0: u32,
-    x_end: u32,
-    y_end: u32,
-}
-
-impl TileRect {
-    fn new(frame: &Frame, tile: usize) -> Self {
-        let x0 = (tile % frame.tiles_x as usize) as u32 * TILE;
-        let y0 = (tile / frame.tiles_x as usize) as u32 * TILE;
-        Self {
-            x0,
-            y0,
-            x_end: (x0 + TILE).min(frame.width),
-            y_end: (y0 + TILE).min(frame.height),
-        }
-    }
-
-    fn pixels(&self) -> usize {
-        ((self.x_end - self.x0) * (self.y_end - self.y0)) as usize
-    }
-
-    /// Lane of pixel (x, y): row-major within the 16×16 tile.
-    fn lane(&self, x: u32, y: u32) -> usize {
-        ((y - self.y0) * TILE + (x - self.x0)) as usize
-    }
-
-    /// The part of a Gaussian's pixel bounding box inside this tile, `[x0, x1] × [y0, y1]`
-    /// inclusive, or None.
-    fn clip(&self, bbox: [u32; 4]) -> Option<[u32; 4]> {
-        let r = [
-            bbox[0].max(self.x0),
-            bbox[1].max(self.y0),
-            bbox[2].min(self.x_end - 1),
-            bbox[3].min(self.y_end - 1),
-        ];
-        (r[0] <= r[2] && r[1] <= r[3]).then_some(r)
-    }
-}
-
-/// One tile's forward output, tile-major (lane order).
-pub(crate) struct TileOut<'a> {
-    pub color: &'a mut [[f32; 3]],
-    pub depth: &'a mut [f32],
-    pub final_t: &'a mut [f32],
-    /// One past the list position of the last blended Gaussian, per lane (0 = none).
-    pub last: &'a mut [u32],
-}
-
-/// Work counters of a forward pass.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub(crate) struct Counters {
-    /// Gaussian-pixel pairs the inner loop visited: for each list entry processed, the pixels of
-    /// its bounding box inside the tile.
-    pub evaluations: u64,
-    /// Gaussian-pixel pairs actually blended.
-    pub blended: u64,
 }
 
 /// Composites one tile front to back. Background is added to the colour.
@@ -99,6 +37,7 @@ pub(crate) fn forward_tile(
     splats: &[Splat],
     background: [f32; 3],
     out: TileOut<'_>,
+    exp: impl Fn(f32) -> f32 + Copy,
 ) -> Counters {
     let rect = TileRect::new(frame, tile);
     let mut t = [1.0f32; LANES];
@@ -133,7 +72,7 @@ pub(crate) fn forward_tile(
                 if !near {
                     continue;
                 }
-                let (alpha, _, ok) = alpha_at(s, sig);
+                let (alpha, _, ok) = alpha_at(s, sig, exp);
                 if !ok {
                     continue;
                 }
@@ -167,14 +106,6 @@ pub(crate) fn forward_tile(
     counters
 }
 
-/// Per-pixel loss gradients of the three outputs, row-major.
-#[derive(Clone, Copy)]
-pub(crate) struct PixelGrads<'a> {
-    pub color: &'a [[f32; 3]],
-    pub alpha: Option<&'a [f32]>,
-    pub depth: Option<&'a [f32]>,
-}
-
 /// Backward of [`forward_tile`]: writes the gradient of each list entry's record into `out`
 /// (same length as `ids`; entries past the tile's last contributor are left zero).
 ///
@@ -192,6 +123,7 @@ pub(crate) fn backward_tile(
     last: &[u32],
     grads: PixelGrads<'_>,
     out: &mut [SplatGrad],
+    exp: impl Fn(f32) -> f32 + Copy,
 ) {
     let rect = TileRect::new(frame, tile);
     let mut t = [0.0f32; LANES];
@@ -236,7 +168,7 @@ pub(crate) fn backward_tile(
                 if !near {
                     continue;
                 }
-                let (alpha, g, ok) = alpha_at(s, sig);
+                let (alpha, g, ok) = alpha_at(s, sig, exp);
                 if !ok {
                     continue;
                 }

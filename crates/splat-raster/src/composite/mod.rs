@@ -1,0 +1,86 @@
+//! Per-tile compositing: front-to-back blending of a tile's depth-ordered list over a block of
+//! 16×16 pixels, and its back-to-front backward pass that recovers each pixel's transmittance by
+//! division. Two implementations of each kernel:
+//! - [`scalar`]: the plain reference, one pixel at a time (gsplat style: the readable definition
+//!   the fast kernels are tested against);
+//! - [`lanes`]: the fast kernels, eight pixels of a tile row at a time (see [`crate::simd`]).
+//!
+//! What it is not: projection, binning or the per-Gaussian backward (see `project`, `tiles`).
+
+pub(crate) mod lanes;
+pub(crate) mod scalar;
+
+use crate::project::{Frame, TILE};
+
+/// Pixels per tile.
+pub(crate) const LANES: usize = (TILE * TILE) as usize;
+
+/// A tile's pixel range `[x0, x_end) × [y0, y_end)`, clipped to the image.
+#[derive(Clone, Copy)]
+pub(crate) struct TileRect {
+    pub x0: u32,
+    pub y0: u32,
+    pub x_end: u32,
+    pub y_end: u32,
+}
+
+impl TileRect {
+    pub fn new(frame: &Frame, tile: usize) -> Self {
+        let x0 = (tile % frame.tiles_x as usize) as u32 * TILE;
+        let y0 = (tile / frame.tiles_x as usize) as u32 * TILE;
+        Self {
+            x0,
+            y0,
+            x_end: (x0 + TILE).min(frame.width),
+            y_end: (y0 + TILE).min(frame.height),
+        }
+    }
+
+    pub fn pixels(&self) -> usize {
+        ((self.x_end - self.x0) * (self.y_end - self.y0)) as usize
+    }
+
+    /// Lane of pixel (x, y): row-major within the 16×16 tile.
+    pub fn lane(&self, x: u32, y: u32) -> usize {
+        ((y - self.y0) * TILE + (x - self.x0)) as usize
+    }
+
+    /// The part of a Gaussian's pixel bounding box inside this tile, `[x0, x1] × [y0, y1]`
+    /// inclusive, or None.
+    pub fn clip(&self, bbox: [u32; 4]) -> Option<[u32; 4]> {
+        let r = [
+            bbox[0].max(self.x0),
+            bbox[1].max(self.y0),
+            bbox[2].min(self.x_end - 1),
+            bbox[3].min(self.y_end - 1),
+        ];
+        (r[0] <= r[2] && r[1] <= r[3]).then_some(r)
+    }
+}
+
+/// One tile's forward output, tile-major (lane order).
+pub(crate) struct TileOut<'a> {
+    pub color: &'a mut [[f32; 3]],
+    pub depth: &'a mut [f32],
+    pub final_t: &'a mut [f32],
+    /// One past the list position of the last blended Gaussian, per lane (0 = none).
+    pub last: &'a mut [u32],
+}
+
+/// Work counters of a forward pass.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Counters {
+    /// Gaussian-pixel pairs the inner loop visited: for each list entry processed, the pixels of
+    /// its bounding box inside the tile.
+    pub evaluations: u64,
+    /// Gaussian-pixel pairs actually blended.
+    pub blended: u64,
+}
+
+/// Per-pixel loss gradients of the three outputs, row-major.
+#[derive(Clone, Copy)]
+pub(crate) struct PixelGrads<'a> {
+    pub color: &'a [[f32; 3]],
+    pub alpha: Option<&'a [f32]>,
+    pub depth: Option<&'a [f32]>,
+}
