@@ -180,6 +180,8 @@ impl CpuRasterizer {
             frame.tiles_y,
             |id, tx, ty| splats[id as usize].touches_tile(&frame, tx, ty),
         );
+        // The records in depth order, as the tile lists index them.
+        let splats: Vec<Splat> = lists.order.iter().map(|&i| splats[i as usize]).collect();
         let n_tiles = frame.tiles_x as usize * frame.tiles_y as usize;
         let mut color_t = vec![[0.0f32; 3]; n_tiles * LANES];
         let mut depth_t = vec![0.0f32; n_tiles * LANES];
@@ -342,8 +344,9 @@ impl CpuRasterizer {
             .par_chunks_mut(stride)
             .enumerate()
             .map(|(i, sh_out)| {
-                // Culled in the forward pass (off screen included): zero gradient.
-                if cpu.splats[i].opacity <= 0.0 {
+                // Culled in the forward pass (off screen included; a drawn Gaussian touches a
+                // tile): zero gradient.
+                if lists.entries_of(i).is_empty() {
                     return Outcome::Culled;
                 }
                 let mut d = SplatGrad::default();
@@ -427,11 +430,11 @@ mod tests {
 
     use super::*;
     use crate::gaussians::Gaussians;
-    use crate::simd::{F8, dispatch};
+    use crate::simd::{F8, Portable, Simd, dispatch};
 
     /// The vectorised `exp` on one value (the same value in any build).
     fn approx_exp(x: f32) -> f32 {
-        crate::simd::exp(F8::splat(x)).0[0]
+        crate::simd::exp(Portable, F8([x; 8])).0[0]
     }
 
     fn isas() -> Vec<Isa> {
@@ -551,8 +554,8 @@ mod tests {
         impl crate::simd::Kernel for Sum {
             type Output = f32;
             #[inline(always)]
-            fn run(self) -> f32 {
-                self.0.iter().sum()
+            fn run<S: Simd>(self, s: S) -> f32 {
+                self.0.iter().sum::<f32>() + s.sum(s.splat(0.0))
             }
         }
         for isa in isas() {

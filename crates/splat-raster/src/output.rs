@@ -58,6 +58,7 @@ pub(crate) enum BackendState {
 pub(crate) struct CpuState {
     /// The kernels the forward pass ran (the backward pass runs the same).
     pub kernels: crate::cpu::Kernels,
+    /// The drawn Gaussians' records in depth order (indexed by the lists' ranks).
     pub splats: Vec<Splat>,
     pub lists: TileLists,
     /// Tile-major (tile, lane) final transmittance.

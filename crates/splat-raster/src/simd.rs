@@ -1,12 +1,13 @@
 //! Eight f32 lanes for the compositing kernels, run-time dispatch to AVX2, and a vectorised `exp`.
 //!
-//! The lane types are plain arrays whose operations are `#[inline(always)]` loops over the eight
-//! lanes. The kernels are written once against them and compiled twice: as they are (the
-//! baseline target, SSE2 on x86-64 or NEON on aarch64) and, on x86-64 when the CPU has AVX2 and
-//! FMA, inside a `#[target_feature(enable = "avx2,fma")]` function ([`dispatch`]), where each lane
-//! operation becomes one 256-bit instruction. Both builds give bit-identical results: every
-//! operation is an IEEE operation per lane, and Rust never contracts `a * b + c` into a fused
-//! multiply-add on its own. So results do not depend on the machine's instruction set either.
+//! The kernels are written once against the [`Simd`] trait and compiled twice: with [`Portable`]
+//! lanes (plain arrays whose operations are loops over the eight lanes, for the baseline target:
+//! SSE2 on x86-64, NEON on aarch64) and, on x86-64 when the CPU has AVX2 and FMA (checked at run
+//! time by [`dispatch`]), with [`avx2::Avx2`] lanes, one 256-bit register each, inside a function
+//! compiled with those features enabled. Both give bit-identical results: every operation is the
+//! same IEEE operation per lane (no fused multiply-add: Rust never contracts `a * b + c` on its
+//! own, and the AVX2 lanes do not either), `min`/`max` follow the x86 rule (`a < b ? a : b`) in
+//! both, and sums across lanes have one fixed order. So results do not depend on the machine.
 //!
 //! What it is not: a general SIMD library. It holds the operations the kernels use and no more.
 
@@ -15,15 +16,74 @@ use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
 /// Lanes per vector.
 pub(crate) const W: usize = 8;
 
-/// Eight f32 lanes.
+/// A build of the lane operations: a zero-sized token whose value proves that its instructions
+/// run on this CPU. Vectors are made from the token, so holding one proves it too.
+pub(crate) trait Simd: Copy {
+    /// Eight f32 lanes.
+    type F: Copy
+        + Add<Output = Self::F>
+        + Sub<Output = Self::F>
+        + Mul<Output = Self::F>
+        + Div<Output = Self::F>
+        + Neg<Output = Self::F>;
+    /// Eight lane masks.
+    type M: Copy + BitAnd<Output = Self::M> + BitOr<Output = Self::M> + Not<Output = Self::M>;
+    /// Eight i32 lanes.
+    type I: Copy;
+
+    /// Every lane `v`.
+    fn splat(self, v: f32) -> Self::F;
+    /// The lanes of `v`.
+    fn from_array(self, v: [f32; W]) -> Self::F;
+    /// The lanes as an array.
+    fn to_array(self, v: Self::F) -> [f32; W];
+    /// Every lane `v`.
+    fn splat_i(self, v: i32) -> Self::I;
+    /// The lanes of `v`.
+    fn from_array_i(self, v: [i32; W]) -> Self::I;
+    /// The lanes as an array.
+    fn to_array_i(self, v: Self::I) -> [i32; W];
+    /// All lanes false.
+    fn none(self) -> Self::M;
+    /// `a <= b` per lane (false where either is NaN).
+    fn le(self, a: Self::F, b: Self::F) -> Self::M;
+    /// `a < b` per lane.
+    fn lt(self, a: Self::F, b: Self::F) -> Self::M;
+    /// `a >= b` per lane.
+    fn ge(self, a: Self::F, b: Self::F) -> Self::M;
+    /// `a > b` per lane.
+    fn gt(self, a: Self::F, b: Self::F) -> Self::M;
+    /// `a < b ? a : b` per lane (so `b` where either is NaN).
+    fn min(self, a: Self::F, b: Self::F) -> Self::F;
+    /// `a > b ? a : b` per lane (so `b` where either is NaN).
+    fn max(self, a: Self::F, b: Self::F) -> Self::F;
+    /// `a` where `m`, else `b`.
+    fn select(self, m: Self::M, a: Self::F, b: Self::F) -> Self::F;
+    /// `a` where `m`, else `b`.
+    fn select_i(self, m: Self::M, a: Self::I, b: Self::I) -> Self::I;
+    /// `a > b` per lane.
+    fn gt_i(self, a: Self::I, b: Self::I) -> Self::M;
+    /// Lanes `l` with `lo <= l <= hi`.
+    fn range(self, lo: u32, hi: u32) -> Self::M;
+    /// Whether some lane is true.
+    fn any(self, m: Self::M) -> bool;
+    /// Number of true lanes.
+    fn count(self, m: Self::M) -> u32;
+    /// Sum of the lanes in the order `((0+4)+(2+6)) + ((1+5)+(3+7))`.
+    fn sum(self, v: Self::F) -> f32;
+    /// Per lane, the f32 with bits `(bits(t) << 23) + (127 << 23)` (wrapping).
+    fn exp2_bits(self, t: Self::F) -> Self::F;
+}
+
+/// Eight f32 lanes of [`Portable`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct F8(pub [f32; W]);
 
-/// Eight lane masks, each all ones (true) or all zeros (false).
+/// Eight lane masks of [`Portable`], each all ones (true) or all zeros (false).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(crate) struct M8(pub [u32; W]);
 
-/// Eight i32 lanes.
+/// Eight i32 lanes of [`Portable`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(crate) struct I8(pub [i32; W]);
 
@@ -43,64 +103,6 @@ fn map2<T: Copy, U: Copy, R: Copy + Default>(
 #[inline(always)]
 fn mask(b: bool) -> u32 {
     if b { u32::MAX } else { 0 }
-}
-
-impl F8 {
-    /// Every lane `v`.
-    #[inline(always)]
-    pub fn splat(v: f32) -> Self {
-        Self([v; W])
-    }
-
-    /// `self <= o` per lane (false where either is NaN).
-    #[inline(always)]
-    pub fn le(self, o: Self) -> M8 {
-        M8(map2(self.0, o.0, |a, b| mask(a <= b)))
-    }
-
-    /// `self < o` per lane (false where either is NaN).
-    #[inline(always)]
-    pub fn lt(self, o: Self) -> M8 {
-        M8(map2(self.0, o.0, |a, b| mask(a < b)))
-    }
-
-    /// `self > o` per lane (false where either is NaN).
-    #[inline(always)]
-    pub fn gt(self, o: Self) -> M8 {
-        M8(map2(self.0, o.0, |a, b| mask(a > b)))
-    }
-
-    /// `self >= o` per lane (false where either is NaN).
-    #[inline(always)]
-    pub fn ge(self, o: Self) -> M8 {
-        M8(map2(self.0, o.0, |a, b| mask(a >= b)))
-    }
-
-    /// `o` where `self > o`, else `self`: the minimum, `self` where either is NaN.
-    #[inline(always)]
-    pub fn min(self, o: Self) -> Self {
-        Self(map2(self.0, o.0, |a, b| if b < a { b } else { a }))
-    }
-
-    /// `o` where `self < o`, else `self`: the maximum, `self` where either is NaN.
-    #[inline(always)]
-    pub fn max(self, o: Self) -> Self {
-        Self(map2(self.0, o.0, |a, b| if b > a { b } else { a }))
-    }
-
-    /// Sum of the lanes in a fixed order: `((0+4)+(2+6)) + ((1+5)+(3+7))`.
-    #[inline(always)]
-    pub fn sum(self) -> f32 {
-        let v = self.0;
-        let s = [v[0] + v[4], v[1] + v[5], v[2] + v[6], v[3] + v[7]];
-        (s[0] + s[2]) + (s[1] + s[3])
-    }
-
-    /// The lanes' bits.
-    #[inline(always)]
-    fn to_bits(self) -> [u32; W] {
-        self.0.map(f32::to_bits)
-    }
 }
 
 macro_rules! lane_op {
@@ -138,65 +140,324 @@ impl Not for M8 {
     }
 }
 
-impl M8 {
-    /// Lanes `l` with `lo <= l <= hi` true.
+/// The lane operations as loops over arrays, for any target.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Portable;
+
+impl Simd for Portable {
+    type F = F8;
+    type M = M8;
+    type I = I8;
+
     #[inline(always)]
-    pub fn range(lo: u32, hi: u32) -> M8 {
+    fn splat(self, v: f32) -> F8 {
+        F8([v; W])
+    }
+    #[inline(always)]
+    fn from_array(self, v: [f32; W]) -> F8 {
+        F8(v)
+    }
+    #[inline(always)]
+    fn to_array(self, v: F8) -> [f32; W] {
+        v.0
+    }
+    #[inline(always)]
+    fn splat_i(self, v: i32) -> I8 {
+        I8([v; W])
+    }
+    #[inline(always)]
+    fn from_array_i(self, v: [i32; W]) -> I8 {
+        I8(v)
+    }
+    #[inline(always)]
+    fn to_array_i(self, v: I8) -> [i32; W] {
+        v.0
+    }
+    #[inline(always)]
+    fn none(self) -> M8 {
+        M8([0; W])
+    }
+    #[inline(always)]
+    fn le(self, a: F8, b: F8) -> M8 {
+        M8(map2(a.0, b.0, |a, b| mask(a <= b)))
+    }
+    #[inline(always)]
+    fn lt(self, a: F8, b: F8) -> M8 {
+        M8(map2(a.0, b.0, |a, b| mask(a < b)))
+    }
+    #[inline(always)]
+    fn ge(self, a: F8, b: F8) -> M8 {
+        M8(map2(a.0, b.0, |a, b| mask(a >= b)))
+    }
+    #[inline(always)]
+    fn gt(self, a: F8, b: F8) -> M8 {
+        M8(map2(a.0, b.0, |a, b| mask(a > b)))
+    }
+    #[inline(always)]
+    fn min(self, a: F8, b: F8) -> F8 {
+        F8(map2(a.0, b.0, |a, b| if a < b { a } else { b }))
+    }
+    #[inline(always)]
+    fn max(self, a: F8, b: F8) -> F8 {
+        F8(map2(a.0, b.0, |a, b| if a > b { a } else { b }))
+    }
+    #[inline(always)]
+    fn select(self, m: M8, a: F8, b: F8) -> F8 {
+        let mut out = [0f32; W];
+        for l in 0..W {
+            let (x, y) = (a.0[l].to_bits(), b.0[l].to_bits());
+            out[l] = f32::from_bits((x & m.0[l]) | (y & !m.0[l]));
+        }
+        F8(out)
+    }
+    #[inline(always)]
+    fn select_i(self, m: M8, a: I8, b: I8) -> I8 {
+        let mut out = [0i32; W];
+        for l in 0..W {
+            out[l] = if m.0[l] != 0 { a.0[l] } else { b.0[l] };
+        }
+        I8(out)
+    }
+    #[inline(always)]
+    fn gt_i(self, a: I8, b: I8) -> M8 {
+        M8(map2(a.0, b.0, |a, b| mask(a > b)))
+    }
+    #[inline(always)]
+    fn range(self, lo: u32, hi: u32) -> M8 {
         let mut out = [0u32; W];
         for (l, m) in out.iter_mut().enumerate() {
             *m = mask(lo <= l as u32 && l as u32 <= hi);
         }
         M8(out)
     }
-
-    /// Whether some lane is true.
     #[inline(always)]
-    pub fn any(self) -> bool {
-        // A fixed-shape or-reduction vectorises where `iter().any` may not.
-        let v = self.0;
-        ((v[0] | v[4]) | (v[2] | v[6])) | ((v[1] | v[5]) | (v[3] | v[7])) != 0
+    fn any(self, m: M8) -> bool {
+        m.0.iter().fold(0, |a, &b| a | b) != 0
     }
-
-    /// Number of true lanes.
     #[inline(always)]
-    pub fn count(self) -> u32 {
-        self.0.iter().map(|m| m & 1).sum()
+    fn count(self, m: M8) -> u32 {
+        m.0.iter().map(|m| m & 1).sum()
     }
-
-    /// `a` where true, else `b`.
     #[inline(always)]
-    pub fn select(self, a: F8, b: F8) -> F8 {
-        let bits = map2(a.to_bits(), b.to_bits(), |x, y| (x, y));
-        let mut out = [0f32; W];
-        for l in 0..W {
-            let (x, y) = bits[l];
-            out[l] = f32::from_bits((x & self.0[l]) | (y & !self.0[l]));
-        }
-        F8(out)
+    fn sum(self, v: F8) -> f32 {
+        let v = v.0;
+        let s = [v[0] + v[4], v[1] + v[5], v[2] + v[6], v[3] + v[7]];
+        (s[0] + s[2]) + (s[1] + s[3])
     }
-
-    /// `a` where true, else `b`.
     #[inline(always)]
-    pub fn select_i(self, a: I8, b: I8) -> I8 {
-        let mut out = [0i32; W];
-        for l in 0..W {
-            out[l] = if self.0[l] != 0 { a.0[l] } else { b.0[l] };
-        }
-        I8(out)
+    fn exp2_bits(self, t: F8) -> F8 {
+        F8(t.0.map(|t| f32::from_bits((t.to_bits() << 23).wrapping_add(127 << 23))))
     }
 }
 
-impl I8 {
-    /// Every lane `v`.
-    #[inline(always)]
-    pub fn splat(v: i32) -> Self {
-        Self([v; W])
+/// The lane operations in AVX2 registers (x86-64).
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod avx2 {
+    use std::arch::x86_64::*;
+    use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
+
+    use super::{Simd, W};
+
+    /// The AVX2 token. Only [`super::dispatch`] makes one, after checking that the CPU has AVX2
+    /// and FMA, so every intrinsic below runs on a CPU that supports it.
+    #[derive(Clone, Copy, Debug)]
+    pub(crate) struct Avx2(());
+
+    impl Avx2 {
+        /// The token.
+        ///
+        /// # Safety
+        /// The CPU must support AVX2 and FMA.
+        #[inline(always)]
+        pub(super) unsafe fn new_unchecked() -> Self {
+            Avx2(())
+        }
     }
 
-    /// `self > o` per lane.
-    #[inline(always)]
-    pub fn gt(self, o: Self) -> M8 {
-        M8(map2(self.0, o.0, |a, b| mask(a > b)))
+    /// Eight f32 lanes of [`Avx2`].
+    #[derive(Clone, Copy, Debug)]
+    pub(crate) struct Fa(__m256);
+
+    /// Eight lane masks of [`Avx2`].
+    #[derive(Clone, Copy, Debug)]
+    pub(crate) struct Ma(__m256);
+
+    /// Eight i32 lanes of [`Avx2`].
+    #[derive(Clone, Copy, Debug)]
+    pub(crate) struct Ia(__m256i);
+
+    // SAFETY (every `unsafe` block in this module): values of `Fa`, `Ma` and `Ia` are made only
+    // through an `Avx2` token, which exists only on a CPU with AVX2 and FMA (see `Avx2`), so the
+    // AVX/AVX2 intrinsics called on them are supported; the transmutes are between 32-byte types
+    // (`__m256`, `__m256i`, `[f32; 8]`, `[i32; 8]`) for which every bit pattern is valid.
+    macro_rules! avx_op {
+        ($ty:ident, $trait:ident, $method:ident, $intrinsic:ident) => {
+            impl $trait for $ty {
+                type Output = $ty;
+                #[inline(always)]
+                fn $method(self, o: $ty) -> $ty {
+                    // SAFETY: see the module's note above.
+                    $ty(unsafe { $intrinsic(self.0, o.0) })
+                }
+            }
+        };
+    }
+
+    avx_op!(Fa, Add, add, _mm256_add_ps);
+    avx_op!(Fa, Sub, sub, _mm256_sub_ps);
+    avx_op!(Fa, Mul, mul, _mm256_mul_ps);
+    avx_op!(Fa, Div, div, _mm256_div_ps);
+    avx_op!(Ma, BitAnd, bitand, _mm256_and_ps);
+    avx_op!(Ma, BitOr, bitor, _mm256_or_ps);
+
+    impl Neg for Fa {
+        type Output = Fa;
+        #[inline(always)]
+        fn neg(self) -> Fa {
+            // SAFETY: see the module's note above.
+            Fa(unsafe { _mm256_xor_ps(self.0, _mm256_set1_ps(-0.0)) })
+        }
+    }
+
+    impl Not for Ma {
+        type Output = Ma;
+        #[inline(always)]
+        fn not(self) -> Ma {
+            // SAFETY: see the module's note above.
+            Ma(unsafe { _mm256_xor_ps(self.0, _mm256_castsi256_ps(_mm256_set1_epi32(-1))) })
+        }
+    }
+
+    impl Simd for Avx2 {
+        type F = Fa;
+        type M = Ma;
+        type I = Ia;
+
+        #[inline(always)]
+        fn splat(self, v: f32) -> Fa {
+            // SAFETY: see the module's note above.
+            Fa(unsafe { _mm256_set1_ps(v) })
+        }
+        #[inline(always)]
+        fn from_array(self, v: [f32; W]) -> Fa {
+            // SAFETY: see the module's note above.
+            Fa(unsafe { std::mem::transmute::<[f32; W], __m256>(v) })
+        }
+        #[inline(always)]
+        fn to_array(self, v: Fa) -> [f32; W] {
+            // SAFETY: see the module's note above.
+            unsafe { std::mem::transmute::<__m256, [f32; W]>(v.0) }
+        }
+        #[inline(always)]
+        fn splat_i(self, v: i32) -> Ia {
+            // SAFETY: see the module's note above.
+            Ia(unsafe { _mm256_set1_epi32(v) })
+        }
+        #[inline(always)]
+        fn from_array_i(self, v: [i32; W]) -> Ia {
+            // SAFETY: see the module's note above.
+            Ia(unsafe { std::mem::transmute::<[i32; W], __m256i>(v) })
+        }
+        #[inline(always)]
+        fn to_array_i(self, v: Ia) -> [i32; W] {
+            // SAFETY: see the module's note above.
+            unsafe { std::mem::transmute::<__m256i, [i32; W]>(v.0) }
+        }
+        #[inline(always)]
+        fn none(self) -> Ma {
+            // SAFETY: see the module's note above.
+            Ma(unsafe { _mm256_setzero_ps() })
+        }
+        #[inline(always)]
+        fn le(self, a: Fa, b: Fa) -> Ma {
+            // SAFETY: see the module's note above.
+            Ma(unsafe { _mm256_cmp_ps::<_CMP_LE_OQ>(a.0, b.0) })
+        }
+        #[inline(always)]
+        fn lt(self, a: Fa, b: Fa) -> Ma {
+            // SAFETY: see the module's note above.
+            Ma(unsafe { _mm256_cmp_ps::<_CMP_LT_OQ>(a.0, b.0) })
+        }
+        #[inline(always)]
+        fn ge(self, a: Fa, b: Fa) -> Ma {
+            // SAFETY: see the module's note above.
+            Ma(unsafe { _mm256_cmp_ps::<_CMP_GE_OQ>(a.0, b.0) })
+        }
+        #[inline(always)]
+        fn gt(self, a: Fa, b: Fa) -> Ma {
+            // SAFETY: see the module's note above.
+            Ma(unsafe { _mm256_cmp_ps::<_CMP_GT_OQ>(a.0, b.0) })
+        }
+        #[inline(always)]
+        fn min(self, a: Fa, b: Fa) -> Fa {
+            // SAFETY: see the module's note above.
+            Fa(unsafe { _mm256_min_ps(a.0, b.0) })
+        }
+        #[inline(always)]
+        fn max(self, a: Fa, b: Fa) -> Fa {
+            // SAFETY: see the module's note above.
+            Fa(unsafe { _mm256_max_ps(a.0, b.0) })
+        }
+        #[inline(always)]
+        fn select(self, m: Ma, a: Fa, b: Fa) -> Fa {
+            // SAFETY: see the module's note above.
+            Fa(unsafe { _mm256_blendv_ps(b.0, a.0, m.0) })
+        }
+        #[inline(always)]
+        fn select_i(self, m: Ma, a: Ia, b: Ia) -> Ia {
+            // SAFETY: see the module's note above.
+            Ia(unsafe {
+                _mm256_castps_si256(_mm256_blendv_ps(
+                    _mm256_castsi256_ps(b.0),
+                    _mm256_castsi256_ps(a.0),
+                    m.0,
+                ))
+            })
+        }
+        #[inline(always)]
+        fn gt_i(self, a: Ia, b: Ia) -> Ma {
+            // SAFETY: see the module's note above.
+            Ma(unsafe { _mm256_castsi256_ps(_mm256_cmpgt_epi32(a.0, b.0)) })
+        }
+        #[inline(always)]
+        fn range(self, lo: u32, hi: u32) -> Ma {
+            // Lane indices 0..8 compared as i32 (`lo`, `hi` < 2^31 in the kernels).
+            // SAFETY: see the module's note above.
+            unsafe {
+                let iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+                let above = _mm256_cmpgt_epi32(iota, _mm256_set1_epi32(lo as i32 - 1));
+                let below = _mm256_cmpgt_epi32(_mm256_set1_epi32(hi as i32 + 1), iota);
+                Ma(_mm256_castsi256_ps(_mm256_and_si256(above, below)))
+            }
+        }
+        #[inline(always)]
+        fn any(self, m: Ma) -> bool {
+            // SAFETY: see the module's note above.
+            unsafe { _mm256_movemask_ps(m.0) != 0 }
+        }
+        #[inline(always)]
+        fn count(self, m: Ma) -> u32 {
+            // SAFETY: see the module's note above.
+            unsafe { _mm256_movemask_ps(m.0) }.count_ones()
+        }
+        #[inline(always)]
+        fn sum(self, v: Fa) -> f32 {
+            // SAFETY: see the module's note above.
+            unsafe {
+                // [0+4, 1+5, 2+6, 3+7], then [(0+4)+(2+6), (1+5)+(3+7), ..], then their sum.
+                let s = _mm_add_ps(_mm256_castps256_ps128(v.0), _mm256_extractf128_ps::<1>(v.0));
+                let s = _mm_add_ps(s, _mm_movehl_ps(s, s));
+                _mm_cvtss_f32(_mm_add_ss(s, _mm_shuffle_ps::<0b01>(s, s)))
+            }
+        }
+        #[inline(always)]
+        fn exp2_bits(self, t: Fa) -> Fa {
+            // SAFETY: see the module's note above.
+            Fa(unsafe {
+                let bits = _mm256_slli_epi32::<23>(_mm256_castps_si256(t.0));
+                _mm256_castsi256_ps(_mm256_add_epi32(bits, _mm256_set1_epi32(127 << 23)))
+            })
+        }
     }
 }
 
@@ -204,14 +465,14 @@ impl I8 {
 pub(crate) const EXP_MIN: f32 = -80.0;
 
 /// `e^x` per lane for `x` in `[EXP_MIN, 0]`, within 1.2e-7 relative error (the test
-/// `exp_error_is_bounded` measures 8.0e-8, under 1.5 ulp of the result); inputs
-/// outside the range are clamped to it, NaN gives an unspecified finite or NaN value.
+/// `exp_error_is_bounded` measures 8.0e-8, under 1.5 ulp of the result); inputs outside the
+/// range are clamped to it, and NaN gives `e^EXP_MIN`.
 ///
 /// Cody–Waite reduction `x = n ln2 + r`, `|r| <= ln2 / 2`, with `n` rounded to nearest by the
 /// 1.5·2²³ trick (no rounding instruction needed on the baseline target), the degree-5 Cephes
 /// `expf` polynomial for `e^r`, and `2^n` built in the exponent bits.
 #[inline(always)]
-pub(crate) fn exp(x: F8) -> F8 {
+pub(crate) fn exp<S: Simd>(s: S, x: S::F) -> S::F {
     const LOG2E: f32 = std::f32::consts::LOG2_E;
     const MAGIC: f32 = 12_582_912.0; // 1.5 · 2^23
     const LN2_HI: f32 = 0.693_359_4; // 355 / 512, exact with few bits
@@ -224,38 +485,36 @@ pub(crate) fn exp(x: F8) -> F8 {
         1.666_666_5e-1,
         5.000_000_1e-1,
     ];
-    let x = x.max(F8::splat(EXP_MIN)).min(F8::splat(0.0));
+    // max(NaN, EXP_MIN) = EXP_MIN by the x86 rule.
+    let x = s.min(s.max(x, s.splat(EXP_MIN)), s.splat(0.0));
     // t = round(x / ln2) + 1.5·2^23 exactly: its low mantissa bits hold the integer n.
-    let t = x * F8::splat(LOG2E) + F8::splat(MAGIC);
-    let n = t - F8::splat(MAGIC);
-    let r = (x - n * F8::splat(LN2_HI)) - n * F8::splat(LN2_LO);
-    let mut p = F8::splat(P[0]);
+    let t = x * s.splat(LOG2E) + s.splat(MAGIC);
+    let n = t - s.splat(MAGIC);
+    let r = (x - n * s.splat(LN2_HI)) - n * s.splat(LN2_LO);
+    let mut p = s.splat(P[0]);
     for &c in &P[1..] {
-        p = p * r + F8::splat(c);
+        p = p * r + s.splat(c);
     }
-    let e_r = (p * (r * r) + r) + F8::splat(1.0);
+    let e_r = (p * (r * r) + r) + s.splat(1.0);
     // (bits(t) << 23) = n << 23 modulo 2^32, since the low 9 bits of bits(1.5·2^23) are zero.
-    let scale = t
-        .to_bits()
-        .map(|b| f32::from_bits((b << 23).wrapping_add(127 << 23)));
-    e_r * F8(scale)
+    e_r * s.exp2_bits(t)
 }
 
-/// A computation to compile for the best available instruction set. Implementations mark `run`
+/// A computation to compile for each build of the lane operations. Implementations mark `run`
 /// `#[inline(always)]`.
 pub(crate) trait Kernel {
     /// What it returns.
     type Output;
-    /// Does the work.
-    fn run(self) -> Self::Output;
+    /// Does the work with the lane operations of `s`.
+    fn run<S: Simd>(self, s: S) -> Self::Output;
 }
 
 /// Which build of the kernels [`dispatch`] runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Isa {
-    /// Compiled for the baseline target.
+    /// [`Portable`] lanes, compiled for the baseline target.
     Portable,
-    /// Compiled with AVX2 and FMA enabled (x86-64, chosen at run time).
+    /// AVX2 lanes, compiled with AVX2 and FMA enabled (x86-64, chosen at run time).
     #[cfg(target_arch = "x86_64")]
     Avx2,
 }
@@ -272,11 +531,11 @@ impl Isa {
     }
 }
 
-/// Runs `kernel` compiled for `isa` ([`Isa::best`] unless a test asks for another).
+/// Runs `kernel` with the lanes of `isa` ([`Isa::best`] unless a test asks for another).
 #[inline(always)]
 pub(crate) fn dispatch<K: Kernel>(isa: Isa, kernel: K) -> K::Output {
     match isa {
-        Isa::Portable => kernel.run(),
+        Isa::Portable => kernel.run(Portable),
         #[cfg(target_arch = "x86_64")]
         Isa::Avx2 => {
             assert!(
@@ -291,11 +550,12 @@ pub(crate) fn dispatch<K: Kernel>(isa: Isa, kernel: K) -> K::Output {
     }
 }
 
-/// `kernel.run()` compiled with AVX2 and FMA enabled.
+/// `kernel.run(Avx2)` compiled with AVX2 and FMA enabled.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn run_avx2<K: Kernel>(kernel: K) -> K::Output {
-    kernel.run()
+    // SAFETY: this function has the features enabled, so it runs only where the CPU has them.
+    kernel.run(unsafe { avx2::Avx2::new_unchecked() })
 }
 
 #[cfg(test)]
@@ -310,11 +570,61 @@ mod tests {
     impl Kernel for ExpGrid {
         type Output = Vec<f32>;
         #[inline(always)]
-        fn run(self) -> Vec<f32> {
+        fn run<S: Simd>(self, s: S) -> Vec<f32> {
             self.0
                 .chunks_exact(W)
-                .flat_map(|c| exp(F8(c.try_into().unwrap())).0)
+                .flat_map(|c| s.to_array(exp(s, s.from_array(c.try_into().unwrap()))))
                 .collect()
+        }
+    }
+
+    /// Every lane operation on fixed inputs, as arrays.
+    struct Ops;
+
+    impl Kernel for Ops {
+        type Output = Vec<[u32; W]>;
+        #[inline(always)]
+        fn run<S: Simd>(self, s: S) -> Vec<[u32; W]> {
+            let a = s.from_array([0.0, 1.0, -2.0, f32::NAN, 4.0, -0.0, 6.0, f32::INFINITY]);
+            let b = s.from_array([0.5, 1.0, 2.0, 3.0, f32::NAN, 0.0, -6.5, 1e30]);
+            let (ia, ib) = (s.from_array_i([0, 1, 2, 3, 4, 5, 6, 7]), s.splat_i(3));
+            let m = s.lt(a, b) | s.ge(a, s.splat(6.0));
+            let c = s.from_array([1e30, 1.0, -1e30, 2.0, 0.5, 3.0, 0.25, 4.0]);
+            let f = |v: S::F| s.to_array(v).map(f32::to_bits);
+            let mk = |m: S::M| {
+                let v = s.to_array(s.select(m, s.splat(1.0), s.splat(0.0)));
+                v.map(f32::to_bits)
+            };
+            vec![
+                f(a + b),
+                f(a - b),
+                f(a * b),
+                f(a / b),
+                f(-a),
+                f(s.min(a, b)),
+                f(s.max(a, b)),
+                f(s.select(m, a, b)),
+                f(s.exp2_bits(a)),
+                mk(s.le(a, b)),
+                mk(s.lt(a, b)),
+                mk(s.ge(a, b)),
+                mk(s.gt(a, b)),
+                mk(!m),
+                mk(m & s.gt_i(ia, ib)),
+                mk(s.range(2, 5)),
+                mk(s.none()),
+                s.to_array_i(s.select_i(m, ia, ib)).map(|v| v as u32),
+                [
+                    s.any(m) as u32,
+                    s.any(s.none()) as u32,
+                    s.count(m),
+                    s.sum(c).to_bits(),
+                    0,
+                    0,
+                    0,
+                    0,
+                ],
+            ]
         }
     }
 
@@ -374,11 +684,11 @@ mod tests {
             f32::INFINITY,
             -1e30,
             f32::NEG_INFINITY,
-            -100.0,
+            f32::NAN,
             0.0,
             -0.0,
         ]);
-        let y = exp(x).0;
+        let y = exp(Portable, x).0;
         for v in &y[..3] {
             assert!((v - 1.0).abs() < 1e-6, "{v}");
         }
@@ -389,21 +699,25 @@ mod tests {
     }
 
     #[test]
-    fn masks_sums_and_selects() {
-        let a = F8([0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]);
-        let m = a.lt(F8::splat(3.0)) | a.ge(F8::splat(6.5));
-        assert_eq!(m.count(), 4);
-        assert!(m.any() && !(m & !m).any());
+    fn lane_operations_are_bit_identical_in_every_build() {
+        let want = dispatch(Isa::Portable, Ops);
+        // Spot checks of the portable lanes against plain f32 arithmetic.
+        assert_eq!(f32::from_bits(want[0][1]), 2.0);
+        assert_eq!(f32::from_bits(want[5][0]), 0.0);
+        assert_eq!(f32::from_bits(want[5][3]), 3.0, "min(NaN, b) = b");
+        assert!(f32::from_bits(want[6][4]).is_nan(), "max(4, NaN) = NaN");
         assert_eq!(
-            m.select(a, F8::splat(-1.0)).0,
-            [0.0, 1.0, 2.0, -1.0, -1.0, -1.0, -1.0, 7.0]
+            want[15].map(f32::from_bits),
+            [0.0, 0.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0]
         );
-        assert_eq!(M8::range(2, 4).count(), 3);
-        assert_eq!(a.sum(), 28.0);
+        assert_eq!(want[18][..3], [1, 0, 4]);
         assert_eq!(
-            F8::splat(f32::NAN).min(a).0[0].to_bits(),
-            f32::NAN.to_bits()
+            f32::from_bits(want[18][3]),
+            10.0,
+            "((0+4)+(2+6)) + ((1+5)+(3+7))"
         );
-        assert_eq!(I8::splat(3).gt(I8([0, 1, 2, 3, 4, 5, 6, 7])).count(), 3);
+        for isa in isas() {
+            assert_eq!(dispatch(isa, Ops), want, "{isa:?}");
+        }
     }
 }

@@ -3,13 +3,18 @@
 
 use rayon::prelude::*;
 
-/// Per-tile Gaussian lists in one flat array: tile `t` owns `ids[offsets[t]..offsets[t + 1]]`;
-/// and, per Gaussian, where its entries went: Gaussian `i`'s entries are
-/// `ids[entry_from_pair[p]]` for `p` in `pairs_of[i]..pairs_of[i + 1]`, in ascending tile order.
+/// Per-tile lists of drawn Gaussians in one flat array: tile `t` owns
+/// `ids[offsets[t]..offsets[t + 1]]`, each entry the Gaussian's rank in depth order (Gaussian
+/// `order[rank]`), so that a tile reads records stored in depth order front to back; and, per
+/// Gaussian, where its entries went: Gaussian `i`'s entries are `ids[entry_from_pair[p]]` for `p`
+/// in `pairs_of[i]..pairs_of[i + 1]`, in ascending tile order.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub(crate) struct TileLists {
     pub offsets: Vec<usize>,
+    /// Depth ranks, tile by tile.
     pub ids: Vec<u32>,
+    /// Gaussian index of each depth rank.
+    pub order: Vec<u32>,
     /// Per Gaussian (by index), the start of its pairs in `entry_from_pair`; `n + 1` long.
     pub pairs_of: Vec<usize>,
     /// Per (Gaussian, tile) pair, Gaussian-major, its position in `ids`.
@@ -97,11 +102,12 @@ pub(crate) fn bin(
     let mut cursor = offsets[..n_tiles].to_vec();
     let mut ids = vec![0u32; tile_of_pair.len()];
     let mut entry_from_pair = vec![0u32; tile_of_pair.len()];
-    for &key in &keys {
-        let id = (key & 0xffff_ffff) as usize;
+    let order: Vec<u32> = keys.iter().map(|&key| key as u32).collect();
+    for (rank, &id) in order.iter().enumerate() {
+        let id = id as usize;
         for p in pairs_of[id]..pairs_of[id + 1] {
             let t = tile_of_pair[p] as usize;
-            ids[cursor[t]] = id as u32;
+            ids[cursor[t]] = rank as u32;
             entry_from_pair[p] = cursor[t] as u32;
             cursor[t] += 1;
         }
@@ -109,6 +115,7 @@ pub(crate) fn bin(
     TileLists {
         offsets,
         ids,
+        order,
         pairs_of,
         entry_from_pair,
     }
@@ -128,8 +135,9 @@ mod tests {
         ];
         let depth = [2.0, 1.0, 2.0, 0.5];
         let lists = bin(&rects, &depth, 2, 1, |id, tx, _| id != 0 || tx == 1);
-        assert_eq!(lists.tile(0), &[3]);
-        assert_eq!(lists.tile(1), &[0, 2]);
+        assert_eq!(lists.order, &[3, 0, 2]);
+        assert_eq!(lists.tile(0), &[0]);
+        assert_eq!(lists.tile(1), &[1, 2]);
         assert_eq!(lists.entries_of(0), &[1]);
         assert!(lists.entries_of(1).is_empty());
         assert_eq!(lists.entries_of(2), &[2]);
