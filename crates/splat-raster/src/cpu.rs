@@ -447,7 +447,9 @@ mod tests {
 
     /// Raw parameters of one Gaussian: mean (z in front of the camera), log-scales, quaternion,
     /// opacity logit, three SH DC values.
-    fn gaussian() -> impl Strategy<Value = ([f32; 3], [f32; 3], [f32; 4], f32, [f32; 3])> {
+    type Raw = ([f32; 3], [f32; 3], [f32; 4], f32, [f32; 3]);
+
+    fn gaussian() -> impl Strategy<Value = Raw> {
         (
             (-1.5f32..1.5, -1.2f32..1.2, 2.0f32..5.0),
             prop_oneof![
@@ -470,7 +472,7 @@ mod tests {
             })
     }
 
-    fn scene(parts: &[([f32; 3], [f32; 3], [f32; 4], f32, [f32; 3])]) -> Gaussians {
+    fn scene(parts: &[Raw]) -> Gaussians {
         let mut g = Gaussians::with_degree(0);
         for &(m, s, q, o, c) in parts {
             g.means.push(m);

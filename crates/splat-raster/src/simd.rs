@@ -34,13 +34,13 @@ pub(crate) trait Simd: Copy {
     /// Every lane `v`.
     fn splat(self, v: f32) -> Self::F;
     /// The lanes of `v`.
-    fn from_array(self, v: [f32; W]) -> Self::F;
+    fn lanes(self, v: [f32; W]) -> Self::F;
     /// The lanes as an array.
     fn to_array(self, v: Self::F) -> [f32; W];
     /// Every lane `v`.
     fn splat_i(self, v: i32) -> Self::I;
     /// The lanes of `v`.
-    fn from_array_i(self, v: [i32; W]) -> Self::I;
+    fn lanes_i(self, v: [i32; W]) -> Self::I;
     /// The lanes as an array.
     fn to_array_i(self, v: Self::I) -> [i32; W];
     /// All lanes false.
@@ -154,7 +154,7 @@ impl Simd for Portable {
         F8([v; W])
     }
     #[inline(always)]
-    fn from_array(self, v: [f32; W]) -> F8 {
+    fn lanes(self, v: [f32; W]) -> F8 {
         F8(v)
     }
     #[inline(always)]
@@ -166,7 +166,7 @@ impl Simd for Portable {
         I8([v; W])
     }
     #[inline(always)]
-    fn from_array_i(self, v: [i32; W]) -> I8 {
+    fn lanes_i(self, v: [i32; W]) -> I8 {
         I8(v)
     }
     #[inline(always)]
@@ -204,17 +204,17 @@ impl Simd for Portable {
     #[inline(always)]
     fn select(self, m: M8, a: F8, b: F8) -> F8 {
         let mut out = [0f32; W];
-        for l in 0..W {
+        for (l, o) in out.iter_mut().enumerate() {
             let (x, y) = (a.0[l].to_bits(), b.0[l].to_bits());
-            out[l] = f32::from_bits((x & m.0[l]) | (y & !m.0[l]));
+            *o = f32::from_bits((x & m.0[l]) | (y & !m.0[l]));
         }
         F8(out)
     }
     #[inline(always)]
     fn select_i(self, m: M8, a: I8, b: I8) -> I8 {
         let mut out = [0i32; W];
-        for l in 0..W {
-            out[l] = if m.0[l] != 0 { a.0[l] } else { b.0[l] };
+        for (l, o) in out.iter_mut().enumerate() {
+            *o = if m.0[l] != 0 { a.0[l] } else { b.0[l] };
         }
         I8(out)
     }
@@ -339,7 +339,7 @@ pub(crate) mod avx2 {
             Fa(unsafe { _mm256_set1_ps(v) })
         }
         #[inline(always)]
-        fn from_array(self, v: [f32; W]) -> Fa {
+        fn lanes(self, v: [f32; W]) -> Fa {
             // SAFETY: see the module's note above.
             Fa(unsafe { std::mem::transmute::<[f32; W], __m256>(v) })
         }
@@ -354,7 +354,7 @@ pub(crate) mod avx2 {
             Ia(unsafe { _mm256_set1_epi32(v) })
         }
         #[inline(always)]
-        fn from_array_i(self, v: [i32; W]) -> Ia {
+        fn lanes_i(self, v: [i32; W]) -> Ia {
             // SAFETY: see the module's note above.
             Ia(unsafe { std::mem::transmute::<[i32; W], __m256i>(v) })
         }
@@ -483,7 +483,7 @@ pub(crate) fn exp<S: Simd>(s: S, x: S::F) -> S::F {
         8.333_452e-3,
         4.166_579_6e-2,
         1.666_666_5e-1,
-        5.000_000_1e-1,
+        0.5,
     ];
     // max(NaN, EXP_MIN) = EXP_MIN by the x86 rule.
     let x = s.min(s.max(x, s.splat(EXP_MIN)), s.splat(0.0));
@@ -573,7 +573,7 @@ mod tests {
         fn run<S: Simd>(self, s: S) -> Vec<f32> {
             self.0
                 .chunks_exact(W)
-                .flat_map(|c| s.to_array(exp(s, s.from_array(c.try_into().unwrap()))))
+                .flat_map(|c| s.to_array(exp(s, s.lanes(c.try_into().unwrap()))))
                 .collect()
         }
     }
@@ -585,11 +585,11 @@ mod tests {
         type Output = Vec<[u32; W]>;
         #[inline(always)]
         fn run<S: Simd>(self, s: S) -> Vec<[u32; W]> {
-            let a = s.from_array([0.0, 1.0, -2.0, f32::NAN, 4.0, -0.0, 6.0, f32::INFINITY]);
-            let b = s.from_array([0.5, 1.0, 2.0, 3.0, f32::NAN, 0.0, -6.5, 1e30]);
-            let (ia, ib) = (s.from_array_i([0, 1, 2, 3, 4, 5, 6, 7]), s.splat_i(3));
+            let a = s.lanes([0.0, 1.0, -2.0, f32::NAN, 4.0, -0.0, 6.0, f32::INFINITY]);
+            let b = s.lanes([0.5, 1.0, 2.0, 3.0, f32::NAN, 0.0, -6.5, 1e30]);
+            let (ia, ib) = (s.lanes_i([0, 1, 2, 3, 4, 5, 6, 7]), s.splat_i(3));
             let m = s.lt(a, b) | s.ge(a, s.splat(6.0));
-            let c = s.from_array([1e30, 1.0, -1e30, 2.0, 0.5, 3.0, 0.25, 4.0]);
+            let c = s.lanes([1e30, 1.0, -1e30, 2.0, 0.5, 3.0, 0.25, 4.0]);
             let f = |v: S::F| s.to_array(v).map(f32::to_bits);
             let mk = |m: S::M| {
                 let v = s.to_array(s.select(m, s.splat(1.0), s.splat(0.0)));
@@ -649,9 +649,9 @@ mod tests {
             -f32::MIN_POSITIVE,
             -87.0 + 7.0,
             -0.346_573_6,
-            -0.346_573_58,
+            -0.346_573_5,
         ]);
-        while xs.len() % W != 0 {
+        while !xs.len().is_multiple_of(W) {
             xs.push(0.0);
         }
         let mut outs = Vec::new();

@@ -57,7 +57,7 @@ fn columns<V: Simd>(
         let first = (h * W) as u32;
         let lo = lx0.saturating_sub(first);
         let hi = (lx1 - first).min(W as u32 - 1);
-        let px = v.from_array(std::array::from_fn(|l| {
+        let px = v.lanes(std::array::from_fn(|l| {
             (rect.x0 + first + l as u32) as f32 + 0.5
         }));
         let dx = px - v.splat(s.u);
@@ -255,11 +255,11 @@ fn backward_tile<V: Simd>(v: V, k: Backward<'_>) {
         }
     }
     let lanes = |i: usize| -> [f32; W] { k.final_t[i * W..(i + 1) * W].try_into().unwrap() };
-    let mut t: [V::F; BLOCKS] = std::array::from_fn(|b| v.from_array(lanes(b)));
+    let mut t: [V::F; BLOCKS] = std::array::from_fn(|b| v.lanes(lanes(b)));
     let last: [V::I; BLOCKS] =
-        std::array::from_fn(|b| v.from_array_i(std::array::from_fn(|l| k.last[b * W + l] as i32)));
-    let dl: [[V::F; BLOCKS]; 5] = dl.map(|q| q.map(|x| v.from_array(x)));
-    let mut behind: [[V::F; BLOCKS]; 5] = bh.map(|q| q.map(|x| v.from_array(x)));
+        std::array::from_fn(|b| v.lanes_i(std::array::from_fn(|l| k.last[b * W + l] as i32)));
+    let dl: [[V::F; BLOCKS]; 5] = dl.map(|q| q.map(|x| v.lanes(x)));
+    let mut behind: [[V::F; BLOCKS]; 5] = bh.map(|q| q.map(|x| v.lanes(x)));
     for j in (0..max_last as usize).rev() {
         let s = &k.splats[k.ids[j] as usize];
         let Some([x0, y0, x1, y1]) = rect.clip(s.bbox) else {
