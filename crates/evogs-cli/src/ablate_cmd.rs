@@ -8,6 +8,8 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 use evogs_train::ablate::{AblationRequest, AblationResult, Progress, run_ablation, select};
+use evogs_train::eval::EvalLpips;
+use evogs_train::metrics::lpips::Backbone;
 use evogs_train::{Preset, TrainConfig};
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -39,6 +41,11 @@ pub struct AblateArgs {
     /// buffer-f16.
     #[arg(long, value_name = "LIST", value_delimiter = ',')]
     pub rows: Vec<String>,
+
+    /// Directory of the LPIPS weights for the `lpips_alex` columns [default:
+    /// $EVOGS_LPIPS_WEIGHTS, else ~/.cache/evogs/lpips; `scripts/lpips-weights` installs them].
+    #[arg(long, value_name = "DIR")]
+    pub lpips_weights: Option<PathBuf>,
 }
 
 /// Runs `evogs ablate`; returns the results (the outputs are written).
@@ -67,7 +74,11 @@ pub fn run_ablate(args: &AblateArgs) -> Result<Vec<AblationResult>> {
         ProgressStyle::with_template("{bar:30} {pos}/{len} rows, ETA {eta} | {msg}")
             .context("progress bar template")?,
     );
-    let results = run_ablation(&request, &mut |p| match p {
+    let lpips = EvalLpips::find(&[Backbone::Alex], args.lpips_weights.as_deref())?;
+    for line in &lpips.missing {
+        eprintln!("evogs ablate: {line}; the lpips_alex columns stay empty");
+    }
+    let results = run_ablation(&request, &lpips, &mut |p| match p {
         Progress::Started { index, total, row } => {
             bar.suspend(|| {
                 eprintln!(

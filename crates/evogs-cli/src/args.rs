@@ -19,7 +19,7 @@ pub struct Cli {
 pub enum Command {
     /// Train a dynamic scene on a D-NeRF dataset into a run directory.
     Train(TrainArgs),
-    /// Evaluate a run on a split: PSNR, SSIM, flicker, jitter (JSON and markdown).
+    /// Evaluate a run on a split: PSNR, SSIM, LPIPS, flicker, jitter (JSON and markdown).
     Eval(EvalArgs),
     /// Render Gaussians (a trained run at a time, a 3DGS PLY, or the built-in demo scene) to PNG.
     Render(RenderArgs),
@@ -148,6 +148,16 @@ pub struct EvalArgs {
     /// hardware GPU, cpu otherwise).
     #[arg(long, value_name = "cpu|wgpu|auto", default_value = "cpu", value_parser = parse_backend)]
     pub backend: BackendChoice,
+
+    /// Also report LPIPS with the VGG16 backbone (`lpips_vgg`); `lpips_alex` (AlexNet) is
+    /// always reported when its weights are installed.
+    #[arg(long)]
+    pub lpips_vgg: bool,
+
+    /// Directory of the LPIPS weights [default: $EVOGS_LPIPS_WEIGHTS, else
+    /// ~/.cache/evogs/lpips; `scripts/lpips-weights` installs them there].
+    #[arg(long, value_name = "DIR")]
+    pub lpips_weights: Option<PathBuf>,
 }
 
 /// Arguments of `evogs export`.

@@ -12,6 +12,7 @@ use clap::Args;
 use evogs_io::Split;
 use evogs_train::ablate::train_and_evaluate;
 use evogs_train::data::load_split;
+use evogs_train::eval::EvalLpips;
 use evogs_train::synth::{embedded_scene, write_dnerf};
 use evogs_train::{Method, Preset, TrainConfig};
 use splat_raster::BackendChoice;
@@ -109,7 +110,7 @@ pub fn run_demo(args: &DemoArgs) -> Result<(u64, Vec<DemoRow>)> {
         config.method = method;
         config.backend = args.backend;
         let out = args.out.join(method.to_string());
-        let scores = train_and_evaluate(&data, &out, config, false)?;
+        let scores = train_and_evaluate(&data, &out, config, false, &EvalLpips::default())?;
         rows.push(DemoRow {
             method,
             psnr: scores.psnr,

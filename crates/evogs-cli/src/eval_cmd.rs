@@ -1,9 +1,11 @@
-//! `evogs eval`: scores a run on a split and writes `eval_<split>.json` and `.md`.
+//! `evogs eval`: scores a run on a split and writes `eval_<split>.json` and `.md`; says in one
+//! line on stderr when LPIPS weights are missing (and how to install them), and goes on.
 
 use anyhow::{Result, anyhow};
 use evogs_io::Split;
 use evogs_train::LoadedRun;
-use evogs_train::eval::{EvalReport, evaluate};
+use evogs_train::eval::{EvalLpips, EvalReport, evaluate};
+use evogs_train::metrics::lpips::Backbone;
 
 use crate::args::EvalArgs;
 
@@ -15,5 +17,14 @@ pub fn run_eval(args: &EvalArgs) -> Result<EvalReport> {
         .map_err(|e: String| anyhow!("--split: {e}"))?;
     let mut run = LoadedRun::open(&args.run)?;
     println!("{}", run.use_backend(args.backend)?);
-    Ok(evaluate(&mut run, split)?)
+    let backbones: &[Backbone] = if args.lpips_vgg {
+        &Backbone::ALL
+    } else {
+        &[Backbone::Alex]
+    };
+    let lpips = EvalLpips::find(backbones, args.lpips_weights.as_deref())?;
+    for line in &lpips.missing {
+        eprintln!("evogs eval: {line}; reporting the other metrics");
+    }
+    Ok(evaluate(&mut run, split, &lpips)?)
 }

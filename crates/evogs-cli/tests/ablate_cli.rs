@@ -70,6 +70,7 @@ fn ablates_three_rows_of_a_tiny_scene() {
     assert!(table.contains("evolution=off"), "{table}");
     assert!(table.contains("gain=0.5"), "{table}");
     assert!(table.contains("30 iterations per row, seed 3"), "{table}");
+    assert!(table.contains("| SSIM | lpips_alex |"), "{table}");
 
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("ablation.json")).unwrap()).unwrap();
@@ -79,6 +80,7 @@ fn ablates_three_rows_of_a_tiny_scene() {
         assert!(row["psnr"].as_f64().unwrap().is_finite(), "{row}");
         assert!(row["seconds"].as_f64().unwrap() > 0.0, "{row}");
         assert!(row["gaussians"].as_u64().unwrap() > 0, "{row}");
+        assert!(row["lpips_alex"].as_f64().unwrap() > 0.0, "{row}");
     }
     // Only the evolution with a buffer keeps one.
     assert_eq!(rows[0]["buffer_bytes"], 0);

@@ -64,6 +64,52 @@ fn evogs_run_trains_evaluates_renders_exports_and_resumes() {
         serde_json::from_str(&std::fs::read_to_string(run.join("eval_test.json")).unwrap())
             .unwrap();
     assert!(report["mean_psnr"].as_f64().unwrap() > 15.0, "{report}");
+    // LPIPS: AlexNet by default (scripts/test installs the weights), VGG16 with the flag.
+    let lpips_alex = report["mean_lpips_alex"].as_f64().unwrap();
+    assert!(lpips_alex > 0.0 && lpips_alex < 1.0, "{report}");
+    assert!(report.get("mean_lpips_vgg").is_none(), "{report}");
+    ok(&evogs(&[
+        "eval",
+        "--run",
+        s(&run),
+        "--split",
+        "test",
+        "--lpips-vgg",
+    ]));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("eval_test.json")).unwrap())
+            .unwrap();
+    assert_eq!(report["mean_lpips_alex"].as_f64().unwrap(), lpips_alex);
+    assert!(report["mean_lpips_vgg"].as_f64().unwrap() > 0.0, "{report}");
+    // Without weights: one line naming the install command, the other metrics still reported.
+    let empty = dir.path().join("no-weights");
+    let o = evogs(&[
+        "eval",
+        "--run",
+        s(&run),
+        "--split",
+        "test",
+        "--lpips-weights",
+        s(&empty),
+    ]);
+    ok(&o);
+    let err = String::from_utf8_lossy(&o.stderr);
+    let lines: Vec<&str> = err.lines().filter(|l| l.contains("LPIPS")).collect();
+    assert_eq!(lines.len(), 1, "{err}");
+    assert!(
+        lines[0].contains("scripts/lpips-weights") && lines[0].contains("no-weights"),
+        "{err}"
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("eval_test.json")).unwrap())
+            .unwrap();
+    assert!(report["mean_psnr"].as_f64().unwrap() > 15.0, "{report}");
+    assert!(report.get("mean_lpips_alex").is_none(), "{report}");
+    assert_eq!(
+        report["lpips_missing"].as_array().unwrap().len(),
+        1,
+        "{report}"
+    );
 
     let ply = dir.path().join("frame.ply");
     ok(&evogs(&[

@@ -11,7 +11,7 @@ use serde::Serialize;
 
 use crate::config::{Method, TrainConfig};
 use crate::error::TrainError;
-use crate::eval::evaluate;
+use crate::eval::{EvalLpips, evaluate};
 use crate::evo_settings::{Bits, DensifyPolicy, EvoSettings, GainSetting, HistorySetting};
 use crate::run::{LoadedRun, TrainRequest, train};
 
@@ -187,6 +187,10 @@ pub struct Scores {
     pub val_psnr: Option<f64>,
     /// Mean val SSIM, when the dataset has a val split.
     pub val_ssim: Option<f64>,
+    /// Mean test LPIPS (AlexNet), when its weights are installed.
+    pub lpips_alex: Option<f64>,
+    /// Mean val LPIPS (AlexNet), with a val split and the weights.
+    pub val_lpips_alex: Option<f64>,
     /// Fixed-camera flicker (rendered) on the test split; NaN when not measurable.
     pub flicker: f64,
     /// Trajectory jitter on the test split; NaN when not measurable.
@@ -200,12 +204,13 @@ pub struct Scores {
 }
 
 /// Trains `config` on `data` into the run directory `out`, then evaluates it on the test split
-/// (and on val when `with_val`).
+/// (and on val when `with_val`), LPIPS with the networks of `lpips`.
 pub fn train_and_evaluate(
     data: &Path,
     out: &Path,
     config: TrainConfig,
     with_val: bool,
+    lpips: &EvalLpips,
 ) -> Result<Scores, TrainError> {
     let backend = config.backend;
     let summary = train(
@@ -222,12 +227,16 @@ pub fn train_and_evaluate(
     let mut run = LoadedRun::open(out)?;
     // Evaluated on the backend it trained on.
     run.use_backend(backend)?;
-    let report = evaluate(&mut run, Split::Test)?;
-    let (val_psnr, val_ssim) = if with_val {
-        let val = evaluate(&mut run, Split::Val)?;
-        (Some(val.mean_psnr), Some(val.mean_ssim))
+    let report = evaluate(&mut run, Split::Test, lpips)?;
+    let (val_psnr, val_ssim, val_lpips_alex) = if with_val {
+        let val = evaluate(&mut run, Split::Val, lpips)?;
+        (
+            Some(val.mean_psnr),
+            Some(val.mean_ssim),
+            val.mean_lpips_alex,
+        )
     } else {
-        (None, None)
+        (None, None, None)
     };
     let temporal = report.temporal.as_ref();
     Ok(Scores {
@@ -235,6 +244,8 @@ pub fn train_and_evaluate(
         ssim: report.mean_ssim,
         val_psnr,
         val_ssim,
+        lpips_alex: report.mean_lpips_alex,
+        val_lpips_alex,
         flicker: temporal.map_or(f64::NAN, |t| t.flicker_rendered),
         jitter: temporal.map_or(f64::NAN, |t| t.jitter),
         seconds: summary.seconds,
@@ -295,10 +306,12 @@ pub enum Progress<'a> {
     },
 }
 
-/// Runs every row of `request` (train, evaluate on test, and on val when the dataset has one),
-/// writes the outputs ([`write_outputs`]) and returns the results.
+/// Runs every row of `request` (train, evaluate on test, and on val when the dataset has one;
+/// LPIPS with the networks of `lpips`), writes the outputs ([`write_outputs`]) and returns the
+/// results.
 pub fn run_ablation(
     request: &AblationRequest,
+    lpips: &EvalLpips,
     progress: &mut dyn FnMut(Progress<'_>),
 ) -> Result<Vec<AblationResult>, TrainError> {
     if request.rows.is_empty() {
@@ -315,7 +328,7 @@ pub fn run_ablation(
         config.method = row.method;
         config.evogs = row.evo.clone();
         let run = request.out.join(row.name);
-        let scores = train_and_evaluate(&request.data, &run, config, with_val)?;
+        let scores = train_and_evaluate(&request.data, &run, config, with_val, lpips)?;
         results.push(AblationResult {
             name: row.name.to_string(),
             description: row.description.to_string(),
@@ -338,34 +351,40 @@ pub fn table(config: &TrainConfig, results: &[AblationResult]) -> String {
     let with_val = results.iter().any(|r| r.scores.val_psnr.is_some());
     let mut s = format!(
         "# evogs ablate: {} iterations per row, seed {}\n\n\
-         | row | switches | PSNR (dB) | SSIM |{} flicker | jitter | training (s) | Gaussians | buffer (KiB) |\n\
-         | --- | --- | ---: | ---: |{} ---: | ---: | ---: | ---: | ---: |\n",
+         | row | switches | PSNR (dB) | SSIM | lpips_alex |{} flicker | jitter | training (s) | Gaussians | buffer (KiB) |\n\
+         | --- | --- | ---: | ---: | ---: |{} ---: | ---: | ---: | ---: | ---: |\n",
         config.iterations,
         config.seed,
         if with_val {
-            " val PSNR (dB) | val SSIM |"
+            " val PSNR (dB) | val SSIM | val lpips_alex |"
         } else {
             ""
         },
-        if with_val { " ---: | ---: |" } else { "" },
+        if with_val {
+            " ---: | ---: | ---: |"
+        } else {
+            ""
+        },
     );
     for r in results {
         let c = &r.scores;
         let val = if with_val {
             format!(
-                " {} | {} |",
+                " {} | {} | {} |",
                 c.val_psnr.map_or("-".into(), |v| format!("{v:.2}")),
-                c.val_ssim.map_or("-".into(), |v| format!("{v:.4}"))
+                c.val_ssim.map_or("-".into(), |v| format!("{v:.4}")),
+                c.val_lpips_alex.map_or("-".into(), |v| format!("{v:.4}"))
             )
         } else {
             String::new()
         };
         s += &format!(
-            "| {} | {} | {:.2} | {:.4} |{val} {:.5} | {:.3e} | {:.1} | {} | {:.1} |\n",
+            "| {} | {} | {:.2} | {:.4} | {} |{val} {:.5} | {:.3e} | {:.1} | {} | {:.1} |\n",
             r.name,
             r.switches,
             c.psnr,
             c.ssim,
+            c.lpips_alex.map_or("-".into(), |v| format!("{v:.4}")),
             c.flicker,
             c.jitter,
             c.seconds,

@@ -1,6 +1,6 @@
-//! Evaluation of a run on a split: per-image PSNR and SSIM and their means, fixed-camera
-//! flicker and trajectory jitter (SPEC §7), written as JSON and as a markdown table. LPIPS is
-//! not reported (its network weights cannot be fetched here).
+//! Evaluation of a run on a split: per-image PSNR, SSIM and LPIPS (`lpips_alex`, and
+//! `lpips_vgg` when asked for; see [`EvalLpips`]) and their means, fixed-camera flicker and
+//! trajectory jitter (SPEC §7), written as JSON and as a markdown table.
 //!
 //! Temporal metrics: the split's distinct times, sorted, are rendered from one fixed camera (the
 //! split's first). Flicker compares consecutive renders; its ground-truth part exists only when
@@ -9,6 +9,7 @@
 //! times, counted where a Gaussian is drawn in the fixed camera at all three times.
 
 use std::fmt::Write as _;
+use std::path::Path;
 
 use evogs_io::{ImageRgb, Split, save_png};
 use serde::{Deserialize, Serialize};
@@ -16,6 +17,7 @@ use splat_raster::RenderOptions;
 
 use crate::data::load_split;
 use crate::error::TrainError;
+use crate::metrics::lpips::{Backbone, Lpips, LpipsError};
 use crate::metrics::{ImageSize, flicker, psnr, ssim, trajectory_jitter};
 use crate::run::{LoadedRun, write_json, write_text};
 
@@ -30,6 +32,49 @@ pub struct ImageScore {
     pub psnr: f64,
     /// SSIM.
     pub ssim: f64,
+    /// LPIPS with the AlexNet backbone, when its weights were loaded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lpips_alex: Option<f64>,
+    /// LPIPS with the VGG16 backbone, when asked for and its weights were loaded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lpips_vgg: Option<f64>,
+}
+
+impl ImageScore {
+    /// The image's LPIPS with `backbone`, if computed.
+    pub fn lpips(&self, backbone: Backbone) -> Option<f64> {
+        match backbone {
+            Backbone::Alex => self.lpips_alex,
+            Backbone::Vgg => self.lpips_vgg,
+        }
+    }
+}
+
+/// The LPIPS networks an evaluation runs, loaded once and shared by every image.
+#[derive(Debug, Default)]
+pub struct EvalLpips {
+    /// The loaded networks, AlexNet first.
+    pub nets: Vec<Lpips>,
+    /// One line for each requested backbone whose weights are not installed: the file looked
+    /// for and the command that installs it.
+    pub missing: Vec<String>,
+}
+
+impl EvalLpips {
+    /// Loads `backbones` from the weights directory found for `dir` (the search order of
+    /// [`crate::metrics::lpips::weights`]). A backbone without a weights file is noted in
+    /// [`EvalLpips::missing`] and skipped; a malformed file is an error.
+    pub fn find(backbones: &[Backbone], dir: Option<&Path>) -> Result<Self, TrainError> {
+        let mut out = Self::default();
+        for &backbone in backbones {
+            match Lpips::find(backbone, dir) {
+                Ok(net) => out.nets.push(net),
+                Err(e @ LpipsError::Missing { .. }) => out.missing.push(e.to_string()),
+                Err(e) => return Err(e.into()),
+            }
+        }
+        Ok(out)
+    }
 }
 
 /// Temporal consistency over the split's times from a fixed camera.
@@ -64,13 +109,45 @@ pub struct EvalReport {
     pub mean_psnr: f64,
     /// Mean SSIM.
     pub mean_ssim: f64,
+    /// Mean LPIPS (AlexNet), when computed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_lpips_alex: Option<f64>,
+    /// Mean LPIPS (VGG16), when computed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_lpips_vgg: Option<f64>,
+    /// Requested LPIPS backbones that were not computed, and why (one line each).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub lpips_missing: Vec<String>,
     /// Temporal metrics (absent with fewer than two distinct times).
     pub temporal: Option<Temporal>,
 }
 
-/// Evaluates `run` on `split`: renders every view (saved under `renders/<split>/`), scores it,
-/// computes the temporal metrics, and writes `eval_<split>.json` and `eval_<split>.md`.
-pub fn evaluate(run: &mut LoadedRun, split: Split) -> Result<EvalReport, TrainError> {
+impl EvalReport {
+    /// The mean LPIPS with `backbone`, if computed.
+    pub fn mean_lpips(&self, backbone: Backbone) -> Option<f64> {
+        match backbone {
+            Backbone::Alex => self.mean_lpips_alex,
+            Backbone::Vgg => self.mean_lpips_vgg,
+        }
+    }
+
+    /// The backbones whose LPIPS the report holds, AlexNet first.
+    pub fn lpips_backbones(&self) -> Vec<Backbone> {
+        Backbone::ALL
+            .into_iter()
+            .filter(|&b| self.mean_lpips(b).is_some())
+            .collect()
+    }
+}
+
+/// Evaluates `run` on `split`: renders every view (saved under `renders/<split>/`), scores it
+/// (LPIPS with each network of `lpips`), computes the temporal metrics, and writes
+/// `eval_<split>.json` and `eval_<split>.md`.
+pub fn evaluate(
+    run: &mut LoadedRun,
+    split: Split,
+    lpips: &EvalLpips,
+) -> Result<EvalReport, TrainError> {
     let cfg = run.run.train.clone();
     let views = load_split(&run.run.data, split, cfg.background.rgb(), cfg.downscale)?;
     let opts = RenderOptions {
@@ -89,6 +166,13 @@ pub fn evaluate(run: &mut LoadedRun, split: Split) -> Result<EvalReport, TrainEr
             .iter()
             .map(|c| c.map(|v| v.clamp(0.0, 1.0)))
             .collect();
+        let lpips_of = |backbone| -> Result<Option<f64>, TrainError> {
+            match lpips.nets.iter().find(|n| n.backbone() == backbone) {
+                Some(net) => Ok(Some(net.distance(size, &clamped, &view.image.pixels)?)),
+                None => Ok(None),
+            }
+        };
+        let (lpips_alex, lpips_vgg) = (lpips_of(Backbone::Alex)?, lpips_of(Backbone::Vgg)?);
         images.push(ImageScore {
             name: view
                 .path
@@ -97,6 +181,8 @@ pub fn evaluate(run: &mut LoadedRun, split: Split) -> Result<EvalReport, TrainEr
             time: view.time,
             psnr: psnr(size, &clamped, &view.image.pixels)?,
             ssim: ssim(size, &clamped, &view.image.pixels)?,
+            lpips_alex,
+            lpips_vgg,
         });
         save_png(
             &dir.join(format!("{k:04}.png")),
@@ -110,6 +196,13 @@ pub fn evaluate(run: &mut LoadedRun, split: Split) -> Result<EvalReport, TrainEr
     let count = images.len().max(1) as f64;
     let mean_psnr = images.iter().map(|s| s.psnr).sum::<f64>() / count;
     let mean_ssim = images.iter().map(|s| s.ssim).sum::<f64>() / count;
+    let mean_lpips = |backbone| -> Option<f64> {
+        let values: Option<Vec<f64>> = images.iter().map(|s| s.lpips(backbone)).collect();
+        values
+            .filter(|v| !v.is_empty())
+            .map(|v| v.iter().sum::<f64>() / count)
+    };
+    let (mean_lpips_alex, mean_lpips_vgg) = (mean_lpips(Backbone::Alex), mean_lpips(Backbone::Vgg));
     let temporal = temporal_metrics(run, &views, &opts)?;
     let report = EvalReport {
         split: split.name().to_string(),
@@ -118,6 +211,9 @@ pub fn evaluate(run: &mut LoadedRun, split: Split) -> Result<EvalReport, TrainEr
         images,
         mean_psnr,
         mean_ssim,
+        mean_lpips_alex,
+        mean_lpips_vgg,
+        lpips_missing: lpips.missing.clone(),
         temporal,
     };
     write_json(&run.paths.eval_json(split), &report)?;
@@ -183,18 +279,42 @@ pub fn markdown(report: &EvalReport) -> String {
         "# Evaluation: split `{}`, {} iterations, network width {}\n",
         report.split, report.iteration, report.net_width
     );
-    let _ = writeln!(s, "| image | time | PSNR (dB) | SSIM |");
-    let _ = writeln!(s, "| --- | ---: | ---: | ---: |");
+    let backbones = report.lpips_backbones();
+    let header: String = backbones
+        .iter()
+        .map(|b| format!(" {} |", b.metric()))
+        .collect();
+    let _ = writeln!(s, "| image | time | PSNR (dB) | SSIM |{header}");
+    let _ = writeln!(
+        s,
+        "| --- | ---: | ---: | ---: |{}",
+        " ---: |".repeat(backbones.len())
+    );
     for im in &report.images {
+        let lpips: String = backbones
+            .iter()
+            .map(|&b| {
+                im.lpips(b)
+                    .map_or(" - |".to_string(), |v| format!(" {v:.4} |"))
+            })
+            .collect();
         let _ = writeln!(
             s,
-            "| {} | {:.3} | {:.2} | {:.4} |",
+            "| {} | {:.3} | {:.2} | {:.4} |{lpips}",
             im.name, im.time, im.psnr, im.ssim
         );
     }
+    let mean_lpips: String = backbones
+        .iter()
+        .map(|&b| {
+            report
+                .mean_lpips(b)
+                .map_or(" - |".to_string(), |v| format!(" **{v:.4}** |"))
+        })
+        .collect();
     let _ = writeln!(
         s,
-        "| **mean** ({} images) | | **{:.2}** | **{:.4}** |",
+        "| **mean** ({} images) | | **{:.2}** | **{:.4}** |{mean_lpips}",
         report.images.len(),
         report.mean_psnr,
         report.mean_ssim
@@ -228,6 +348,13 @@ pub fn markdown(report: &EvalReport) -> String {
             );
         }
     }
-    s.push_str("\nLPIPS is not reported: its network weights cannot be fetched here.\n");
+    if !backbones.is_empty() {
+        s.push_str(
+            "\nLPIPS v0.1 (lower is better) on images clamped to [0, 1]; the column names the backbone.\n",
+        );
+    }
+    for line in &report.lpips_missing {
+        let _ = writeln!(s, "\nNot reported: {line}.");
+    }
     s
 }

@@ -5,7 +5,8 @@
 mod common;
 
 use evogs_io::Split;
-use evogs_train::eval::{EvalReport, evaluate, markdown};
+use evogs_train::eval::{EvalLpips, EvalReport, evaluate, markdown};
+use evogs_train::metrics::lpips::Backbone;
 use evogs_train::{LoadedRun, Preset, TrainConfig, TrainRequest, train};
 
 /// Every run of digits becomes one `#`.
@@ -42,7 +43,10 @@ fn eval_table_of_a_tiny_run() {
     )
     .unwrap();
     let mut run = LoadedRun::open(&out).unwrap();
-    let report = evaluate(&mut run, Split::Val).unwrap();
+    // AlexNet LPIPS as `evogs eval` computes it by default (scripts/test installs the weights).
+    let lpips = EvalLpips::find(&[Backbone::Alex], None).unwrap();
+    assert!(lpips.missing.is_empty(), "{:?}", lpips.missing);
+    let report = evaluate(&mut run, Split::Val, &lpips).unwrap();
     assert_eq!(report.images.len(), 4);
     let mean = report.images.iter().map(|i| i.psnr).sum::<f64>() / 4.0;
     assert!((mean - report.mean_psnr).abs() < 1e-9);
@@ -56,4 +60,36 @@ fn eval_table_of_a_tiny_run() {
     assert!((back.mean_psnr - report.mean_psnr).abs() < 1e-9);
     assert_eq!(markdown(&back), markdown(&report));
     insta::assert_snapshot!(mask_digits(&table));
+    let mean_lpips = report
+        .images
+        .iter()
+        .map(|i| i.lpips_alex.unwrap())
+        .sum::<f64>()
+        / 4.0;
+    assert!((mean_lpips - report.mean_lpips_alex.unwrap()).abs() < 1e-9);
+    assert!(mean_lpips > 0.0 && back.mean_lpips_alex.is_some() && back.mean_lpips_vgg.is_none());
+
+    // Without weights: no LPIPS column, and the table says why in one line.
+    let mut without = report.clone();
+    without.mean_lpips_alex = None;
+    without.images.iter_mut().for_each(|i| i.lpips_alex = None);
+    without.lpips_missing = vec![
+        evogs_train::metrics::lpips::LpipsError::Missing {
+            backbone: Backbone::Alex,
+            path: "/nowhere/lpips_alex.safetensors".into(),
+        }
+        .to_string(),
+    ];
+    let text = markdown(&without);
+    assert!(
+        text.contains("| image | time | PSNR (dB) | SSIM |\n"),
+        "{text}"
+    );
+    assert!(
+        text.ends_with(
+            "\nNot reported: LPIPS alex weights not found at /nowhere/lpips_alex.safetensors; \
+         install them with `scripts/lpips-weights` (evogs repository).\n"
+        ),
+        "{text}"
+    );
 }

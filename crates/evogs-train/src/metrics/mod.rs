@@ -9,6 +9,7 @@
 //!   convolutions). Generic over [`Real`] so the same code runs in f32 (training) and f64 (the
 //!   finite-difference checks).
 //! - [`flicker`] and [`trajectory_jitter`]: the temporal consistency metrics.
+//! - [`lpips`]: LPIPS with the AlexNet or VGG16 backbone from the published weights.
 //!
 //! Images are row-major `[r, g, b]` slices (`index = y * width + x`), as `splat-raster` renders
 //! them.
@@ -16,6 +17,7 @@
 mod error;
 mod gaussian_blur;
 mod loss;
+pub mod lpips;
 mod psnr;
 mod real;
 mod ssim;
