@@ -115,7 +115,8 @@ pub struct EvalReport {
     /// Mean LPIPS (VGG16), when computed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mean_lpips_vgg: Option<f64>,
-    /// Requested LPIPS backbones that were not computed, and why (one line each).
+    /// Requested LPIPS backbones that were not computed (weights missing, images below the
+    /// network's minimum size), and why (one line each).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub lpips_missing: Vec<String>,
     /// Temporal metrics (absent with fewer than two distinct times).
@@ -157,6 +158,7 @@ pub fn evaluate(
     let dir = run.paths.renders(split);
     std::fs::create_dir_all(&dir).map_err(|e| TrainError::io(&dir, e))?;
     let mut images = Vec::with_capacity(views.views.len());
+    let mut lpips_missing = lpips.missing.clone();
     for (k, view) in views.views.iter().enumerate() {
         let g = run.deformed(view.time)?;
         let out = run.raster.forward(g.view(), &view.camera, &opts)?;
@@ -166,13 +168,24 @@ pub fn evaluate(
             .iter()
             .map(|c| c.map(|v| v.clamp(0.0, 1.0)))
             .collect();
-        let lpips_of = |backbone| -> Result<Option<f64>, TrainError> {
-            match lpips.nets.iter().find(|n| n.backbone() == backbone) {
-                Some(net) => Ok(Some(net.distance(size, &clamped, &view.image.pixels)?)),
-                None => Ok(None),
+        let (mut lpips_alex, mut lpips_vgg) = (None, None);
+        for net in &lpips.nets {
+            let slot = match net.backbone() {
+                Backbone::Alex => &mut lpips_alex,
+                Backbone::Vgg => &mut lpips_vgg,
+            };
+            match net.distance(size, &clamped, &view.image.pixels) {
+                Ok(d) => *slot = Some(d),
+                // Images below the network's minimum: that LPIPS is not reported, and why.
+                Err(e @ LpipsError::TooSmall { .. }) => {
+                    let line = e.to_string();
+                    if !lpips_missing.contains(&line) {
+                        lpips_missing.push(line);
+                    }
+                }
+                Err(e) => return Err(e.into()),
             }
-        };
-        let (lpips_alex, lpips_vgg) = (lpips_of(Backbone::Alex)?, lpips_of(Backbone::Vgg)?);
+        }
         images.push(ImageScore {
             name: view
                 .path
@@ -213,7 +226,7 @@ pub fn evaluate(
         mean_ssim,
         mean_lpips_alex,
         mean_lpips_vgg,
-        lpips_missing: lpips.missing.clone(),
+        lpips_missing,
         temporal,
     };
     write_json(&run.paths.eval_json(split), &report)?;
