@@ -2,13 +2,13 @@
 //!
 //! What it is: the forward pass (projection, tiling, depth sort, front-to-back compositing) and the
 //! backward pass (gradients to every raw Gaussian parameter) of 3DGS, exactly as pinned in the
-//! project's SPEC §3, over plain structure-of-arrays inputs ([`GaussiansView`]) and an OpenCV-axes
+//! repository's docs/DESIGN.md §3, over plain structure-of-arrays inputs ([`GaussiansView`]) and an OpenCV-axes
 //! pinhole [`Camera`]. The [`Rasterizer`] trait is the backend interface; [`CpuRasterizer`] is the
 //! rayon-parallel CPU backend, and `WgpuRasterizer` (cargo feature `wgpu`, on by default) the
 //! GPU backend with WGSL compute kernels, checked against the CPU one; [`select_rasterizer`] picks
 //! one at run time from a [`BackendChoice`] (`cpu`, `wgpu`, `auto`).
 //!
-//! Conventions beyond SPEC §3, fixed here:
+//! Conventions beyond DESIGN §3, fixed here:
 //! - depth output is the un-normalised expected depth `Σ z·α·T` (camera-space z); divide by the
 //!   alpha output for a normalised depth;
 //! - `d = pixel centre − projected mean` in `σ`; the 2D-mean gradient is dL/d(u, v) in pixels;
@@ -31,20 +31,21 @@
 //! other crates of the workspace and hand this crate slices.
 
 mod backend;
-mod composite;
+mod constants;
 mod cpu;
 mod error;
+mod frame;
 #[cfg(feature = "wgpu")]
 mod gpu;
 mod options;
 mod output;
-mod project;
 pub mod sh;
-mod simd;
-mod tiles;
 mod validate;
 
 pub use backend::{BackendChoice, BackendInfo, BackendKind, DynRasterizer, select_rasterizer};
+pub use constants::{
+    ALPHA_MAX, ALPHA_MIN, DILATION, MAX_COLOR, NEAR_PLANE, QUAT_NORM2_MIN, T_MIN, TILE,
+};
 pub use cpu::{CpuKernel, CpuRasterizer};
 pub use error::RasterError;
 #[cfg(feature = "wgpu")]
@@ -54,9 +55,6 @@ pub use gpu::sort::SortHarness;
 pub use gpu::{AdapterSummary, AtomicMode, GpuContext, WgpuRasterizer};
 pub use options::{CullStats, RenderOptions};
 pub use output::{ForwardOutput, Gradients};
-pub use project::{
-    ALPHA_MAX, ALPHA_MIN, DILATION, MAX_COLOR, NEAR_PLANE, QUAT_NORM2_MIN, T_MIN, TILE,
-};
 /// The plain types of `splat-core` the rasterizer reads, re-exported for convenience (defined
 /// there, once).
 pub use splat_core::{Camera, Gaussians, GaussiansView, camera, gaussians, sh_coeff_count};

@@ -1,10 +1,7 @@
 //! What the passes return: the rendered images with the state the backward pass needs, and the
 //! gradients of every raw parameter.
 
-use crate::composite::Counters;
 use crate::options::CullStats;
-use crate::project::Splat;
-use crate::tiles::TileLists;
 
 /// A rendered image and the state its backward pass needs.
 ///
@@ -48,23 +45,19 @@ pub(crate) struct BackwardState {
 /// The backend-specific part of [`BackwardState`].
 #[derive(Clone, Debug)]
 pub(crate) enum BackendState {
-    Cpu(CpuState),
+    Cpu(crate::cpu::CpuState),
     #[cfg(feature = "wgpu")]
     Gpu(Box<crate::gpu::GpuState>),
 }
 
-/// The CPU backend's backward state.
-#[derive(Clone, Debug)]
-pub(crate) struct CpuState {
-    /// The kernels the forward pass ran (the backward pass runs the same).
-    pub kernels: crate::cpu::Kernels,
-    /// The drawn Gaussians' records in depth order (indexed by the lists' ranks).
-    pub splats: Vec<Splat>,
-    pub lists: TileLists,
-    /// Tile-major (tile, lane) final transmittance.
-    pub final_t: Vec<f32>,
-    /// Tile-major one-past-last contributor position in the tile list.
-    pub last: Vec<u32>,
+/// Work counters of a forward pass.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Counters {
+    /// Gaussian-pixel pairs the inner loop visited: for each list entry processed, the pixels of
+    /// its bounding box inside the tile.
+    pub evaluations: u64,
+    /// Gaussian-pixel pairs actually blended.
+    pub blended: u64,
 }
 
 impl ForwardOutput {

@@ -1,4 +1,4 @@
-//! The CPU rasterizer against the exact per-pixel f64 reference of SPEC §3 on random small scenes:
+//! The CPU rasterizer against the exact per-pixel f64 reference of DESIGN §3 on random small scenes:
 //! SH degrees 0–3, off-centre principal points, fx != fy, non-square sizes that are not multiples
 //! of 16, and arbitrary backgrounds.
 

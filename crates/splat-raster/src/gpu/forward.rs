@@ -3,11 +3,10 @@
 //! images, radii and counters.
 
 use crate::camera::Camera;
-use crate::composite::Counters;
 use crate::error::RasterError;
 use crate::gaussians::GaussiansView;
 use crate::options::{CullStats, RenderOptions};
-use crate::output::{BackendState, BackwardState, ForwardOutput};
+use crate::output::{BackendState, BackwardState, Counters, ForwardOutput};
 use crate::validate::validate;
 
 use super::buffers::{read_back, storage, storage_init, uniform};

@@ -4,8 +4,8 @@
 use bytemuck::{Pod, Zeroable};
 
 use crate::camera::Camera;
+use crate::frame::Frame;
 use crate::gaussians::GaussiansView;
-use crate::project::Frame;
 
 /// Floats per Gaussian before the SH coefficients: mean 3, log-scale 3, quaternion 4, logit 1.
 pub(crate) const PARAMS_FIXED: usize = 11;

@@ -1,4 +1,4 @@
-//! The wgpu backend: [`WgpuRasterizer`] runs the forward and backward passes of SPEC §3 in WGSL
+//! The wgpu backend: [`WgpuRasterizer`] runs the forward and backward passes of DESIGN §3 in WGSL
 //! compute kernels and gives the results of [`crate::CpuRasterizer`] (same culling and
 //! [`CullStats`](crate::CullStats), same opacity-aware tile test, compositing constants, depth
 //! convention and [`Gradients`] fields), to f32 rounding.

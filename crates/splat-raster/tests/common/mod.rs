@@ -1,5 +1,5 @@
 //! Test support: deterministic random scenes and an independent, exact per-pixel f64 reference
-//! renderer of SPEC §3 (no tiles, no extents: every Gaussian is evaluated at every pixel).
+//! renderer of DESIGN §3 (no tiles, no extents: every Gaussian is evaluated at every pixel).
 #![allow(dead_code, clippy::needless_range_loop)]
 
 use glam::{Mat3, Vec3};
@@ -262,7 +262,7 @@ struct Prepared {
     rgb: [f64; 3],
 }
 
-/// Renders with SPEC §3 in f64, per pixel over all Gaussians sorted by (z, index).
+/// Renders with DESIGN §3 in f64, per pixel over all Gaussians sorted by (z, index).
 pub fn render(p: &Params, cam: &RefCam, background: [f64; 3], active: u32) -> RefImage {
     let n = p.len();
     let stride = 3 * sh_coeff_count(p.degree);

@@ -1,5 +1,5 @@
 // Shared by every kernel (prepended by gpu/pipelines.rs): the frame uniform, the compositing
-// record, the constants of SPEC §3, and the per-Gaussian geometry (f32, cancellation-safe).
+// record, the constants of DESIGN §3, and the per-Gaussian geometry (f32, cancellation-safe).
 
 struct Frame {
     fx: f32, fy: f32, cx: f32, cy: f32,
@@ -71,7 +71,7 @@ fn sigma_at(s: Splat, dx: f32, dy: f32) -> f32 {
     return 0.5 * (s.a * dx * dx + s.c * dy * dy) + s.b * dx * dy;
 }
 
-// Smallest sigma over the rectangle [x0, x1] x [y0, y1] (see project.rs `min_sigma_over`).
+// Smallest sigma over the rectangle [x0, x1] x [y0, y1] (see cpu/project.rs `min_sigma_over`).
 fn min_sigma_over(s: Splat, x0: f32, x1: f32, y0: f32, y1: f32) -> f32 {
     let dx0 = x0 - s.u;
     let dx1 = x1 - s.u;

@@ -1,4 +1,4 @@
-// Projection (one thread per Gaussian): culling as in project.rs, counted per reason, the
+// Projection (one thread per Gaussian): culling as in cpu/project.rs, counted per reason, the
 // compositing record, the screen radius, the number of tiles touched and the depth sort key.
 
 @group(0) @binding(2) var<storage, read_write> splats: array<Splat>;

@@ -1,5 +1,5 @@
 // Projection backward (one thread per Gaussian): chains the record gradient accumulated by the
-// backward compositing to the raw parameters, as project.rs `project_backward`, but in f32 and
+// backward compositing to the raw parameters, as cpu/project.rs `project_backward`, but in f32 and
 // through T = J W R S (Sigma2d = T T^T + 0.3 I) instead of the camera-space covariance, so that
 // no squared scale is ever formed.
 //

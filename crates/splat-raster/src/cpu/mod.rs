@@ -1,23 +1,35 @@
 //! The CPU backend: per-Gaussian work and per-tile compositing in parallel with rayon.
 //!
+//! - `project`: per-Gaussian projection (f64) and its backward pass;
+//! - `tiles`: binning of drawn Gaussians into depth-ordered tile lists;
+//! - `composite`: per-tile front-to-back compositing and its backward, as plain reference kernels
+//!   (`scalar`) and eight-pixel SIMD kernels (`lanes`) over the lane builds of `simd`.
+//!
 //! Determinism: the forward image does not depend on the thread count (each tile is composited
 //! by one thread in a fixed order), and neither do the gradients: each tile writes its per-entry
 //! gradients into its own slots, which are then summed per Gaussian in tile order.
+
+mod composite;
+mod project;
+mod simd;
+mod tiles;
 
 use std::sync::Arc;
 
 use rayon::prelude::*;
 
+use self::composite::{LANES, PixelGrads, TileOut, lanes, scalar};
+use self::project::{CullReason, Splat, SplatGrad};
+use self::simd::Isa;
+use self::tiles::TileLists;
 use crate::Rasterizer;
 use crate::camera::Camera;
-use crate::composite::{Counters, LANES, PixelGrads, TileOut, lanes, scalar};
+use crate::constants::TILE;
 use crate::error::RasterError;
+use crate::frame::Frame;
 use crate::gaussians::GaussiansView;
 use crate::options::{CullStats, RenderOptions};
-use crate::output::{BackendState, BackwardState, CpuState, ForwardOutput, Gradients};
-use crate::project::{self, CullReason, Frame, Splat, SplatGrad, TILE};
-use crate::simd::{self, Isa};
-use crate::tiles;
+use crate::output::{BackendState, BackwardState, Counters, ForwardOutput, Gradients};
 use crate::validate::{validate, validate_backward};
 
 /// Which compositing kernels [`CpuRasterizer`] runs.
@@ -107,6 +119,20 @@ impl CpuRasterizer {
             None => f(),
         }
     }
+}
+
+/// The CPU backend's backward state.
+#[derive(Clone, Debug)]
+pub(crate) struct CpuState {
+    /// The kernels the forward pass ran (the backward pass runs the same).
+    pub kernels: Kernels,
+    /// The drawn Gaussians' records in depth order (indexed by the lists' ranks).
+    pub splats: Vec<Splat>,
+    pub lists: TileLists,
+    /// Tile-major (tile, lane) final transmittance.
+    pub final_t: Vec<f32>,
+    /// Tile-major one-past-last contributor position in the tile list.
+    pub last: Vec<u32>,
 }
 
 fn count(stats: &mut CullStats, reason: CullReason) {
@@ -428,13 +454,22 @@ mod tests {
     use glam::{Mat3, Vec3};
     use proptest::prelude::*;
 
+    use super::simd::{F8, Portable, Simd, dispatch};
     use super::*;
     use crate::gaussians::Gaussians;
-    use crate::simd::{F8, Portable, Simd, dispatch};
 
     /// The vectorised `exp` on one value (the same value in any build).
     fn approx_exp(x: f32) -> f32 {
-        crate::simd::exp(Portable, F8([x; 8])).0[0]
+        super::simd::exp(Portable, F8([x; 8])).0[0]
+    }
+
+    /// The CPU backend's state of a forward pass on the CPU.
+    fn cpu_state(f: &ForwardOutput) -> &CpuState {
+        #[allow(unreachable_patterns)]
+        match &f.state.backend {
+            BackendState::Cpu(s) => s,
+            _ => unreachable!("a CPU forward pass"),
+        }
     }
 
     fn isas() -> Vec<Isa> {
@@ -525,11 +560,11 @@ mod tests {
                 (fwd, grads)
             };
             let (rf, rg) = run(Kernels::Scalar { exp: approx_exp });
-            let BackendState::Cpu(rs) = &rf.state.backend else { unreachable!() };
+            let rs = cpu_state(&rf);
             let mut first: Option<Gradients> = None;
             for isa in isas() {
                 let (f, gr) = run(Kernels::Lanes(isa));
-                let BackendState::Cpu(fs) = &f.state.backend else { unreachable!() };
+                let fs = cpu_state(&f);
                 let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                 prop_assert_eq!(bits(f.color.as_flattened()), bits(rf.color.as_flattened()));
                 prop_assert_eq!(bits(&f.alpha), bits(&rf.alpha));
@@ -553,7 +588,7 @@ mod tests {
     #[test]
     fn dispatch_runs_every_available_build() {
         struct Sum(Vec<f32>);
-        impl crate::simd::Kernel for Sum {
+        impl super::simd::Kernel for Sum {
             type Output = f32;
             #[inline(always)]
             fn run<S: Simd>(self, s: S) -> f32 {

@@ -3,14 +3,15 @@
 //! division. Two implementations of each kernel:
 //! - [`scalar`]: the plain reference, one pixel at a time (gsplat style: the readable definition
 //!   the fast kernels are tested against);
-//! - [`lanes`]: the fast kernels, eight pixels of a tile row at a time (see [`crate::simd`]).
+//! - [`lanes`]: the fast kernels, eight pixels of a tile row at a time (see [`crate::cpu::simd`]).
 //!
 //! What it is not: projection, binning or the per-Gaussian backward (see `project`, `tiles`).
 
 pub(crate) mod lanes;
 pub(crate) mod scalar;
 
-use crate::project::{Frame, TILE};
+use crate::constants::TILE;
+use crate::frame::Frame;
 
 /// Pixels per tile.
 pub(crate) const LANES: usize = (TILE * TILE) as usize;
@@ -65,16 +66,6 @@ pub(crate) struct TileOut<'a> {
     pub final_t: &'a mut [f32],
     /// One past the list position of the last blended Gaussian, per lane (0 = none).
     pub last: &'a mut [u32],
-}
-
-/// Work counters of a forward pass.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub(crate) struct Counters {
-    /// Gaussian-pixel pairs the inner loop visited: for each list entry processed, the pixels of
-    /// its bounding box inside the tile.
-    pub evaluations: u64,
-    /// Gaussian-pixel pairs actually blended.
-    pub blended: u64,
 }
 
 /// Per-pixel loss gradients of the three outputs, row-major.

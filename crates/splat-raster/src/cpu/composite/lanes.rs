@@ -13,9 +13,12 @@
 //! over the pixels per lane and then across the lanes in a fixed order, so its sums differ from
 //! the reference's pixel-by-pixel order by rounding only, and never depend on the thread count.
 
-use super::{Counters, LANES, PixelGrads, TileOut, TileRect};
-use crate::project::{ALPHA_MAX, ALPHA_MIN, Frame, Splat, SplatGrad, T_MIN, TILE};
-use crate::simd::{Kernel, Simd, W, exp};
+use super::super::project::{Splat, SplatGrad};
+use super::super::simd::{Kernel, Simd, W, exp};
+use super::{LANES, PixelGrads, TileOut, TileRect};
+use crate::constants::{ALPHA_MAX, ALPHA_MIN, T_MIN, TILE};
+use crate::frame::Frame;
+use crate::output::Counters;
 
 /// Blocks of [`W`] pixels per tile.
 const BLOCKS: usize = LANES / W;

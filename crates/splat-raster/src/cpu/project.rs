@@ -1,30 +1,13 @@
-//! Per-Gaussian work of SPEC §3: activation, culling, covariance projection with the clamped
+//! Per-Gaussian work of DESIGN §3: activation, culling, covariance projection with the clamped
 //! Jacobian and 0.3 dilation, conic, opacity-aware screen extent, SH colour; and its backward pass.
 
 use glam::{DMat3, DVec3, Vec3};
 use splat_core::sigmoid;
 
-use crate::camera::Camera;
+use crate::constants::{ALPHA_MIN, DILATION, MAX_COLOR, NEAR_PLANE, QUAT_NORM2_MIN, TILE};
+use crate::frame::Frame;
 use crate::gaussians::GaussiansView;
 use crate::sh;
-
-/// Dilation added to the diagonal of the projected covariance.
-pub const DILATION: f32 = 0.3;
-/// Gaussians at camera-space `z <= NEAR_PLANE` are culled.
-pub const NEAR_PLANE: f32 = 0.01;
-/// Blending threshold: a pixel is blended only when `α >= ALPHA_MIN`.
-pub const ALPHA_MIN: f32 = 1.0 / 255.0;
-/// Cap on a single Gaussian's alpha.
-pub const ALPHA_MAX: f32 = 0.99;
-/// A pixel stops when its transmittance would fall below this.
-pub const T_MIN: f32 = 1e-4;
-/// A quaternion with `|q|² < QUAT_NORM2_MIN` counts as zero.
-pub const QUAT_NORM2_MIN: f32 = 1e-12;
-/// A Gaussian whose SH colour exceeds this (from finite but extreme coefficients) is culled as
-/// non-finite, so that sums of colours can never overflow to infinity.
-pub const MAX_COLOR: f32 = 1e18;
-/// Tile side in pixels.
-pub const TILE: u32 = 16;
 
 /// Why one Gaussian was not drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -35,53 +18,6 @@ pub(crate) enum CullReason {
     BehindNearPlane,
     DegenerateCovariance,
     OffScreen,
-}
-
-/// Camera quantities shared by every Gaussian of a frame. The per-Gaussian geometry runs in
-/// f64 (it is cheap, and `det(Σ2d)` of thin Gaussians cancels badly in f32); per-pixel work runs
-/// in f32 on the resulting [`Splat`].
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Frame {
-    pub fx: f64,
-    pub fy: f64,
-    pub cx: f64,
-    pub cy: f64,
-    pub width: u32,
-    pub height: u32,
-    /// Clamp range of x/z and y/z for the Jacobian.
-    pub lim_x: [f64; 2],
-    pub lim_y: [f64; 2],
-    pub w: DMat3,
-    pub t: DVec3,
-    /// Camera centre (f32: the SH view direction is computed in f32).
-    pub center: Vec3,
-    pub tiles_x: u32,
-    pub tiles_y: u32,
-}
-
-impl Frame {
-    pub fn new(cam: &Camera) -> Self {
-        let (fx, fy) = (f64::from(cam.fx), f64::from(cam.fy));
-        let (cx, cy) = (f64::from(cam.cx), f64::from(cam.cy));
-        let (width, height) = (f64::from(cam.width), f64::from(cam.height));
-        let tan_x = 0.5 * width / fx;
-        let tan_y = 0.5 * height / fy;
-        Self {
-            fx,
-            fy,
-            cx,
-            cy,
-            width: cam.width,
-            height: cam.height,
-            lim_x: [-(cx / fx + 0.3 * tan_x), (width - cx) / fx + 0.3 * tan_x],
-            lim_y: [-(cy / fy + 0.3 * tan_y), (height - cy) / fy + 0.3 * tan_y],
-            w: cam.rotation.as_dmat3(),
-            t: cam.translation.as_dvec3(),
-            center: cam.center(),
-            tiles_x: cam.width.div_ceil(TILE),
-            tiles_y: cam.height.div_ceil(TILE),
-        }
-    }
 }
 
 /// What compositing needs of one drawn Gaussian (the hot loop's record).

@@ -1,11 +1,14 @@
 //! The reference compositing kernels: one pixel at a time, Gaussian-major over a tile (for each
 //! list entry, the pixels of its bounding box), with `exp` passed in. With `f32::exp` they are
 //! the CPU backend's original kernels, kept as the readable definition and to measure the fast
-//! kernels of [`super::lanes`] against; with [`crate::simd::exp`] they make the same blending
+//! kernels of [`super::lanes`] against; with [`crate::cpu::simd::exp`] they make the same blending
 //! decisions as the fast ones, pixel for pixel, which the tests compare.
 
-use super::{Counters, LANES, PixelGrads, TileOut, TileRect};
-use crate::project::{ALPHA_MAX, ALPHA_MIN, Frame, Splat, SplatGrad, T_MIN};
+use super::super::project::{Splat, SplatGrad};
+use super::{LANES, PixelGrads, TileOut, TileRect};
+use crate::constants::{ALPHA_MAX, ALPHA_MIN, T_MIN};
+use crate::frame::Frame;
+use crate::output::Counters;
 
 /// `σ = 0.5 (a dx² + c dy²) + b dx dy` with `d = pixel centre − projected mean`.
 #[inline(always)]
@@ -15,7 +18,7 @@ fn sigma(s: &Splat, px: f32, py: f32) -> f32 {
     0.5 * (s.a * dx * dx + s.c * dy * dy) + s.b * dx * dy
 }
 
-/// SPEC §3 alpha at a pixel with power `sig`, as `(α, exp(-σ), blendable)`: `blendable` is false
+/// DESIGN §3 alpha at a pixel with power `sig`, as `(α, exp(-σ), blendable)`: `blendable` is false
 /// when the pixel is skipped (σ < 0 or α < 1/255).
 #[inline(always)]
 fn alpha_at(s: &Splat, sig: f32, exp: impl Fn(f32) -> f32) -> (f32, f32, bool) {

@@ -1,0 +1,20 @@
+//! The constants of the rasterizer's definition (DESIGN §3), shared by both backends. The wgpu
+//! kernels declare the same values in `gpu/shaders/common.wgsl`; a test checks that they agree.
+
+/// Dilation added to the diagonal of the projected covariance.
+pub const DILATION: f32 = 0.3;
+/// Gaussians at camera-space `z <= NEAR_PLANE` are culled.
+pub const NEAR_PLANE: f32 = 0.01;
+/// Blending threshold: a pixel is blended only when `α >= ALPHA_MIN`.
+pub const ALPHA_MIN: f32 = 1.0 / 255.0;
+/// Cap on a single Gaussian's alpha.
+pub const ALPHA_MAX: f32 = 0.99;
+/// A pixel stops when its transmittance would fall below this.
+pub const T_MIN: f32 = 1e-4;
+/// A quaternion with `|q|² < QUAT_NORM2_MIN` counts as zero.
+pub const QUAT_NORM2_MIN: f32 = 1e-12;
+/// A Gaussian whose SH colour exceeds this (from finite but extreme coefficients) is culled as
+/// non-finite, so that sums of colours can never overflow to infinity.
+pub const MAX_COLOR: f32 = 1e18;
+/// Tile side in pixels.
+pub const TILE: u32 = 16;
