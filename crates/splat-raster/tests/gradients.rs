@@ -4,10 +4,10 @@
 
 mod common;
 
-use common::{Params, RefCam};
 use glam::Vec3;
 use rand::RngExt;
 use splat_raster::{Camera, CpuRasterizer, Gaussians, Rasterizer, RenderOptions, sh_coeff_count};
+use splat_reference::{Params, RefCam};
 
 /// Loss weights per pixel for colour, alpha and depth.
 struct Weights {
@@ -16,7 +16,7 @@ struct Weights {
     depth: Vec<f32>,
 }
 
-fn loss(w: &Weights, img: &common::RefImage) -> f64 {
+fn loss(w: &Weights, img: &splat_reference::RefImage) -> f64 {
     let mut l = 0.0;
     for p in 0..img.color.len() {
         for ch in 0..3 {
@@ -85,7 +85,7 @@ fn scene(
                 ];
             }
         }
-        let img = common::render(
+        let img = splat_reference::render(
             &Params::from(&g),
             &RefCam::from(&cam),
             [0.3, 0.2, 0.1],
@@ -153,9 +153,9 @@ fn check_gradients(seed0: u64, width: u32, height: u32, degree: u32, n: usize, e
             .map(|k| {
                 let x = p.kind_mut(kind)[k];
                 p.kind_mut(kind)[k] = x + h;
-                let lp = loss(&w, &common::render(&p, &rcam, bg, degree));
+                let lp = loss(&w, &splat_reference::render(&p, &rcam, bg, degree));
                 p.kind_mut(kind)[k] = x - h;
-                let lm = loss(&w, &common::render(&p, &rcam, bg, degree));
+                let lm = loss(&w, &splat_reference::render(&p, &rcam, bg, degree));
                 p.kind_mut(kind)[k] = x;
                 (lp - lm) / (2.0 * h)
             })

@@ -4,9 +4,9 @@
 
 mod common;
 
-use common::{Params, RefCam, RefImage};
 use rand::RngExt;
 use splat_raster::{CpuRasterizer, ForwardOutput, Rasterizer, RenderOptions};
+use splat_reference::{Params, RefCam, RefImage};
 
 const TOL: f64 = 1e-5;
 
@@ -70,7 +70,7 @@ fn check_scene(
         sh_degree: active,
     };
     let out = CpuRasterizer::new().forward(g.view(), &cam, &opts).unwrap();
-    let reference = common::render(
+    let reference = splat_reference::render(
         &Params::from(&g),
         &RefCam::from(&cam),
         background.map(f64::from),
@@ -133,7 +133,8 @@ fn matches_reference_for_needles_and_large_gaussians() {
         let out = CpuRasterizer::new()
             .forward(g.view(), &cam, &RenderOptions::default())
             .unwrap();
-        let reference = common::render(&Params::from(&g), &RefCam::from(&cam), [0.0; 3], 1);
+        let reference =
+            splat_reference::render(&Params::from(&g), &RefCam::from(&cam), [0.0; 3], 1);
         assert_pixels_match(&out, &reference, seed, false);
         assert!(out.stats.drawn >= 5, "seed {seed}: {}", out.stats);
     }
