@@ -56,11 +56,7 @@ fn bench<M: Measurement>(c: &mut Criterion<M>) {
         });
         // The same step with a kept Step/Backward whose buffers are reused (a training loop).
         let mut step = evo_state::Step::empty();
-        let mut grads = evo_state::Backward {
-            dz: Vec::new(),
-            dpsi: None,
-            losses: Default::default(),
-        };
+        let mut grads = evo_state::Backward::default();
         group.bench_function(format!("train_step_reused_{name}"), |b| {
             b.iter(|| {
                 st.forward_into(t, black_box(&z), None, &mut step).unwrap();

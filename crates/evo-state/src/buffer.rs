@@ -1,5 +1,6 @@
-//! The buffer of corrected states `B[k][i] ∈ R^D`, one contiguous N × D block per frame, stored in
-//! f32 or f16. Exactly `Storage::bytes() · D` bytes per Gaussian per frame.
+//! Per-frame blocks of N × D values in f32 or f16: the buffer of corrected states `B[k][i] ∈ R^D`
+//! and, beside it, the residual memory `M[k][i]` (SPEC §4), each one contiguous block per frame.
+//! Exactly `Storage::bytes() · D` bytes per Gaussian per frame.
 
 use half::f16;
 use rayon::prelude::*;
@@ -33,7 +34,7 @@ impl Block {
     }
 }
 
-/// Per-frame blocks of corrected states.
+/// Per-frame blocks of values (corrected states, or residual memory).
 #[derive(Debug, Clone, PartialEq)]
 pub struct StateBuffer {
     pub(crate) storage: Storage,
@@ -140,6 +141,14 @@ impl StateBuffer {
                 }
                 saturated
             }
+        }
+    }
+
+    /// Sets every value of frame `k` to zero.
+    pub(crate) fn clear_frame(&mut self, k: usize) {
+        match &mut self.blocks[k] {
+            Block::F32(v) => v.fill(0.0),
+            Block::F16(v) => v.fill(f16::ZERO),
         }
     }
 

@@ -112,6 +112,16 @@ impl EvoConfig {
         }
     }
 
+    /// Bytes the per-frame residual memory takes: `rows · frames · D · (4 or 2)` with evolution
+    /// on (with either history mode), 0 with evolution off.
+    pub fn memory_bytes(&self, rows: usize, frames: usize) -> usize {
+        if self.evolution {
+            rows * frames * self.dim() * self.storage.bytes()
+        } else {
+            0
+        }
+    }
+
     /// Checks every field.
     pub fn validate(&self) -> Result<(), ConfigError> {
         let err = |field, value: String, problem| {
@@ -204,6 +214,15 @@ mod tests {
             ..EvoConfig::default()
         };
         assert_eq!(requery.buffer_bytes(150_000, 300), 0);
+        // The memory is kept per frame beside the buffer, in its storage, in both history modes.
+        assert_eq!(f32_config.memory_bytes(150_000, 300), 1_800_000_000);
+        assert_eq!(f16_config.memory_bytes(150_000, 300), 900_000_000);
+        assert_eq!(requery.memory_bytes(150_000, 300), 1_800_000_000);
+        let off = EvoConfig {
+            evolution: false,
+            ..EvoConfig::default()
+        };
+        assert_eq!(off.memory_bytes(150_000, 300), 0);
     }
 
     #[test]

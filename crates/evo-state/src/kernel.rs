@@ -1,5 +1,6 @@
 //! Per-Gaussian arithmetic of the forward pass: the time-scaled prior, the next residual memory,
-//! the motion statistics and Ψ's inputs of one row, in f64 with results saturated to f32.
+//! the motion statistics and Ψ's raw (not yet normalised) inputs of one row, in f64 with results
+//! saturated to f32.
 
 use crate::buffer::FrameRef;
 use crate::step::Stats;
@@ -23,13 +24,14 @@ pub(crate) struct RowContext<'a> {
     pub(crate) beta: f64,
     pub(crate) dim: usize,
     pub(crate) position: Option<std::ops::Range<usize>>,
-    pub(crate) extent: f64,
     pub(crate) floor: f64,
-    pub(crate) memory: &'a [f32],
+    /// M[k1], the residual memory committed with the latest history frame (`None`: zero).
+    pub(crate) memory: Option<FrameRef<'a>>,
 }
 
 impl RowContext<'_> {
-    /// Prior, next memory and (h = 3) statistics and Ψ inputs of row `i`.
+    /// Prior, next memory `m = β M[k1] + (1-β)(z - d̂)` and (h = 3) statistics and Ψ's raw
+    /// inputs `[m, |v2|, |v1|, θ]` of row `i` (the caller normalises them).
     #[inline]
     pub(crate) fn row(
         &self,
@@ -45,12 +47,15 @@ impl RowContext<'_> {
         for (slot, block) in h.iter_mut().zip(self.history) {
             block.read_row(i, &mut slot[..d]);
         }
-        let m_old = &self.memory[i * d..(i + 1) * d];
+        let mut m_old = [0.0f64; MAX_DIM];
+        if let Some(m) = &self.memory {
+            m.read_row(i, &mut m_old[..d]);
+        }
         for j in 0..d {
             let p = fin(h[0][j] + self.s * (h[0][j] - h[1][j]));
             prior[j] = p;
             memory_next[j] =
-                fin(self.beta * m_old[j] as f64 + (1.0 - self.beta) * (z[j] as f64 - p as f64));
+                fin(self.beta * m_old[j] + (1.0 - self.beta) * (z[j] as f64 - p as f64));
         }
         let Some((stats, inputs)) = full else { return };
         let [k1, k2, k3] = self.frames;
@@ -77,18 +82,9 @@ impl RowContext<'_> {
             speed_last: fin(n1),
             theta: theta as f32,
         };
-        let clamp = |x: f64| (x.clamp(-(PSI_INPUT_CLAMP as f64), PSI_INPUT_CLAMP as f64)) as f32;
-        for j in 0..d {
-            let in_scene_units = self.position.as_ref().is_some_and(|p| p.contains(&j));
-            let scale = if in_scene_units {
-                1.0 / self.extent
-            } else {
-                1.0
-            };
-            inputs[j] = clamp(memory_next[j] as f64 * scale);
-        }
-        inputs[d] = clamp(n2 / self.extent);
-        inputs[d + 1] = clamp(n1 / self.extent);
-        inputs[d + 2] = theta as f32;
+        inputs[..d].copy_from_slice(memory_next);
+        inputs[d] = stats.speed_prev;
+        inputs[d + 1] = stats.speed_last;
+        inputs[d + 2] = stats.theta;
     }
 }

@@ -1,12 +1,14 @@
 //! `evo-state`: the EvoGS deformation evolution state machine (SPEC §4), usable with any renderer.
 //!
 //! What it is: per-Gaussian persistent deformation states over the training frames — the buffer
-//! of corrected states `B[k][i] ∈ R^D` (f32 or f16), the residual memory `m`, the second-order
-//! time-scaled prior, the motion statistics, the gain `K` (warm-up rules, or the network Ψ, a
-//! [`tiny_nn::Mlp`]), the correction `d̃ = (1-K) d̂ + K z`, the losses `L_sup`, `L_prior` with
-//! their gradients to the observation `z` and to Ψ, committing training steps, row maintenance
-//! for densification ([`RowPlan`] of `splat-core`, shared by every per-Gaussian array), and saving/loading
-//! the whole state as safetensors, bit-exact.
+//! of corrected states `B[k][i] ∈ R^D` and beside it the per-frame residual memory `M[k][i]`
+//! (both f32 or f16), the second-order time-scaled prior, the motion statistics, the gain `K`
+//! (warm-up rules, or the network Ψ, a [`tiny_nn::Mlp`], on inputs divided by their running RMS),
+//! the correction `d̃ = (1-K) d̂ + K z`, the losses `L_sup`, `L_prior` with their gradients to the
+//! observation `z`, to Ψ and (history re-queried from Φ) to the observations at the history
+//! times, committing training steps, row maintenance for densification ([`RowPlan`] of
+//! `splat-core`, shared by every per-Gaussian array), and saving/loading the whole state as safetensors,
+//! bit-exact.
 //!
 //! What it is not: the observation network Φ (the caller produces `z`, N × D, with any network),
 //! a renderer, or an optimiser (the caller steps Ψ's parameters, e.g. with `tiny_nn::Adam`).
@@ -33,7 +35,8 @@
 //!     let grads = state.backward(&step, &z, &dl_dd, &opacity)?;
 //!     // grads.dz goes back into Φ; grads.dpsi (from the 4th frame on) into Ψ's optimiser.
 //!     assert_eq!(grads.dpsi.is_some(), k >= 3);
-//!     state.commit(&step)?; // training steps only: writes B[k], sets valid[k], updates m
+//!     // training steps only: writes B[k] and M[k], sets valid[k], updates Ψ's input RMS
+//!     state.commit(&step)?;
 //! }
 //!
 //! // A training loop can keep one Step and one Backward and reuse their buffers with
@@ -59,17 +62,20 @@
 //! - **History window.** A query at time t sits at frame position p = #{k : t_k < t}; k1 is the
 //!   latest valid frame with p - k1 <= max_gap, k2 the latest valid with k1 - k2 <= max_gap, and so
 //!   on. A query beyond the last frame extrapolates from the last frames.
-//! - **Residual memory.** Defined where a prior exists (h >= 2). Ψ sees the memory this step
-//!   would commit, `β m + (1-β)(z - d̂)` (the paper's `m^t`), as a constant.
+//! - **Residual memory.** Defined where a prior exists (h >= 2): `m = β M[k1] + (1-β)(z - d̂)`
+//!   (the paper's `m^t = β m^{t-1} + (1-β) r^t`, with the history frame k1 as t-1). Ψ sees this m
+//!   as a constant; a commit writes it to M[k], or zero when the step had no prior (h < 2).
 //! - **Statistics.** `v1 = (x_k1 - x_k2)/(k1 - k2)`, `v2 = (x_k2 - x_k3)/(k2 - k3)` (per frame
 //!   spacing); with the position component disabled, speeds are 0 and θ = 0.
-//! - **Ψ inputs** `[m, |v2|, |v1|, θ]`: the position part of m and the speeds are divided by the
-//!   scene extent (other components are already dimensionless); all are clamped to ±1e4.
+//! - **Ψ inputs** `[m, |v2|, |v1|, θ]`: m and the speeds are divided per feature by their running
+//!   RMS ([`norm`]; θ, in radians, as it is); all are clamped to ±1e4.
 //! - **Fixed gain** replaces only the learned stage (h = 3); the warm-up (h <= 1: d̃ = z,
 //!   h = 2: K = 0.5) is kept, as in the paper's ablation ("all other settings unchanged").
 //! - **History re-query** ("without buffer"): no buffer is stored and every frame before the
-//!   query counts as available; the caller's [`ObservationSource`] gives z at those times.
-//! - **Evolution off:** d̃ = z, no buffer, EvoGS losses 0, dL/dz = dL_render/dd̃.
+//!   query counts as available; the caller's [`ObservationSource`] gives z at those times, and
+//!   the backward pass returns dL/dz at the history times k1, k2 ([`Backward::history`]) for the
+//!   caller to pass back through Φ. The residual memory is kept per frame as with the buffer.
+//! - **Evolution off:** d̃ = z, no buffer, no memory, EvoGS losses 0, dL/dz = dL_render/dd̃.
 //! - **Numerics.** Per-element arithmetic is f64 and results saturate into the f32 range; f16
 //!   storage saturates at ±65504 and counts saturations; non-finite z, dL/dd̃ or opacities are
 //!   rejected naming the Gaussian (row) and component.
@@ -81,6 +87,7 @@ pub mod error;
 pub mod frames;
 pub mod gain;
 mod kernel;
+pub mod norm;
 pub mod persist;
 pub mod state;
 pub mod step;
@@ -91,6 +98,7 @@ pub use error::EvoError;
 pub use frames::{Frames, History};
 pub use gain::GainNet;
 pub use kernel::PSI_INPUT_CLAMP;
+pub use norm::InputNorm;
 pub use splat_core::{NewRows, RowPlan, RowPlanError};
 pub use state::{EvoState, ObservationSource, WARMUP_GAIN};
-pub use step::{Backward, Gains, Losses, Stats, Step};
+pub use step::{Backward, Gains, HistoryGradient, Losses, Stats, Step};

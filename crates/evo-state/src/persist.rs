@@ -1,8 +1,15 @@
-//! Saving and loading the whole state as safetensors, bit-exact. Tensors: `times` (F32 `[T]`),
-//! `valid` (U8 `[T]`), `memory` (F32 `[N, D]`), `psi` (F32 `[P]`) and, with a buffer, `buffer.KKKKK`
-//! (F32 or F16 `[N, D]`) per frame. The configuration and counters are string metadata; floats
-//! are written in Rust's shortest round-trip form, so they load bit-exact. The file is written
-//! to a temporary file in the same directory and renamed.
+//! Saving and loading the whole state as safetensors, bit-exact. Format `evo-state/2`. Tensors:
+//! `times` (F32 `[T]`), `valid` (U8 `[T]`), `psi` (F32 `[P]`), `psi_input_ema` (F64 `[D+2]`) and
+//! `psi_input_weight` (F64 `[1]`) (the running RMS of Ψ's inputs, [`crate::norm`]), with
+//! evolution on `memory.KKKKK` (the residual memory M[k], F32 or F16 `[N, D]`) per frame, and
+//! with a buffer `buffer.KKKKK` (F32 or F16 `[N, D]`) per frame. The configuration and counters
+//! are string metadata; floats are written in Rust's shortest round-trip form, so they load
+//! bit-exact. The file is written to a temporary file in the same directory and renamed.
+//!
+//! Files of the earlier format `evo-state/1` (one f32 `memory` `[N, D]` per Gaussian, overwritten
+//! by whichever frame trained last, and Ψ inputs divided by the scene extent) still load: their
+//! per-frame memory is zero (the old memory belongs to no frame) and their Ψ input normaliser is
+//! the fixed extent scaling they were trained with ([`crate::norm::InputNorm::legacy`]).
 
 use std::collections::HashMap;
 use std::io::Write;
@@ -16,12 +23,39 @@ use crate::config::{EvoConfig, Gain, HistoryMode, Layout, Storage};
 use crate::error::EvoError;
 use crate::frames::Frames;
 use crate::gain::GainNet;
+use crate::norm::InputNorm;
 use crate::state::EvoState;
 
-const FORMAT: &str = "evo-state/1";
+const FORMAT: &str = "evo-state/2";
+/// The format before per-frame memory and running-RMS input normalisation.
+const FORMAT_V1: &str = "evo-state/1";
 
 fn buffer_name(k: usize) -> String {
     format!("buffer.{k:05}")
+}
+
+fn memory_name(k: usize) -> String {
+    format!("memory.{k:05}")
+}
+
+fn blocks_views<'a>(
+    buffer: &'a StateBuffer,
+    name: fn(usize) -> String,
+    rows: usize,
+    dim: usize,
+) -> Vec<(String, Dtype, Vec<usize>, &'a [u8])> {
+    buffer
+        .blocks
+        .iter()
+        .enumerate()
+        .map(|(k, block)| {
+            let (dtype, bytes): (Dtype, &[u8]) = match block {
+                Block::F32(v) => (Dtype::F32, bytemuck::cast_slice(v)),
+                Block::F16(v) => (Dtype::F16, bytemuck::cast_slice(v)),
+            };
+            (name(k), dtype, vec![rows, dim], bytes)
+        })
+        .collect()
 }
 
 fn f32_bytes(v: &[f32]) -> &[u8] {
@@ -78,6 +112,8 @@ impl EvoState {
         let dim = self.dim();
         let valid: Vec<u8> = self.valid.iter().map(|&v| v as u8).collect();
         let psi = self.psi.params();
+        let norm_ema: &[u8] = bytemuck::cast_slice(&self.psi_norm.ema);
+        let norm_weight = [self.psi_norm.weight];
         let view = |dtype, shape: Vec<usize>, data| {
             TensorView::new(dtype, shape, data).map_err(|e| EvoError::Format {
                 path: path.to_path_buf(),
@@ -96,21 +132,27 @@ impl EvoState {
             ),
             ("valid".into(), view(Dtype::U8, vec![valid.len()], &valid)?),
             (
-                "memory".into(),
-                view(Dtype::F32, vec![self.rows, dim], f32_bytes(&self.memory))?,
-            ),
-            (
                 "psi".into(),
                 view(Dtype::F32, vec![self.psi.params().len()], f32_bytes(&psi))?,
             ),
+            (
+                "psi_input_ema".into(),
+                view(Dtype::F64, vec![self.psi_norm.ema.len()], norm_ema)?,
+            ),
+            (
+                "psi_input_weight".into(),
+                view(Dtype::F64, vec![1], bytemuck::cast_slice(&norm_weight))?,
+            ),
         ];
-        if let Some(buffer) = &self.buffer {
-            for (k, block) in buffer.blocks.iter().enumerate() {
-                let (dtype, bytes): (Dtype, &[u8]) = match block {
-                    Block::F32(v) => (Dtype::F32, bytemuck::cast_slice(v)),
-                    Block::F16(v) => (Dtype::F16, bytemuck::cast_slice(v)),
-                };
-                tensors.push((buffer_name(k), view(dtype, vec![self.rows, dim], bytes)?));
+        let blocks = [
+            (&self.memory, memory_name as fn(usize) -> String),
+            (&self.buffer, buffer_name),
+        ];
+        for (buffer, name) in blocks {
+            if let Some(buffer) = buffer {
+                for (n, dtype, shape, bytes) in blocks_views(buffer, name, self.rows, dim) {
+                    tensors.push((n, view(dtype, shape, bytes)?));
+                }
             }
         }
         let bytes = safetensors::serialize(tensors, Some(meta)).map_err(|e| EvoError::Format {
@@ -155,12 +197,16 @@ impl EvoState {
             s.parse().map_err(|_| bad(k, format!("cannot parse {s:?}")))
         }
         let num = |k: &str| -> Result<f32, EvoError> { parse(get(k)?, k, &bad) };
-        if get("format")? != FORMAT {
-            return Err(bad(
-                "format",
-                format!("expected {FORMAT:?}, found {:?}", get("format")?),
-            ));
-        }
+        let legacy = match get("format")?.as_str() {
+            FORMAT => false,
+            FORMAT_V1 => true,
+            other => {
+                return Err(bad(
+                    "format",
+                    format!("expected {FORMAT:?} (or the older {FORMAT_V1:?}), found {other:?}"),
+                ));
+            }
+        };
         let bits: u8 = parse(get("layout_bits")?, "layout_bits", &bad)?;
         let layout = Layout::from_bits(bits)
             .ok_or_else(|| bad("layout_bits", format!("{bits} is not a layout")))?;
@@ -236,13 +282,6 @@ impl EvoState {
             return Err(bad("valid", format!("flag {b} is not 0 or 1")));
         }
         let valid = valid_bytes.iter().map(|&b| b == 1).collect();
-        let memory = to_f32(tensor("memory", Dtype::F32, &[rows, dim])?);
-        if let Some(p) = memory.iter().position(|v| !v.is_finite()) {
-            return Err(bad(
-                "memory",
-                format!("non-finite value at Gaussian {}", p / dim.max(1)),
-            ));
-        }
         let psi_seed: u64 = parse(get("psi_seed")?, "psi_seed", &bad)?;
         let mut psi = GainNet::new(dim + 3, psi_seed).map_err(|e| bad("psi", e.to_string()))?;
         let psi_params = to_f32(tensor("psi", Dtype::F32, &[psi.param_count()])?);
@@ -251,15 +290,18 @@ impl EvoState {
         }
         psi.set_params(&psi_params)
             .map_err(|e| bad("psi", e.to_string()))?;
-        let buffer = if config.evolution && config.history == HistoryMode::Buffer {
+        let read_blocks = |name: fn(usize) -> String| -> Result<StateBuffer, EvoError> {
             let mut blocks = Vec::with_capacity(frame_count);
             for k in 0..frame_count {
-                let name = buffer_name(k);
+                let name = name(k);
                 let block = match storage {
                     Storage::F32 => {
                         let v = to_f32(tensor(&name, Dtype::F32, &[rows, dim])?);
-                        if v.iter().any(|x| !x.is_finite()) {
-                            return Err(bad(&name, "non-finite state".into()));
+                        if let Some(p) = v.iter().position(|x| !x.is_finite()) {
+                            return Err(bad(
+                                &name,
+                                format!("non-finite value at Gaussian {}", p / dim.max(1)),
+                            ));
                         }
                         Block::F32(v)
                     }
@@ -269,22 +311,62 @@ impl EvoState {
                             .chunks_exact(2)
                             .map(|c| f16::from_le_bytes([c[0], c[1]]))
                             .collect();
-                        if v.iter().any(|x| !x.is_finite()) {
-                            return Err(bad(&name, "non-finite state".into()));
+                        if let Some(p) = v.iter().position(|x| !x.is_finite()) {
+                            return Err(bad(
+                                &name,
+                                format!("non-finite value at Gaussian {}", p / dim.max(1)),
+                            ));
                         }
                         Block::F16(v)
                     }
                 };
                 blocks.push(block);
             }
-            Some(StateBuffer {
+            Ok(StateBuffer {
                 storage,
                 rows,
                 dim,
                 blocks,
             })
+        };
+        let memory = match (config.evolution, legacy) {
+            (false, _) => None,
+            // The old per-Gaussian memory belongs to no frame: start from zero memory.
+            (true, true) => Some(StateBuffer::new(storage, frame_count, rows, dim)),
+            (true, false) => Some(read_blocks(memory_name)?),
+        };
+        let buffer = if config.evolution && config.history == HistoryMode::Buffer {
+            Some(read_blocks(buffer_name)?)
         } else {
             None
+        };
+        let psi_norm = if legacy {
+            InputNorm::legacy(
+                dim,
+                config.layout.range(crate::config::Component::Position),
+                config.extent as f64,
+            )
+        } else {
+            let f64s = |b: Vec<u8>| -> Vec<f64> {
+                b.chunks_exact(8)
+                    .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
+                    .collect()
+            };
+            let ema = f64s(tensor("psi_input_ema", Dtype::F64, &[dim + 2])?);
+            if ema.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
+                return Err(bad(
+                    "psi_input_ema",
+                    "mean squares must be finite and >= 0".into(),
+                ));
+            }
+            let weight = f64s(tensor("psi_input_weight", Dtype::F64, &[1])?)[0];
+            if !(0.0..=1.0).contains(&weight) {
+                return Err(bad(
+                    "psi_input_weight",
+                    format!("{weight} is outside [0, 1]"),
+                ));
+            }
+            InputNorm { ema, weight }
         };
         Ok(Self {
             config,
@@ -295,6 +377,7 @@ impl EvoState {
             valid,
             memory,
             psi,
+            psi_norm,
             saturations,
         })
     }

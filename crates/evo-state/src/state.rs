@@ -9,9 +9,10 @@ use crate::config::{Component, EvoConfig, Gain, HistoryMode};
 use crate::error::EvoError;
 use crate::frames::{Frames, History};
 use crate::gain::GainNet;
-use crate::kernel::{RowContext, fin};
+use crate::kernel::{PSI_INPUT_CLAMP, RowContext, fin};
+use crate::norm::InputNorm;
 use crate::step::{Gains, Stats, Step};
-use splat_core::{NewRows, RowPlan};
+use splat_core::RowPlan;
 
 /// Rows per parallel task.
 pub(crate) const CHUNK: usize = 1024;
@@ -51,14 +52,18 @@ pub struct EvoState {
     /// Present with evolution on and history from the buffer.
     pub(crate) buffer: Option<StateBuffer>,
     pub(crate) valid: Vec<bool>,
-    /// Residual memory m, N × D (f32).
-    pub(crate) memory: Vec<f32>,
+    /// Residual memory M[k], per frame, in the buffer's storage; present with evolution on
+    /// (with either history mode: the memory is not part of the "buffer" ablation).
+    pub(crate) memory: Option<StateBuffer>,
     pub(crate) psi: GainNet,
+    /// Running RMS of Ψ's inputs.
+    pub(crate) psi_norm: InputNorm,
     pub(crate) saturations: u64,
 }
 
 impl EvoState {
-    /// A fresh state: no valid frame, zero memory, Ψ initialised from `seed`.
+    /// A fresh state: no valid frame, zero memory, no input statistics, Ψ initialised from
+    /// `seed`.
     pub fn new(
         config: EvoConfig,
         frames: Frames,
@@ -69,10 +74,14 @@ impl EvoState {
         let dim = config.dim();
         let buffer = (config.evolution && config.history == HistoryMode::Buffer)
             .then(|| StateBuffer::new(config.storage, frames.len(), rows, dim));
+        let memory = config
+            .evolution
+            .then(|| StateBuffer::new(config.storage, frames.len(), rows, dim));
         Ok(Self {
             valid: vec![false; frames.len()],
-            memory: vec![0.0; rows * dim],
+            memory,
             psi: GainNet::new(dim + 3, seed)?,
+            psi_norm: InputNorm::new(dim + 2),
             config,
             frames,
             rows,
@@ -107,9 +116,16 @@ impl EvoState {
         &self.valid
     }
 
-    /// Residual memory m, N × D.
-    pub fn memory(&self) -> &[f32] {
-        &self.memory
+    /// The residual memory M[k] of every frame (evolution on): frame k holds the m committed
+    /// with frame k's latest training step (zero where that step had no prior, or none was
+    /// taken).
+    pub fn memory(&self) -> Option<&StateBuffer> {
+        self.memory.as_ref()
+    }
+
+    /// The running RMS of Ψ's inputs (SPEC §4; see [`crate::norm`]).
+    pub fn input_norm(&self) -> &InputNorm {
+        &self.psi_norm
     }
 
     /// The buffer of corrected states (evolution on, history from the buffer).
@@ -120,6 +136,16 @@ impl EvoState {
     /// Bytes held by the buffer (0 without one).
     pub fn buffer_bytes(&self) -> usize {
         self.buffer.as_ref().map_or(0, StateBuffer::byte_len)
+    }
+
+    /// Bytes held by the residual memory (0 with evolution off).
+    pub fn memory_bytes(&self) -> usize {
+        self.memory.as_ref().map_or(0, StateBuffer::byte_len)
+    }
+
+    /// Bytes of per-Gaussian state: buffer plus memory.
+    pub fn state_bytes(&self) -> usize {
+        self.buffer_bytes() + self.memory_bytes()
     }
 
     /// The gain network Ψ.
@@ -229,6 +255,8 @@ impl EvoState {
         let mut psi_cache = step.psi_cache.take().unwrap_or_default();
         let mut inputs = std::mem::take(&mut step.scratch);
         step.gains = Gains::Observation;
+        step.input_mean_sq = None;
+        step.requeried = false;
         let dim = self.dim();
         let n = self.rows;
         if !t.is_finite() {
@@ -292,9 +320,8 @@ impl EvoState {
             beta: self.config.beta as f64,
             dim,
             position: self.config.layout.range(Component::Position),
-            extent: self.config.extent as f64,
             floor: self.config.motion_floor as f64 * self.config.extent as f64,
-            memory: &self.memory,
+            memory: self.memory.as_ref().map(|m| m.frame(k1)),
         };
 
         let width = dim + 3;
@@ -345,6 +372,8 @@ impl EvoState {
                 });
         }
 
+        let mean_sq = full.then(|| self.normalise_inputs(&mut inputs, n, width));
+
         let mut used_psi = false;
         let gains = match (history.len, self.config.gain) {
             (2, _) => Gains::Uniform(WARMUP_GAIN),
@@ -382,12 +411,16 @@ impl EvoState {
         step.psi_cache = used_psi.then_some(psi_cache);
         step.scratch = inputs;
         step.gains = gains;
+        step.input_mean_sq = mean_sq;
+        step.prior_scale = s;
+        step.requeried = self.config.history == HistoryMode::Requery;
         finish(step);
         Ok(())
     }
 
-    /// Commits a training step at a frame time: writes d̃ to the frame's buffer block, marks
-    /// the frame valid and updates the residual memory (h >= 2). Never called for evaluation.
+    /// Commits a training step at frame k: writes d̃ to B[k], marks the frame valid, writes the
+    /// step's residual memory m to M[k] (zero when the step had no prior, h < 2) and folds the
+    /// step's Ψ-input mean squares into the running RMS (h = 3). Never called for evaluation.
     pub fn commit(&mut self, step: &Step) -> Result<(), EvoError> {
         let k = step.frame.ok_or(EvoError::NotAFrame(step.time))?;
         if step.rows != self.rows || step.generation != self.generation {
@@ -405,23 +438,78 @@ impl EvoState {
             self.saturations += buffer.write_frame(k, &step.corrected);
         }
         self.valid[k] = true;
-        if let Some(m) = &step.memory_next {
-            self.memory.copy_from_slice(m);
+        if let Some(memory) = &mut self.memory {
+            match &step.memory_next {
+                Some(m) => self.saturations += memory.write_frame(k, m),
+                None => memory.clear_frame(k),
+            }
+        }
+        if let Some(mean_sq) = &step.input_mean_sq
+            && step.rows > 0
+        {
+            self.psi_norm.update(mean_sq);
         }
         Ok(())
     }
 
     /// Applies a row plan (prune, clone, split): kept rows stay, new rows copy their parent's
-    /// buffer rows (all frames) and memory. Steps computed before become stale.
+    /// buffer rows and memory rows (all frames). Steps computed before become stale.
     pub fn apply_rows(&mut self, plan: &RowPlan) -> Result<(), EvoError> {
         plan.validate(self.rows)?;
-        let dim = self.dim();
         if let Some(buffer) = &mut self.buffer {
             buffer.apply_rows(plan)?;
         }
-        plan.apply(&mut self.memory, dim, NewRows::CopyParent)?;
+        if let Some(memory) = &mut self.memory {
+            memory.apply_rows(plan)?;
+        }
         self.rows = plan.new_len();
         self.generation += 1;
         Ok(())
+    }
+
+    /// Divides Ψ's raw inputs (`rows` × `width`, width = D + 3) by the running RMS of each of
+    /// the first D + 2 features (the batch's own RMS before the first training step; at least
+    /// the feature's floor, [`crate::norm::rms_floors`]), clamps
+    /// them to ±[`PSI_INPUT_CLAMP`], and returns the batch's per-feature mean squares (for the
+    /// commit).
+    fn normalise_inputs(&self, inputs: &mut [f32], rows: usize, width: usize) -> Vec<f64> {
+        let features = width - 1;
+        let sums = inputs
+            .par_chunks(CHUNK * width)
+            .map(|chunk| {
+                let mut acc = vec![0.0f64; features];
+                for row in chunk.chunks_exact(width) {
+                    for (a, &x) in acc.iter_mut().zip(row) {
+                        *a += x as f64 * x as f64;
+                    }
+                }
+                acc
+            })
+            .reduce(
+                || vec![0.0f64; features],
+                |mut a, b| {
+                    for (x, y) in a.iter_mut().zip(b) {
+                        *x += y;
+                    }
+                    a
+                },
+            );
+        let mean_sq: Vec<f64> = sums.iter().map(|s| s / rows.max(1) as f64).collect();
+        let floors = crate::norm::rms_floors(
+            self.dim(),
+            self.config.layout.range(Component::Position),
+            self.config.motion_floor as f64,
+            self.config.extent as f64,
+        );
+        let factors = self.psi_norm.factors(&mean_sq, &floors);
+        let limit = PSI_INPUT_CLAMP as f64;
+        inputs.par_chunks_mut(CHUNK * width).for_each(|chunk| {
+            for row in chunk.chunks_exact_mut(width) {
+                for (x, f) in row.iter_mut().zip(&factors) {
+                    *x = (*x as f64 * f).clamp(-limit, limit) as f32;
+                }
+            }
+        });
+        mean_sq
     }
 }

@@ -50,8 +50,15 @@ pub struct Step {
     pub(crate) stats: Option<Vec<Stats>>,
     pub(crate) psi_cache: Option<tiny_nn::MlpCache>,
     pub(crate) memory_next: Option<Vec<f32>>,
-    /// Ψ's inputs of the last pass, kept only so the next pass can reuse the allocation.
+    /// Ψ's normalised inputs (h = 3; otherwise left over from an earlier pass, for reuse).
     pub(crate) scratch: Vec<f32>,
+    /// Per-feature mean squares of this step's raw Ψ inputs (h = 3), folded into the running
+    /// RMS by a commit.
+    pub(crate) input_mean_sq: Option<Vec<f64>>,
+    /// s = (t - t_k1)/(t_k1 - t_k2) of the prior (h >= 2).
+    pub(crate) prior_scale: f64,
+    /// Whether the history was re-queried (then d̂ depends on the observations at k1, k2).
+    pub(crate) requeried: bool,
 }
 
 impl Step {
@@ -74,6 +81,9 @@ impl Step {
             psi_cache: None,
             memory_next: None,
             scratch: Vec::new(),
+            input_mean_sq: None,
+            prior_scale: 0.0,
+            requeried: false,
         }
     }
 
@@ -117,9 +127,14 @@ impl Step {
         self.stats.as_deref()
     }
 
-    /// Residual memory this step would commit (h >= 2).
+    /// Residual memory this step would commit, `m = β M[k1] + (1-β)(z - d̂)` (h >= 2).
     pub fn memory_next(&self) -> Option<&[f32]> {
         self.memory_next.as_deref()
+    }
+
+    /// Ψ's inputs after normalisation, N × (D + 3) rows `[m, |v2|, |v1|, θ]` (h = 3).
+    pub fn psi_inputs(&self) -> Option<&[f32]> {
+        self.stats.as_ref().map(|_| self.scratch.as_slice())
     }
 }
 
@@ -132,13 +147,26 @@ pub struct Losses {
     pub prior: f64,
 }
 
-/// Gradients of `L_render + λ1 L_sup + λ2 L_prior`.
+/// dL/d(observation at a history time), for history re-queried from Φ.
 #[derive(Debug, Clone, PartialEq)]
+pub struct HistoryGradient {
+    /// The history frame's time: Φ was queried at it.
+    pub time: f32,
+    /// dL/dz(time), N × D.
+    pub dz: Vec<f32>,
+}
+
+/// Gradients of `L_render + λ1 L_sup + λ2 L_prior`.
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Backward {
     /// dL/dz, N × D: pass it on to the observation network Φ.
     pub dz: Vec<f32>,
     /// dL/dΨ-parameters, in [`crate::GainNet::params`] order (learned gain, h = 3).
     pub dpsi: Option<Vec<f32>>,
+    /// With history re-queried from Φ (h >= 2): dL/dz at the history frames k1 and k2, through
+    /// d̂ = z_k1 + s (z_k1 - z_k2) (the rendering loss and L_sup; L_prior stops d̂'s gradient).
+    /// Pass each on to Φ at its time. Empty with the buffer (d̂ is then a constant).
+    pub history: Vec<HistoryGradient>,
     /// The loss values of this step.
     pub losses: Losses,
 }

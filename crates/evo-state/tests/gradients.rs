@@ -1,11 +1,13 @@
 //! Finite-difference checks of the backward pass: the z path (for every warm-up stage and gain
-//! mode) and the Ψ path. The loss is `Σ g·d̃ + λ1 L_sup + λ2 L_prior` with a fixed random g
-//! standing in for the render gradient, evaluated in f64 from the forward pass's outputs.
+//! mode), the Ψ path (with Ψ's inputs normalised by the batch's RMS and by the running RMS), and
+//! the re-queried history path (d̂ a function of the observations at the history times). The
+//! loss is `Σ g·d̃ + λ1 L_sup + λ2 L_prior` with a fixed random g standing in for the render
+//! gradient, evaluated in f64 from the forward pass's outputs.
 
 mod common;
 
 use common::*;
-use evo_state::{EvoConfig, EvoState, Gain, Step};
+use evo_state::{EvoConfig, EvoState, Gain, HistoryMode, Step};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -17,6 +19,19 @@ fn random(rng: &mut ChaCha8Rng, len: usize, scale: f32) -> Vec<f32> {
 
 /// The total loss, recomputed independently of `backward` (f64).
 fn loss(st: &EvoState, step: &Step, z: &[f32], g: &[f32], opacity: &[f32]) -> f64 {
+    loss_with_prior(st, step, z, g, opacity, step.prior())
+}
+
+/// The total loss with `sg_prior` as the d̂ inside L_prior (the stop-gradient: a finite
+/// difference must hold it at the unperturbed value).
+fn loss_with_prior(
+    st: &EvoState,
+    step: &Step,
+    z: &[f32],
+    g: &[f32],
+    opacity: &[f32],
+    sg_prior: Option<&[f32]>,
+) -> f64 {
     let d = st.dim();
     let c = st.config();
     let n = step.rows() as f64;
@@ -24,7 +39,7 @@ fn loss(st: &EvoState, step: &Step, z: &[f32], g: &[f32], opacity: &[f32]) -> f6
     for e in 0..z.len() {
         let (zv, dv) = (z[e] as f64, step.corrected()[e] as f64);
         total += g[e] as f64 * dv + c.lambda_sup as f64 * (dv - zv).powi(2) / n;
-        if let Some(p) = step.prior() {
+        if let Some(p) = sg_prior {
             total += c.lambda_prior as f64 * opacity[e / d] as f64 * (p[e] as f64 - zv).powi(2) / n;
         }
     }
@@ -145,13 +160,21 @@ fn z_path_with_opacity_and_colour_components() {
     check_z_path(config, 3, 3);
 }
 
-/// Ψ path: directional finite differences along random parameter directions (robust to ReLU
-/// kinks), and per-parameter checks of the smooth output layer.
+/// Ψ path at the first learned step (Ψ's inputs normalised by the batch's own RMS) and after
+/// two learned steps (by the running RMS).
 #[test]
 fn psi_path() {
-    let (st, mut rng) = setup(EvoConfig::default(), 3, 5);
+    psi_path_after(3);
+    psi_path_after(5);
+}
+
+/// Ψ path: directional finite differences along random parameter directions (robust to ReLU
+/// kinks), and per-parameter checks of the smooth output layer.
+fn psi_path_after(committed: usize) {
+    let (st, mut rng) = setup(EvoConfig::default(), committed, 5);
+    assert_eq!(st.input_norm().rms().is_some(), committed > 3);
     let d = st.dim();
-    let t = st.frames().times()[3];
+    let t = st.frames().times()[committed];
     let z = random(&mut rng, N * d, 2.0);
     let g = random(&mut rng, N * d, 1.0);
     let opacity = vec![0.5f32; N];
@@ -241,4 +264,153 @@ fn no_psi_gradient_without_learned_gain() {
     let back = off.backward(&step, &z, &g, &[1.0; N]).unwrap();
     assert_eq!(back.dz, g);
     assert_eq!(back.losses, evo_state::Losses::default());
+}
+
+/// Observations at the history times for the "without buffer" ablation: one random block per
+/// frame time, served by an [`evo_state::ObservationSource`].
+fn requery_source(
+    blocks: &[Vec<f32>],
+    times: &[f32],
+) -> impl FnMut(f32, &mut [f32]) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+    move |t: f32, out: &mut [f32]| {
+        let k = times.iter().position(|&x| x == t).expect("a frame time");
+        out.copy_from_slice(&blocks[k]);
+        Ok(())
+    }
+}
+
+/// History re-queried from Φ: d̂ = z_k1 + s (z_k1 - z_k2) is a function of the observations at
+/// the history times, and the rendering loss and L_sup reach them through it (L_prior does not:
+/// its d̂ is held by the stop-gradient). Central differences of the loss in each history block's
+/// elements match [`evo_state::Backward::history`]; k3's block (statistics only) has no
+/// gradient, and the gradient in the current z is unchanged by the re-query.
+fn check_requery_path(gain: Gain, query: usize, expect_h: usize) {
+    let config = EvoConfig {
+        history: HistoryMode::Requery,
+        gain,
+        ..EvoConfig::default()
+    };
+    let st = state(config, uniform_frames(6), N);
+    let d = st.dim();
+    let mut rng = ChaCha8Rng::seed_from_u64(21 + query as u64);
+    let times = st.frames().times().to_vec();
+    let blocks: Vec<Vec<f32>> = (0..times.len())
+        .map(|k| {
+            random(&mut rng, N * d, 1.0)
+                .iter()
+                .map(|v| v + 0.4 * k as f32)
+                .collect()
+        })
+        .collect();
+    let t = times[query];
+    let z = random(&mut rng, N * d, 2.0);
+    let g = random(&mut rng, N * d, 1.0);
+    let opacity: Vec<f32> = (0..N).map(|_| rng.random_range(0.0..1.0)).collect();
+    let step = st
+        .forward_with(t, &z, &mut requery_source(&blocks, &times))
+        .unwrap();
+    assert_eq!(step.history().len, expect_h);
+    let back = st.backward(&step, &z, &g, &opacity).unwrap();
+    let sg_prior = step.prior().unwrap().to_vec();
+    let history = step.history();
+    assert_eq!(back.history.len(), 2);
+    let h = 1e-2f32;
+    let loss_at = |blocks: &[Vec<f32>], z: &[f32]| {
+        let step = st
+            .forward_with(t, z, &mut requery_source(blocks, &times))
+            .unwrap();
+        loss_with_prior(&st, &step, z, &g, &opacity, Some(&sg_prior))
+    };
+    let mut largest = 0.0f64;
+    for (j, &k) in history.frames().iter().enumerate() {
+        let analytic = back.history.get(j).map(|hg| {
+            assert_eq!(hg.time, times[k]);
+            &hg.dz
+        });
+        for e in 0..N * d {
+            let mut plus = blocks.clone();
+            plus[k][e] += h;
+            let mut minus = blocks.clone();
+            minus[k][e] -= h;
+            let fd = (loss_at(&plus, &z) - loss_at(&minus, &z)) / (2.0 * h as f64);
+            let an = analytic.map_or(0.0, |a| a[e] as f64);
+            largest = largest.max(an.abs());
+            assert!(
+                (fd - an).abs() <= 2e-4 + 1e-3 * fd.abs(),
+                "history frame {k} element {e}: fd {fd} vs analytic {an}"
+            );
+        }
+    }
+    if gain == Gain::Fixed(1.0) {
+        // Observation only: d̃ = z does not depend on d̂.
+        assert_eq!(largest, 0.0);
+    } else {
+        assert!(
+            largest > 1e-2,
+            "history gradients too small to test: {largest}"
+        );
+    }
+    for e in 0..N * d {
+        let mut zp = z.clone();
+        zp[e] += h;
+        let mut zm = z.clone();
+        zm[e] -= h;
+        let fd = (loss_at(&blocks, &zp) - loss_at(&blocks, &zm)) / (2.0 * h as f64);
+        let an = back.dz[e] as f64;
+        assert!(
+            (fd - an).abs() <= 2e-4 + 1e-3 * fd.abs(),
+            "z element {e}: fd {fd} vs analytic {an}"
+        );
+    }
+}
+
+#[test]
+fn requeried_history_path_warm_up() {
+    check_requery_path(Gain::Learned, 2, 2);
+}
+
+#[test]
+fn requeried_history_path_fixed_gains() {
+    for k in [0.0, 0.3, 1.0] {
+        check_requery_path(Gain::Fixed(k), 3, 3);
+    }
+}
+
+/// Non-uniform spacing: s = (t - t_k1)/(t_k1 - t_k2) != 1 scales the two history gradients.
+#[test]
+fn requeried_history_gradients_scale_with_the_spacing() {
+    let config = EvoConfig {
+        history: HistoryMode::Requery,
+        gain: Gain::Fixed(0.0),
+        lambda_sup: 0.0,
+        ..EvoConfig::default()
+    };
+    let frames = evo_state::Frames::new(vec![0.0, 0.1, 0.4]).unwrap();
+    let st = EvoState::new(config, frames, 1, 7).unwrap();
+    let d = st.dim();
+    let blocks = vec![vec![0.0f32; d], vec![1.0; d], vec![0.0; d]];
+    let times = st.frames().times().to_vec();
+    let z = vec![0.5f32; d];
+    let step = st
+        .forward_with(0.4, &z, &mut requery_source(&blocks, &times))
+        .unwrap();
+    // s = (0.4 - 0.1)/(0.1 - 0) = 3, K = 0.5 (warm-up): with g = 1 per element and λ1 = 0,
+    // dL/dd̂ = (1 - K)·1 = 0.5, dL/dz_k1 = (1 + s)·0.5 = 2, dL/dz_k2 = -s·0.5 = -1.5.
+    let back = st.backward(&step, &z, &vec![1.0; d], &[1.0]).unwrap();
+    assert_eq!(back.history[0].time, 0.1);
+    assert!(back.history[0].dz.iter().all(|&v| (v - 2.0).abs() < 1e-5));
+    assert_eq!(back.history[1].time, 0.0);
+    assert!(back.history[1].dz.iter().all(|&v| (v + 1.5).abs() < 1e-5));
+    // With the buffer the prior is a constant: no history gradients.
+    let mut buffered = state(EvoConfig::default(), uniform_frames(4), 1);
+    train(&mut buffered, 0, &vec![0.0; d]);
+    train(&mut buffered, 1, &vec![1.0; d]);
+    let step = buffered
+        .forward(buffered.frames().times()[2], &vec![0.0; d])
+        .unwrap();
+    assert_eq!(step.history().len, 2);
+    let back = buffered
+        .backward(&step, &vec![0.0; d], &vec![1.0; d], &[1.0])
+        .unwrap();
+    assert!(back.history.is_empty());
 }

@@ -122,6 +122,11 @@ fn values_beyond_f16_range_saturate_and_are_counted() {
         assert!(back.dpsi.iter().flatten().all(|v| v.is_finite()));
     }
     assert!(st.saturations() > 4);
+    // The per-frame memory, stored as f16 beside the buffer, saturates the same way:
+    // m = 0.1·(1e30 - prior) at frame 2.
+    let memory = st.memory().unwrap();
+    assert_eq!(memory.row(2, 0)[0], 65504.0);
+    assert!((0..4).all(|k| memory.row(k, 1).iter().all(|v| v.abs() <= 65504.0)));
 }
 
 #[test]
@@ -220,7 +225,10 @@ proptest! {
             prop_assert!(back.dz.iter().all(|v| v.is_finite()));
             prop_assert!(back.dpsi.iter().flatten().all(|v| v.is_finite()));
             prop_assert!(back.losses.sup.is_finite() && back.losses.prior.is_finite());
-            prop_assert!(st.memory().iter().all(|v| v.is_finite()));
+            let memory = st.memory().unwrap();
+            prop_assert!((0..6).all(|f| (0..3).all(|i| memory.row(f, i).iter().all(|v| v.is_finite()))));
+            prop_assert!(step.psi_inputs().into_iter().flatten().all(|v| v.is_finite()));
+            prop_assert!(st.input_norm().rms().into_iter().flatten().all(|v| v.is_finite()));
         }
         let step = st.forward(query, &zs[0]).unwrap();
         prop_assert!(step.corrected().iter().all(|v| v.is_finite()));
@@ -251,7 +259,7 @@ fn zero_and_one_gaussian() {
     }
     st.apply_rows(&RowPlan::prune(&[false, false, false]))
         .unwrap();
-    assert_eq!((st.rows(), st.memory().len(), st.buffer_bytes()), (0, 0, 0));
+    assert_eq!((st.rows(), st.memory_bytes(), st.buffer_bytes()), (0, 0, 0));
     let step = train(&mut st, 4, &[]);
     assert_eq!(step.history().len, 3);
 }

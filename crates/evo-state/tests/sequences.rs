@@ -79,14 +79,16 @@ fn warm_up_stages_by_hand() {
         assert_eq!(step.prior().map(|p| p[0]), prior);
         assert_eq!(step.gains(), &gains);
         assert!((step.corrected()[0] - corrected).abs() < 1e-6, "frame {k}");
+        // The commit wrote m to M[k] (zero before a prior exists).
+        let committed = st.memory().unwrap().row(k, 0)[0];
         if let Some(m) = memory {
             assert!(
                 (step.memory_next().unwrap()[0] - m).abs() < 1e-6,
                 "frame {k}"
             );
-            assert!((st.memory()[0] - m).abs() < 1e-6);
+            assert!((committed - m).abs() < 1e-6);
         } else {
-            assert!(st.memory().iter().all(|&m| m == 0.0));
+            assert_eq!(committed, 0.0);
         }
         out += &trace(&st, &step, &z(k));
     }
@@ -133,7 +135,9 @@ fn learned_gain_stage() {
     insta::assert_snapshot!(out);
 }
 
-/// Frames visited in random order: the history only uses committed frames.
+/// Frames visited in random order: the history only uses committed frames, and the residual
+/// memory read is M[k1], the one committed with the history's latest frame, not whichever frame
+/// trained last.
 #[test]
 fn frames_in_random_order() {
     let config = EvoConfig {
@@ -155,9 +159,24 @@ fn frames_in_random_order() {
         let z = vec![(k * k) as f32, k as f32, 1.0];
         let step = train(&mut st, k, &z);
         assert_eq!(step.history().frames(), history, "frame {k}");
-        if k == 4 {
-            // s = (t4 - t3)/(t3 - t1) = 1/2: prior = 9 + 0.5·(9 - 1) = 13.
-            assert!((step.prior().unwrap()[0] - 13.0).abs() < 1e-5);
+        let m = step.memory_next().map(|m| m[0]);
+        match k {
+            // s = (t4 - t3)/(t3 - t1) = 1/2: prior = 9 + 0.5·(9 - 1) = 13; M[3] = 0 (frame 3
+            // trained first, h = 0), so m = 0.1·(16 - 13) = 0.3.
+            4 => {
+                assert!((step.prior().unwrap()[0] - 13.0).abs() < 1e-5);
+                assert!((m.unwrap() - 0.3).abs() < 1e-6);
+            }
+            // History [1, 0]: prior = 2·1 - 0 = 2, M[1] = 0 (frame 1 had h = 1):
+            // m = 0.1·(4 - 2) = 0.2, although frame 4 (m = 0.3) trained just before.
+            2 => assert!((m.unwrap() - 0.2).abs() < 1e-6),
+            // History [4, 3, 2]: the prior comes from the buffer's corrected states d̃_4 = 14.5
+            // and d̃_3 = 9: 14.5 + (14.5 - 9) = 20; M[4] = 0.3: m = 0.9·0.3 + 0.1·(25 - 20) = 0.77.
+            5 => {
+                assert!((step.prior().unwrap()[0] - 20.0).abs() < 1e-5);
+                assert!((m.unwrap() - 0.77).abs() < 1e-6);
+            }
+            _ => assert_eq!(m, None),
         }
         out += &trace(&st, &step, &z);
     }
@@ -224,4 +243,131 @@ fn queries_between_and_beyond_frames() {
     }
     assert_eq!(fresh, before);
     insta::assert_snapshot!(out);
+}
+
+/// Ψ's inputs divided by their running RMS (SPEC §4), by hand. K is fixed (0.25) so every value
+/// is computable; the inputs and the running RMS do not depend on the gain mode. Two Gaussians,
+/// position only: row 0 follows z = [k², 0, 0] (as `warm_up_stages_by_hand`), row 1 moves at a
+/// constant velocity z = [0, 2k, 0] (prior exact, m = 0).
+#[test]
+fn psi_inputs_divided_by_their_running_rms() {
+    let config = EvoConfig {
+        layout: position_only(),
+        gain: Gain::Fixed(0.25),
+        ..EvoConfig::default()
+    };
+    // Times exact in binary, so s = 1 exactly and row 1's prior is exact (m = 0, not rounding).
+    let frames = Frames::new(vec![0.0, 0.25, 0.5, 0.75, 1.0, 1.25]).unwrap();
+    let mut st = state(config, frames, 2);
+    let z = |k: usize| vec![(k * k) as f32, 0.0, 0.0, 0.0, 2.0 * k as f32, 0.0];
+    for k in 0..3 {
+        let step = train(&mut st, k, &z(k));
+        assert_eq!(step.psi_inputs(), None);
+        assert_eq!(st.input_norm().rms(), None);
+    }
+    let theta = |v1: f64, v2: f64| (v1 * v2 / (v1 * v2 + 1e-6)).acos();
+    // Frame 3, the first with statistics. Raw inputs [m (3), |v2|, |v1|, θ]:
+    //   row 0: m = 0.9·0.2 + 0.1·(9 - 5) = 0.58, v2 = 1 - 0 = 1, v1 = 3 - 1 = 2;
+    //   row 1: m = 0, |v2| = |v1| = 2.
+    // No running statistics yet: the batch's own mean squares normalise,
+    //   ms = [0.58²/2, 0, 0, (1 + 4)/2, (4 + 4)/2] = [0.1682, 0, 0, 2.5, 4].
+    let step = train(&mut st, 3, &z(3));
+    let ms3 = [0.58f64 * 0.58 / 2.0, 0.0, 0.0, 2.5, 4.0];
+    let expected3 = [
+        [
+            0.58 / ms3[0].sqrt(),
+            0.0,
+            0.0,
+            1.0 / 2.5f64.sqrt(),
+            2.0 / 2.0,
+            theta(2.0, 1.0),
+        ],
+        [
+            0.0,
+            0.0,
+            0.0,
+            2.0 / 2.5f64.sqrt(),
+            2.0 / 2.0,
+            theta(2.0, 2.0),
+        ],
+    ];
+    assert_inputs(step.psi_inputs().unwrap(), &expected3);
+    // m of row 0 normalised by its own batch RMS: 0.58 / (0.58/√2) = √2.
+    assert!((step.psi_inputs().unwrap()[0] - 2f32.sqrt()).abs() < 1e-5);
+    // The commit folded ms into the running average: ema = 0.01·ms, weight = 0.01, RMS = √ms.
+    let rms = st.input_norm().rms().unwrap();
+    for (r, m) in rms.iter().zip(ms3) {
+        assert!((r - m.sqrt()).abs() < 1e-6, "{rms:?}");
+    }
+    let mut out = inputs_trace(&step);
+    // Frame 4: row 0 m = 0.9·0.58 + 0.1·(16 - 9) = 1.222, v2 = 2, v1 = 3; row 1 as before.
+    // Normalised by the running RMS of frame 3 (not by frame 4's own batch). The memory's y and
+    // z components have RMS 0: they are divided by the floor (the motion floor, 1e-6) and stay 0.
+    let step = train(&mut st, 4, &z(4));
+    let expected4 = [
+        [
+            1.222 / ms3[0].sqrt(),
+            0.0,
+            0.0,
+            2.0 / 2.5f64.sqrt(),
+            3.0 / 2.0,
+            theta(3.0, 2.0),
+        ],
+        [
+            0.0,
+            0.0,
+            0.0,
+            2.0 / 2.5f64.sqrt(),
+            2.0 / 2.0,
+            theta(2.0, 2.0),
+        ],
+    ];
+    assert_inputs(step.psi_inputs().unwrap(), &expected4);
+    out += &inputs_trace(&step);
+    // After frame 4: ema = 0.99·0.01·ms3 + 0.01·ms4, weight = 1 - 0.99², ms4 = [1.222²/2, 0, 0,
+    // (4 + 4)/2, (9 + 4)/2].
+    let ms4 = [1.222f64 * 1.222 / 2.0, 0.0, 0.0, 4.0, 6.5];
+    let weight = 1.0 - 0.99f64 * 0.99;
+    let rms = st.input_norm().rms().unwrap();
+    for j in 0..5 {
+        let expected = ((0.99 * 0.01 * ms3[j] + 0.01 * ms4[j]) / weight).sqrt();
+        assert!((rms[j] - expected).abs() < 1e-6, "feature {j}: {rms:?}");
+    }
+    // Evaluation reads the running RMS frozen: a query writes nothing.
+    let before = st.clone();
+    let step = st.forward(1.4, &z(5)).unwrap();
+    assert!(step.psi_inputs().is_some());
+    assert_eq!(st, before);
+    out += &format!("running rms after frame 4: {}\n", fmt_list(&rms));
+    insta::assert_snapshot!(out);
+}
+
+fn assert_inputs(got: &[f32], expected: &[[f64; 6]; 2]) {
+    for (r, row) in expected.iter().enumerate() {
+        for (j, e) in row.iter().enumerate() {
+            let g = got[r * 6 + j] as f64;
+            assert!(
+                (g - e).abs() < 1e-5 * (1.0 + e.abs()),
+                "row {r} input {j}: {g} vs {e} in {got:?}"
+            );
+        }
+    }
+}
+
+fn fmt_list(v: &[f64]) -> String {
+    let items: Vec<String> = v.iter().map(|x| format!("{x:.5}")).collect();
+    format!("[{}]", items.join(", "))
+}
+
+fn inputs_trace(step: &evo_state::Step) -> String {
+    let inputs = step.psi_inputs().unwrap();
+    let mut out = format!("t={:.4} frame={:?}\n", step.time(), step.frame());
+    for (i, row) in inputs.chunks(6).enumerate() {
+        let row: Vec<f64> = row.iter().map(|&x| x as f64).collect();
+        out += &format!(
+            "  row {i}: psi inputs [m, |v2|, |v1|, theta] = {}\n",
+            fmt_list(&row)
+        );
+    }
+    out
 }

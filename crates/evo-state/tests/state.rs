@@ -1,4 +1,5 @@
-//! Row maintenance, persistence (bit-exact), history re-query, evolution off.
+//! Row maintenance, persistence (bit-exact, and files of the older format), history re-query,
+//! evolution off, memory accounting.
 
 mod common;
 
@@ -21,8 +22,8 @@ fn trained(config: EvoConfig, rows: usize, frames: usize) -> EvoState {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(32))]
 
-    /// After a plan, children carry their parent's buffer rows (every frame) and memory, kept
-    /// rows are unchanged, and every array has the new row count.
+    /// After a plan, children carry their parent's buffer rows and memory rows (every frame),
+    /// kept rows are unchanged, pruned rows are gone, and every array has the new row count.
     #[test]
     fn children_inherit_buffer_rows_and_memory(
         keep in proptest::collection::vec(any::<bool>(), 7),
@@ -37,16 +38,21 @@ proptest! {
         after.apply_rows(&plan).unwrap();
         let d = after.dim();
         prop_assert_eq!(after.rows(), plan.new_len());
-        prop_assert_eq!(after.memory().len(), plan.new_len() * d);
-        prop_assert_eq!(after.buffer_bytes(), plan.new_len() * d * storage.bytes() * after.frames().len());
+        let per_frame = plan.new_len() * d * storage.bytes() * after.frames().len();
+        prop_assert_eq!(after.buffer_bytes(), per_frame);
+        prop_assert_eq!(after.memory_bytes(), per_frame);
+        prop_assert_eq!(after.state_bytes(), 2 * per_frame);
         let origin: Vec<u32> = plan.kept.iter().chain(&plan.parent_from_new).copied().collect();
+        let (mem_after, mem_before) = (after.memory().unwrap(), before.memory().unwrap());
         for (new, &old) in origin.iter().enumerate() {
             let (new, old) = (new, old as usize);
-            prop_assert_eq!(&after.memory()[new * d..(new + 1) * d], &before.memory()[old * d..(old + 1) * d]);
             for k in 0..after.frames().len() {
                 prop_assert_eq!(after.buffer().unwrap().row(k, new), before.buffer().unwrap().row(k, old));
+                prop_assert_eq!(mem_after.row(k, new), mem_before.row(k, old));
             }
         }
+        // The memory of the trained frames is not all zero, so the copies above are checks.
+        prop_assert!((0..before.rows()).any(|i| mem_before.row(3, i).iter().any(|&m| m != 0.0)));
         // The next step works on the new rows.
         let z = vec![0.5f32; after.rows() * d];
         let step = after.forward(after.frames().times()[4], &z).unwrap();
@@ -119,10 +125,17 @@ fn save_and_load_are_bit_exact() {
         st.save(&path).unwrap();
         let loaded = EvoState::load(&path).unwrap();
         assert_eq!(loaded, st, "config {i}");
-        // Bit-exact, including -0.0 and every float of Ψ.
+        // Bit-exact, including -0.0 and every float of Ψ, the memory and the input RMS.
         let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&loaded.psi().params()), bits(&st.psi().params()));
-        assert_eq!(bits(loaded.memory()), bits(st.memory()));
+        if let (Some(a), Some(b)) = (loaded.memory(), st.memory()) {
+            for k in 0..st.frames().len() {
+                for i in 0..st.rows() {
+                    assert_eq!(bits(&a.row(k, i)), bits(&b.row(k, i)));
+                }
+            }
+        }
+        assert_eq!(loaded.input_norm(), st.input_norm());
         // Saving the loaded state and loading it again changes nothing (the metadata order in
         // the file is not fixed, so bytes are not compared).
         let again = dir.path().join(format!("again{i}.safetensors"));
@@ -232,8 +245,8 @@ fn evolution_off_is_the_baseline() {
         ..EvoConfig::default()
     };
     let st = trained(config, 3, 5);
-    assert_eq!(st.buffer_bytes(), 0);
-    assert!(st.memory().iter().all(|&m| m == 0.0));
+    assert_eq!(st.state_bytes(), 0);
+    assert!(st.memory().is_none());
     let z = vec![0.25f32; 3 * st.dim()];
     let step = st.forward(st.frames().times()[5], &z).unwrap();
     assert_eq!(step.corrected(), &z[..]);
@@ -261,6 +274,18 @@ fn buffer_memory_matches_the_configuration() {
     ] {
         let st = state(config, uniform_frames(7), 11);
         assert_eq!(st.buffer_bytes(), config.buffer_bytes(11, 7));
+        assert_eq!(st.memory_bytes(), config.memory_bytes(11, 7));
+        assert_eq!(
+            st.state_bytes(),
+            config.buffer_bytes(11, 7) + config.memory_bytes(11, 7)
+        );
+        if config.evolution {
+            // M[k] beside the buffer, in the same storage, with either history mode.
+            assert_eq!(
+                st.memory_bytes(),
+                11 * 7 * st.dim() * config.storage.bytes()
+            );
+        }
         if st.buffer().is_some() {
             assert_eq!(
                 st.buffer_bytes(),
@@ -277,11 +302,7 @@ fn reused_steps_match_fresh_ones() {
     let mut fresh = state(EvoConfig::default(), uniform_frames(8), 5);
     let mut reused = fresh.clone();
     let mut step = evo_state::Step::empty();
-    let mut back = evo_state::Backward {
-        dz: vec![],
-        dpsi: None,
-        losses: Default::default(),
-    };
+    let mut back = evo_state::Backward::default();
     for k in 0..7 {
         if k == 5 {
             let plan = RowPlan {
@@ -319,4 +340,82 @@ fn reused_steps_match_fresh_ones() {
             .is_err()
     );
     assert!(reused.commit(&step).is_err());
+}
+
+/// A file of the older format `evo-state/1` (one memory per Gaussian, Ψ inputs scaled by the
+/// extent; `tests/fixtures/evo_state_v1.safetensors`, written by the previous revision from 3
+/// Gaussians, 5 frames, frames 0..3 trained on `z = ((e·7 + 3k) mod 11)/10 + k/5`, extent 2)
+/// still loads: buffer, valid flags and Ψ as saved, zero per-frame memory (the old memory
+/// belongs to no frame), and the fixed extent scaling as Ψ's input normaliser. Saving it writes
+/// the current format.
+#[test]
+fn older_files_without_per_frame_memory_load_as_zero_memory() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures/evo_state_v1.safetensors");
+    let st = EvoState::load(&path).unwrap();
+    let d = st.dim();
+    assert_eq!((st.rows(), d, st.frames().len()), (3, 10, 5));
+    assert_eq!(st.valid(), &[true, true, true, true, false]);
+    assert_eq!(st.config().extent, 2.0);
+    let z = |k: usize| -> Vec<f32> {
+        (0..3 * d)
+            .map(|e| ((e * 7 + k * 3) % 11) as f32 * 0.1 + k as f32 * 0.2)
+            .collect()
+    };
+    // Frames 0 and 1 were trained with h < 2: their corrected states are the observations.
+    for k in 0..2 {
+        for i in 0..3 {
+            assert_eq!(st.buffer().unwrap().row(k, i), z(k)[i * d..(i + 1) * d]);
+        }
+    }
+    let memory = st.memory().unwrap();
+    for k in 0..5 {
+        for i in 0..3 {
+            assert!(memory.row(k, i).iter().all(|&m| m == 0.0));
+        }
+    }
+    // Position memory and speeds divided by the extent, the rest as they are.
+    let rms = st.input_norm().rms().unwrap();
+    assert_eq!(
+        rms,
+        [2.0, 2.0, 2.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 2.0, 2.0]
+    );
+    // It trains on: the next frame reads M[3] = 0 and commits.
+    let mut st = st;
+    let step = train(&mut st, 4, &z(4));
+    assert_eq!(step.history().frames(), &[3, 2, 1]);
+    let m = step.memory_next().unwrap();
+    let prior = step.prior().unwrap();
+    for e in 0..3 * d {
+        assert!((m[e] - 0.1 * (z(4)[e] - prior[e])).abs() < 1e-6);
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let again = dir.path().join("v2.safetensors");
+    st.save(&again).unwrap();
+    assert_eq!(EvoState::load(&again).unwrap(), st);
+    let header = std::fs::read(&again).unwrap();
+    assert!(header.windows(12).any(|w| w == b"evo-state/2\""));
+}
+
+/// The per-frame memory survives save and load exactly, and a resumed state continues as the
+/// original would: the same next step, bit for bit.
+#[test]
+fn resumed_state_continues_identically() {
+    let mut st = trained(EvoConfig::default(), 5, 4);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("s.safetensors");
+    st.save(&path).unwrap();
+    let mut resumed = EvoState::load(&path).unwrap();
+    let d = st.dim();
+    let z: Vec<f32> = (0..5 * d).map(|e| (e % 7) as f32 * 0.3 - 1.0).collect();
+    let a = train(&mut st, 4, &z);
+    let b = train(&mut resumed, 4, &z);
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(a.corrected()), bits(b.corrected()));
+    assert_eq!(
+        bits(a.memory_next().unwrap()),
+        bits(b.memory_next().unwrap())
+    );
+    assert_eq!(bits(a.psi_inputs().unwrap()), bits(b.psi_inputs().unwrap()));
+    assert_eq!(resumed, st);
 }

@@ -89,6 +89,11 @@ pub struct TrainArgs {
     #[arg(long, value_name = "S")]
     pub grid_lr_scale: Option<f32>,
 
+    /// EvoGS: Ψ's own learning rate (constant, Adam) [default: 1e-3, chosen on training views
+    /// only; recorded in config.json].
+    #[arg(long, value_name = "LR")]
+    pub psi_lr: Option<f32>,
+
     /// Print, with each progress line, EvoGS's motion statistics since the last line: samples
     /// per decade of speed / extent with their mean θ (a diagnostic of the uncertainty trigger).
     #[arg(long)]
@@ -114,7 +119,7 @@ pub struct TrainArgs {
     /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
     #[arg(
         long,
-        conflicts_with_all = ["data", "method", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale"]
+        conflicts_with_all = ["data", "method", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr"]
     )]
     pub resume: bool,
 

@@ -58,15 +58,15 @@ pub struct DemoRow {
     pub seconds: f64,
     /// Final Gaussian count.
     pub gaussians: usize,
-    /// Bytes of the evolution buffer (0 for the baseline).
-    pub buffer_bytes: usize,
+    /// Bytes of the evolution state, buffer and residual memory (0 for the baseline).
+    pub state_bytes: usize,
 }
 
 /// The side-by-side table (markdown).
 pub fn table(iterations: u64, rows: &[DemoRow]) -> String {
     let mut s = format!(
         "# evogs demo: embedded synthetic scene, {iterations} iterations per method (preset tiny)\n\n\
-         | method | PSNR (dB) | SSIM | flicker | jitter | training (s) | Gaussians | buffer (KiB) |\n\
+         | method | PSNR (dB) | SSIM | flicker | jitter | training (s) | Gaussians | state (KiB) |\n\
          | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n"
     );
     for r in rows {
@@ -79,7 +79,7 @@ pub fn table(iterations: u64, rows: &[DemoRow]) -> String {
             r.jitter,
             r.seconds,
             r.gaussians,
-            r.buffer_bytes as f64 / 1024.0
+            r.state_bytes as f64 / 1024.0
         );
     }
     s
@@ -119,7 +119,7 @@ pub fn run_demo(args: &DemoArgs) -> Result<(u64, Vec<DemoRow>)> {
             jitter: scores.jitter,
             seconds: scores.seconds,
             gaussians: scores.gaussians,
-            buffer_bytes: scores.buffer_bytes,
+            state_bytes: scores.state_bytes,
         });
         render_run(
             &out,

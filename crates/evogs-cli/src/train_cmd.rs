@@ -55,6 +55,9 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     if let Some(v) = args.grid_lr_scale {
         e.grid_lr_scale = v;
     }
+    if let Some(v) = args.psi_lr {
+        e.psi_lr = Some(v);
+    }
     config.seed = args.seed;
     config.backend = args.backend.unwrap_or_default();
     config.validate()?;

@@ -82,9 +82,10 @@ fn ablates_three_rows_of_a_tiny_scene() {
         assert!(row["gaussians"].as_u64().unwrap() > 0, "{row}");
         assert!(row["lpips_alex"].as_f64().unwrap() > 0.0, "{row}");
     }
-    // Only the evolution with a buffer keeps one.
-    assert_eq!(rows[0]["buffer_bytes"], 0);
-    assert_eq!(rows[1]["buffer_bytes"], 0);
+    // Only evolution keeps a state (buffer and memory): not the baseline, not Φ alone.
+    assert_eq!(rows[0]["state_bytes"], 0);
+    assert_eq!(rows[1]["state_bytes"], 0);
+    assert!(rows[2]["state_bytes"].as_u64().unwrap() > 0);
 
     let png = image::open(out.join("ablation.png")).unwrap().to_rgb8();
     assert_eq!(png.dimensions(), (800, 600));

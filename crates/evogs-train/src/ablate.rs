@@ -199,8 +199,9 @@ pub struct Scores {
     pub seconds: f64,
     /// Final Gaussian count.
     pub gaussians: usize,
-    /// Bytes of the evolution buffer (0 for the baseline and without a buffer).
-    pub buffer_bytes: usize,
+    /// Bytes of the evolution state: buffer and per-frame residual memory (0 for the baseline
+    /// and with evolution off; the memory alone with history re-queried).
+    pub state_bytes: usize,
 }
 
 /// Trains `config` on `data` into the run directory `out`, then evaluates it on the test split
@@ -250,7 +251,7 @@ pub fn train_and_evaluate(
         jitter: temporal.map_or(f64::NAN, |t| t.jitter),
         seconds: summary.seconds,
         gaussians: summary.gaussians,
-        buffer_bytes: run.backbone.state_bytes(),
+        state_bytes: run.backbone.state_bytes(),
     })
 }
 
@@ -351,7 +352,7 @@ pub fn table(config: &TrainConfig, results: &[AblationResult]) -> String {
     let with_val = results.iter().any(|r| r.scores.val_psnr.is_some());
     let mut s = format!(
         "# evogs ablate: {} iterations per row, seed {}\n\n\
-         | row | switches | PSNR (dB) | SSIM | lpips_alex |{} flicker | jitter | training (s) | Gaussians | buffer (KiB) |\n\
+         | row | switches | PSNR (dB) | SSIM | lpips_alex |{} flicker | jitter | training (s) | Gaussians | state (KiB) |\n\
          | --- | --- | ---: | ---: | ---: |{} ---: | ---: | ---: | ---: | ---: |\n",
         config.iterations,
         config.seed,
@@ -389,7 +390,7 @@ pub fn table(config: &TrainConfig, results: &[AblationResult]) -> String {
             c.jitter,
             c.seconds,
             c.gaussians,
-            c.buffer_bytes as f64 / 1024.0
+            c.state_bytes as f64 / 1024.0
         );
     }
     s

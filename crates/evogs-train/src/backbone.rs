@@ -54,6 +54,13 @@ pub trait Backbone: Send {
         1.0
     }
 
+    /// A schedule of the backbone's own for the parameter buffer `name`, replacing the network
+    /// schedule (EvoGS: Ψ's `--psi-lr`); `None` (every D-3DGS buffer) means the network schedule
+    /// times [`Backbone::lr_scale`].
+    fn own_schedule(&self, _name: &str) -> Option<tiny_nn::LrSchedule> {
+        None
+    }
+
     /// Which appearance columns of its rows the backbone deforms (none for D-3DGS).
     fn appearance(&self) -> Appearance {
         Appearance::default()
@@ -98,7 +105,8 @@ pub trait Backbone: Send {
         None
     }
 
-    /// Bytes of per-Gaussian state the backbone stores (EvoGS's buffer; 0 for D-3DGS).
+    /// Bytes of per-Gaussian state the backbone stores (EvoGS's buffer and residual memory; 0
+    /// for D-3DGS).
     fn state_bytes(&self) -> usize {
         0
     }

@@ -5,12 +5,16 @@
 //!   t; the corrected d̃ is the deformation. The step, z, Φ's cache and the stop-gradient
 //!   opacities are kept for the backward.
 //! - Backward: evo-state's backward gives dL/dz (L_render + λ1 L_sup + λ2 L_prior) and dL/dΨ;
-//!   Φ's backward turns dL/dz into parameter gradients. The step is then committed (its frame's
-//!   buffer block, valid flag and residual memory): "commit after the step".
+//!   Φ's backward turns dL/dz into parameter gradients. With history re-queried from Φ ("without
+//!   buffer") the prior d̂ is a function of Φ at the history times: the training forward keeps
+//!   those queries' caches and the backward adds Φ's gradients through them (SPEC §4). The step
+//!   is then committed (its frame's buffer and memory blocks, valid flag, Ψ's input RMS): "commit
+//!   after the step".
 //! - Evaluation forward (`training = false`): the same read-only query at any time, nothing kept,
 //!   nothing written.
 //!
-//! Parameter buffers: Φ's (`phi.*`), then Ψ's (`psi`), each its own Adam group. The evolution
+//! Parameter buffers: Φ's (`phi.*`), then Ψ's (`psi`), each its own Adam group (Ψ at its own
+//! constant lr, [`EvoSettings::psi_lr`], or the network schedule for older runs). The evolution
 //! state is a per-Gaussian container for densification ([`Backbone::rows_mut`]) and is saved and
 //! loaded whole with evo-state's safetensors format ([`Backbone::save_state`]).
 //!
@@ -24,8 +28,8 @@ use densify::{Deformation, PerGaussian, residual_norms, thetas};
 use evo_state::{Backward, EvoConfig, EvoError, EvoState, Frames, Step};
 use splat_core::{GaussiansView, sigmoid};
 use tiny_nn::{
-    BSplineConfig, ObservationCache, ObservationConfig, ObservationNet, Parameters, PlaneCombine,
-    StoreMut, StoreRef, TriPlaneConfig,
+    BSplineConfig, LrSchedule, ObservationCache, ObservationConfig, ObservationNet, Parameters,
+    PlaneCombine, StoreMut, StoreRef, TriPlaneConfig,
 };
 
 use crate::backbone::{Backbone, DEFORM_DIM, DensifyCues};
@@ -83,6 +87,8 @@ struct Training {
     step: Step,
     z: Vec<f32>,
     cache: ObservationCache,
+    /// Φ's caches at the re-queried history times (history `requery` only).
+    history_caches: Vec<(f32, ObservationCache)>,
     opacity: Vec<f32>,
     committed: bool,
 }
@@ -182,39 +188,40 @@ impl EvoBackbone {
         Ok(())
     }
 
-    /// Φ's observation at every Gaussian for one time.
-    fn observe(
-        phi: &ObservationNet,
-        positions: &[f32],
+    /// evo-state's forward at `time` with observations `z`. With re-queried history, Φ is
+    /// queried at the history times; `keep` keeps those queries' caches (for a training step's
+    /// backward) in the returned list.
+    fn evolve(
+        &self,
         time: f32,
-        out: &mut [f32],
-    ) -> Result<(), tiny_nn::NnError> {
-        let n = positions.len() / 3;
-        let times = vec![time; n];
-        let (z, _) = phi.forward(positions, &times, n)?;
-        out.copy_from_slice(&z);
-        Ok(())
-    }
-
-    /// evo-state's forward at `time` with observations `z`.
-    fn evolve(&self, time: f32, z: &[f32], step: &mut Step) -> Result<(), TrainError> {
+        z: &[f32],
+        step: &mut Step,
+        keep: bool,
+    ) -> Result<Vec<(f32, ObservationCache)>, TrainError> {
+        let mut caches = Vec::new();
         let result = match self.settings.history {
             crate::evo_settings::HistorySetting::Buffer => {
                 self.evo.forward_into(time, z, None, step)
             }
             crate::evo_settings::HistorySetting::Requery => {
-                let phi = &self.phi;
-                let positions = &self.positions;
+                let (phi, positions) = (&self.phi, &self.positions);
+                let n = positions.len() / 3;
                 let mut source =
                     |t: f32,
                      out: &mut [f32]|
                      -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-                        Ok(Self::observe(phi, positions, t, out)?)
+                        let (zt, cache) = phi.forward(positions, &vec![t; n], n)?;
+                        out.copy_from_slice(&zt);
+                        if keep {
+                            caches.push((t, cache));
+                        }
+                        Ok(())
                     };
                 self.evo.forward_into(time, z, Some(&mut source), step)
             }
         };
-        result.map_err(evo_err)
+        result.map_err(evo_err)?;
+        Ok(caches)
     }
 
     fn widen(&self, corrected: &[f32]) -> Vec<f32> {
@@ -299,7 +306,7 @@ impl Backbone for EvoBackbone {
             .phi
             .forward_reusing(&self.positions, &self.times, n, &mut cache)?;
         let mut step = kept.map_or_else(Step::empty, |t| t.step);
-        self.evolve(time, &z, &mut step)?;
+        let history_caches = self.evolve(time, &z, &mut step, training)?;
         let out = self.widen(step.corrected());
         if training {
             let opacity = canonical
@@ -311,6 +318,7 @@ impl Backbone for EvoBackbone {
                 step,
                 z,
                 cache,
+                history_caches,
                 opacity,
                 committed: false,
             });
@@ -348,21 +356,37 @@ impl Backbone for EvoBackbone {
                 *o = src[col];
             }
         }
-        let mut bw = self.backward.take().unwrap_or(Backward {
-            dz: Vec::new(),
-            dpsi: None,
-            losses: evo_state::Losses::default(),
-        });
+        let mut bw = self.backward.take().unwrap_or_default();
         self.evo
             .backward_into(&t.step, &t.z, &dl_dd, &t.opacity, &mut bw)
             .map_err(evo_err)?;
         let g = self.phi.backward(&t.cache, &bw.dz, false)?;
-        let flat: Vec<f32> = g
+        let mut flat: Vec<f32> = g
             .triplane
             .into_iter()
             .chain(g.bspline)
             .chain(g.mlp)
             .collect();
+        // Re-queried history: d̂ = z(t_k1) + s (z(t_k1) - z(t_k2)) reaches Φ at those times.
+        for hg in &bw.history {
+            let (_, cache) = t
+                .history_caches
+                .iter()
+                .find(|(time, _)| *time == hg.time)
+                .ok_or_else(|| {
+                    TrainError::config(
+                        "backbone",
+                        format!("no cache of Φ at the history time {}", hg.time),
+                    )
+                })?;
+            let gh = self.phi.backward(cache, &hg.dz, false)?;
+            for (f, v) in flat
+                .iter_mut()
+                .zip(gh.triplane.into_iter().chain(gh.bspline).chain(gh.mlp))
+            {
+                *f += v;
+            }
+        }
         let mut grads = Vec::new();
         let mut at = 0;
         for (name, buf) in self.phi.named_params() {
@@ -413,6 +437,13 @@ impl Backbone for EvoBackbone {
         })
     }
 
+    fn own_schedule(&self, name: &str) -> Option<LrSchedule> {
+        (name == "psi")
+            .then_some(self.settings.psi_lr)
+            .flatten()
+            .map(LrSchedule::Constant)
+    }
+
     fn lr_scale(&self, name: &str) -> f32 {
         if name.starts_with("phi.triplane") || name.starts_with("phi.bspline") {
             self.settings.grid_lr_scale
@@ -441,7 +472,7 @@ impl Backbone for EvoBackbone {
     }
 
     fn state_bytes(&self) -> usize {
-        self.evo.buffer_bytes()
+        self.evo.state_bytes()
     }
 
     fn state_rows(&self) -> Option<usize> {

@@ -13,7 +13,8 @@
 //! 1e-3 of the scene extent per frame spacing instead of SPEC §4's 1e-6: see
 //! [`TRAINER_MOTION_FLOOR`] for the measurement and the reasoning. Φ's tri-plane and B-spline
 //! train at 10× the network lr ([`EvoSettings::grid_lr_scale`], `--grid-lr-scale`; see
-//! [`TRAINER_GRID_LR_SCALE`]).
+//! [`TRAINER_GRID_LR_SCALE`]). Ψ trains at its own constant lr ([`EvoSettings::psi_lr`],
+//! `--psi-lr`; see [`TRAINER_PSI_LR`]).
 //!
 //! The settings are recorded in `config.json` for every method; only `--method evogs` uses them
 //! (the baseline ignores them, except that it refuses opacity and colour components: D-3DGS's
@@ -326,6 +327,11 @@ pub struct EvoSettings {
     /// Absent in older `config.json` files: 1, which those runs were trained with.
     #[serde(default = "unit_scale")]
     pub grid_lr_scale: f32,
+    /// `--psi-lr`: Ψ's own constant learning rate (SPEC §4), default [`TRAINER_PSI_LR`].
+    /// Absent (`null`) in older `config.json` files: Ψ then trained at the deformation network's
+    /// decaying schedule, which those runs keep.
+    #[serde(default)]
+    pub psi_lr: Option<f32>,
     /// λ1, weight of L_sup (0.5).
     pub lambda_sup: f32,
     /// λ2, weight of L_prior (0.5).
@@ -342,6 +348,11 @@ pub struct EvoSettings {
 /// its training-view PSNR goes from 25.3 to 30.4 dB (training views only; see
 /// `results/evogs-vs-baseline/README.md`).
 pub const TRAINER_GRID_LR_SCALE: f32 = 10.0;
+
+/// Ψ's learning rate (constant, Adam), chosen on training views only: see the lab notes in
+/// `results/ablation-monocular/README.md` for the sweep (training-view PSNR and the spread of K
+/// for 1e-4, 1e-3, 1e-2).
+pub const TRAINER_PSI_LR: f32 = 1e-3;
 
 /// serde's default of [`EvoSettings::grid_lr_scale`].
 fn unit_scale() -> f32 {
@@ -398,6 +409,7 @@ impl Default for EvoSettings {
             hidden_layers: 2,
             motion_floor: TRAINER_MOTION_FLOOR,
             grid_lr_scale: TRAINER_GRID_LR_SCALE,
+            psi_lr: Some(TRAINER_PSI_LR),
             lambda_sup: 0.5,
             lambda_prior: 0.5,
         }
@@ -450,6 +462,14 @@ impl EvoSettings {
             return Err(TrainError::config(
                 "evogs.grid_lr_scale",
                 format!("{}: must be finite and positive", self.grid_lr_scale),
+            ));
+        }
+        if let Some(lr) = self.psi_lr
+            && !(lr.is_finite() && lr >= 0.0)
+        {
+            return Err(TrainError::config(
+                "evogs.psi_lr",
+                format!("{lr}: must be finite and non-negative"),
             ));
         }
         for (field, v) in [

@@ -139,12 +139,16 @@ impl SceneState {
         };
         let mut net_groups = Vec::new();
         for (name, buf) in backbone.params() {
-            net_groups.push(adam.add_group(
-                &format!("net.{name}"),
-                buf.len(),
-                1,
-                scaled_network_schedule(lr, backbone.lr_scale(&name)),
-            )?);
+            net_groups.push(
+                adam.add_group(
+                    &format!("net.{name}"),
+                    buf.len(),
+                    1,
+                    backbone
+                        .own_schedule(&name)
+                        .unwrap_or_else(|| scaled_network_schedule(lr, backbone.lr_scale(&name))),
+                )?,
+            );
         }
         Ok(Self {
             stats: DensifyStats::new(n),
@@ -399,6 +403,7 @@ mod tests {
         let mut c = TrainConfig::preset(Preset::Tiny);
         c.method = Method::Evogs;
         c.evogs.grid_lr_scale = 10.0;
+        c.evogs.psi_lr = Some(3e-3);
         let backbone = crate::evo_backbone::EvoBackbone::new(&c).unwrap();
         let g = crate::init::random_gaussians(4, 1.0, 0, 0);
         let s = SceneState::new(g, &backbone, &c.lr).unwrap();
@@ -407,6 +412,11 @@ mod tests {
         let mut seen = [0usize; 2];
         for (name, &id) in names.iter().zip(&s.net_groups) {
             let sched = &s.adam.group(id).schedule;
+            if name == "psi" {
+                // Ψ trains at its own constant lr, not the decaying network schedule.
+                assert_eq!(*sched, LrSchedule::Constant(3e-3));
+                continue;
+            }
             let grid = name.starts_with("phi.triplane") || name.starts_with("phi.bspline");
             let want = if grid { 10.0 } else { 1.0 };
             seen[usize::from(grid)] += 1;
@@ -416,6 +426,14 @@ mod tests {
             }
         }
         assert!(seen[0] > 0 && seen[1] > 0, "{names:?}");
+        // Runs recorded before `psi_lr` existed (None) train Ψ on the network schedule.
+        c.evogs.psi_lr = None;
+        let backbone = crate::evo_backbone::EvoBackbone::new(&c).unwrap();
+        let g = crate::init::random_gaussians(4, 1.0, 0, 0);
+        let s = SceneState::new(g, &backbone, &c.lr).unwrap();
+        let psi = *s.net_groups.last().unwrap();
+        assert_eq!(s.adam.group(psi).name, "net.psi");
+        assert_eq!(s.adam.group(psi).schedule, base);
     }
 
     #[test]

@@ -2,10 +2,15 @@
 //! `L = Σ w·d + λ1 L_sup + λ2 L_prior` at a frame with a full history (h = 3), the gradients the
 //! backbone returns for Φ's buffers (fixed gain: K is a constant) and for Ψ (learned gain: its
 //! inputs are constants) match central differences of `L` recomputed from the public pieces (Φ's
-//! forward, evo-state's read-only forward and SPEC §4's loss formulas, summed in f64).
+//! forward, evo-state's read-only forward and SPEC §4's loss formulas, summed in f64). With the
+//! history re-queried from Φ, d̂ is a function of Φ at the history times, so Φ's gradients include
+//! the paths through d̂ (the rendering loss and L_sup; L_prior's d̂ is held at its value: the
+//! stop-gradient).
 
 use evogs_train::backbone::{Backbone, DEFORM_DIM};
-use evogs_train::{Components, EvoBackbone, GainSetting, Method, Preset, TrainConfig};
+use evogs_train::{
+    Components, EvoBackbone, GainSetting, HistorySetting, Method, Preset, TrainConfig,
+};
 use splat_raster::Gaussians;
 
 const TIMES: [f32; 5] = [0.0, 0.25, 0.5, 0.75, 1.0];
@@ -35,8 +40,9 @@ fn gaussians(rng: &mut Lcg) -> Gaussians {
     g
 }
 
-fn backbone(gain: GainSetting, components: Components) -> EvoBackbone {
+fn backbone(gain: GainSetting, components: Components, history: HistorySetting) -> EvoBackbone {
     let mut c = TrainConfig::preset(Preset::Tiny);
+    c.evogs.history = history;
     c.method = Method::Evogs;
     c.net.width = 16;
     c.evogs.gain = gain;
@@ -55,13 +61,33 @@ fn sigmoid(x: f32) -> f64 {
     1.0 / (1.0 + (-x as f64).exp())
 }
 
-/// L recomputed from Φ, evo-state's read-only forward and SPEC §4's formulas.
-fn loss(b: &mut EvoBackbone, g: &Gaussians, w: &[f32], t: f32) -> f64 {
-    let d = b.forward(g.view(), t, false).unwrap();
+/// evo-state's read-only forward at `t` with Φ's observations (Φ also answers the re-queried
+/// history times), and those observations.
+fn evolve(b: &EvoBackbone, g: &Gaussians, t: f32) -> (evo_state::Step, Vec<f32>) {
     let pos: Vec<f32> = g.means.as_flattened().to_vec();
     let (z, _) = b.phi().forward(&pos, &[t; N], N).unwrap();
-    let step = b.evo().forward(t, &z).unwrap();
-    let (prior, corrected) = (step.prior().unwrap(), step.corrected());
+    let mut source =
+        |time: f32, out: &mut [f32]| -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+            out.copy_from_slice(&b.phi().forward(&pos, &[time; N], N)?.0);
+            Ok(())
+        };
+    (b.evo().forward_with(t, &z, &mut source).unwrap(), z)
+}
+
+/// L recomputed from Φ, evo-state's read-only forward and SPEC §4's formulas, with `sg_prior`
+/// (when given) as the d̂ inside L_prior: the stop-gradient, for a finite difference that moves
+/// Φ at the history times.
+fn loss_with_prior(
+    b: &mut EvoBackbone,
+    g: &Gaussians,
+    w: &[f32],
+    t: f32,
+    sg_prior: Option<&[f32]>,
+) -> f64 {
+    let d = b.forward(g.view(), t, false).unwrap();
+    let (step, z) = evolve(b, g, t);
+    let prior = sg_prior.unwrap_or_else(|| step.prior().unwrap());
+    let corrected = step.corrected();
     let dim = z.len() / N;
     let render: f64 = d.iter().zip(w).map(|(&a, &b)| a as f64 * b as f64).sum();
     let (mut sup, mut pri) = (0.0, 0.0);
@@ -79,10 +105,11 @@ fn loss(b: &mut EvoBackbone, g: &Gaussians, w: &[f32], t: f32) -> f64 {
 fn setup(
     gain: GainSetting,
     components: Components,
+    history: HistorySetting,
     seed: u64,
 ) -> (EvoBackbone, Gaussians, Vec<f32>) {
     let mut rng = Lcg(seed);
-    let mut b = backbone(gain, components);
+    let mut b = backbone(gain, components, history);
     let names: Vec<String> = b.params().into_iter().map(|(n, _)| n).collect();
     for (name, mut p) in b.params_mut() {
         if name.starts_with("phi.") {
@@ -102,9 +129,19 @@ fn setup(
 }
 
 fn check(gain: GainSetting, components: Components, buffers: &dyn Fn(&str) -> bool) {
+    check_history(gain, components, HistorySetting::Buffer, buffers);
+}
+
+fn check_history(
+    gain: GainSetting,
+    components: Components,
+    history: HistorySetting,
+    buffers: &dyn Fn(&str) -> bool,
+) {
     let t = TIMES[3];
-    let (mut b, g, w) = setup(gain, components, 11);
+    let (mut b, g, w) = setup(gain, components, history, 11);
     assert_eq!(b.evo().history(t).frames(), &[2, 1, 0]);
+    let sg_prior = evolve(&b, &g, t).0.prior().unwrap().to_vec();
     let eps = 1e-3f32;
     let mut numeric = Vec::new();
     let buffer_names: Vec<(usize, String, usize)> = b
@@ -125,7 +162,7 @@ fn check(gain: GainSetting, components: Components, buffers: &dyn Fn(&str) -> bo
             let orig = b.params()[*k].1.get(i);
             let at = |v: f32, b: &mut EvoBackbone| {
                 b.params_mut()[*k].1.write_at(i, &[v]);
-                loss(b, &g, &w, t)
+                loss_with_prior(b, &g, &w, t, Some(&sg_prior))
             };
             let plus = at(orig + eps, &mut b);
             let minus = at(orig - eps, &mut b);
@@ -159,6 +196,17 @@ fn psi_gradients_match_finite_differences_with_the_learned_gain() {
     check(GainSetting::Learned, Components::default(), &|n| n == "psi");
 }
 
+/// "Without buffer": Φ's gradients include the paths through the re-queried prior.
+#[test]
+fn phi_gradients_through_the_requeried_history_match_finite_differences() {
+    check_history(
+        GainSetting::Fixed(0.3),
+        Components::default(),
+        HistorySetting::Requery,
+        &|n| n.starts_with("phi."),
+    );
+}
+
 fn every_component() -> Components {
     "pos,rot,scale,opacity,colour".parse().unwrap()
 }
@@ -180,7 +228,7 @@ fn appearance_only_components_fill_their_columns_and_nothing_else() {
     // Opacity and colour alone: D = 4; the geometric columns stay zero, the appearance ones
     // carry Φ's output (Φ randomised by `setup`).
     let comps: Components = "opacity,colour".parse().unwrap();
-    let (mut b, g, _) = setup(GainSetting::Fixed(0.3), comps, 5);
+    let (mut b, g, _) = setup(GainSetting::Fixed(0.3), comps, HistorySetting::Buffer, 5);
     assert_eq!(b.evo().dim(), 4);
     let d = b.forward(g.view(), TIMES[3], false).unwrap();
     assert_eq!(d.len(), N * DEFORM_DIM);
@@ -194,6 +242,11 @@ fn appearance_only_components_fill_their_columns_and_nothing_else() {
     let a = b.appearance();
     assert!(a.opacity && a.colour);
     // Geometry only: no appearance column is used.
-    let (b, _, _) = setup(GainSetting::Fixed(0.3), Components::default(), 5);
+    let (b, _, _) = setup(
+        GainSetting::Fixed(0.3),
+        Components::default(),
+        HistorySetting::Buffer,
+        5,
+    );
     assert_eq!(b.appearance(), Default::default());
 }

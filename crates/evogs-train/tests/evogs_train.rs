@@ -52,10 +52,11 @@ fn evogs_training_lowers_the_loss_and_keeps_the_state_aligned() {
     assert!(g.means.as_flattened().iter().all(|v| v.is_finite()));
     assert!(g.log_scales.as_flattened().iter().all(|v| v.is_finite()));
     assert!(g.opacity_logits.iter().all(|v| v.is_finite()));
-    // Frames were committed into the buffer: 16 frames × N rows × D = 10 × f32.
+    // Frames were committed into the buffer and the memory beside it: 2 × 16 frames × N rows ×
+    // D = 10 × f32.
     assert_eq!(
         trainer.backbone.state_bytes(),
-        16 * trainer.state.len() * 10 * 4
+        2 * 16 * trainer.state.len() * 10 * 4
     );
     for (_, p) in trainer.backbone.params() {
         assert!(p.to_vec_f32().iter().all(|v| v.is_finite()));
@@ -189,14 +190,19 @@ fn every_switch_combination_trains_finitely_and_stays_aligned() {
             );
         }
         let dim = c.evogs.components.layout().dim();
-        let bytes_per = match (c.evogs.history, c.evogs.buffer) {
-            (HistorySetting::Requery, _) => 0,
-            (_, Bits::F32) => 4,
-            (_, Bits::F16) => 2,
+        // The per-frame memory always; the buffer beside it, in the same storage, unless the
+        // history is re-queried.
+        let bytes_per = match c.evogs.buffer {
+            Bits::F32 => 4,
+            Bits::F16 => 2,
+        };
+        let blocks = match c.evogs.history {
+            HistorySetting::Requery => 1,
+            HistorySetting::Buffer => 2,
         };
         assert_eq!(
             trainer.backbone.state_bytes(),
-            16 * trainer.state.len() * dim * bytes_per,
+            blocks * 16 * trainer.state.len() * dim * bytes_per,
             "{name}"
         );
         let g = trainer.deformed_at(0.45).unwrap();
