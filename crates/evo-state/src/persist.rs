@@ -38,12 +38,12 @@ fn memory_name(k: usize) -> String {
     format!("memory.{k:05}")
 }
 
-fn blocks_views<'a>(
-    buffer: &'a StateBuffer,
+fn blocks_views(
+    buffer: &StateBuffer,
     name: fn(usize) -> String,
     rows: usize,
     dim: usize,
-) -> Vec<(String, Dtype, Vec<usize>, &'a [u8])> {
+) -> Vec<(String, Dtype, Vec<usize>, &[u8])> {
     buffer
         .blocks
         .iter()
