@@ -1,5 +1,5 @@
 //! Per-frame blocks of N × D values in f32 or f16: the buffer of corrected states `B[k][i] ∈ R^D`
-//! and, beside it, the residual memory `M[k][i]` (SPEC §4), each one contiguous block per frame.
+//! and, beside it, the residual memory `M[k][i]` (DESIGN §4.2, §4.8), each one contiguous block per frame.
 //! Exactly `Storage::bytes() · D` bytes per Gaussian per frame.
 
 use half::f16;

@@ -1,5 +1,5 @@
 //! Configuration: which deformation components exist, how the buffer is stored, and the
-//! ablation switches of SPEC §4.
+//! ablation switches of DESIGN §4.12.
 
 use thiserror::Error;
 
@@ -50,11 +50,11 @@ pub enum HistoryMode {
 pub struct EvoConfig {
     pub layout: Layout,
     pub storage: Storage,
-    /// Residual memory momentum β (SPEC: 0.9).
+    /// Residual memory momentum β (DESIGN §4.8: 0.9).
     pub beta: f32,
-    /// History frames must lie within this many frames of the one after them (SPEC: 3).
+    /// History frames must lie within this many frames of the one after them (DESIGN §4.3: 3).
     pub max_gap: usize,
-    /// Motion floor, relative to the scene extent (SPEC: 1e-6): below it θ = 0.
+    /// Motion floor, relative to the scene extent (DESIGN §4.7: 1e-6 here, the trainer uses 1e-3): below it θ = 0.
     pub motion_floor: f32,
     /// Scene extent (scene units); Ψ's inputs in scene units are divided by it.
     pub extent: f32,
@@ -62,9 +62,9 @@ pub struct EvoConfig {
     pub evolution: bool,
     pub gain: Gain,
     pub history: HistoryMode,
-    /// λ1, weight of L_sup (SPEC: 0.5).
+    /// λ1, weight of L_sup (DESIGN §4.11: 0.5).
     pub lambda_sup: f32,
-    /// λ2, weight of L_prior (SPEC: 0.5).
+    /// λ2, weight of L_prior (DESIGN §4.11: 0.5).
     pub lambda_prior: f32,
 }
 

@@ -1,4 +1,4 @@
-//! `evo-state`: the EvoGS deformation evolution state machine (SPEC §4), usable with any renderer.
+//! `evo-state`: the EvoGS deformation evolution state machine (DESIGN §4 in the repository's `docs/DESIGN.md`), usable with any renderer.
 //!
 //! What it is: per-Gaussian persistent deformation states over the training frames — the buffer
 //! of corrected states `B[k][i] ∈ R^D` and beside it the per-frame residual memory `M[k][i]`
@@ -57,7 +57,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
-//! # Choices where SPEC §4 is silent
+//! # Choices beyond the paper (DESIGN §4)
 //!
 //! - **History window.** A query at time t sits at frame position p = #{k : t_k < t}; k1 is the
 //!   latest valid frame with p - k1 <= max_gap, k2 the latest valid with k1 - k2 <= max_gap, and so

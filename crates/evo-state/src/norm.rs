@@ -1,5 +1,5 @@
-//! The running root-mean-square of Ψ's inputs (SPEC §4: "divide each input feature by its
-//! running root-mean-square over training steps").
+//! The running root-mean-square of Ψ's inputs (DESIGN §4.9: each input feature is divided
+//! by its running root-mean-square over training steps).
 //!
 //! Ψ reads `[m (D), |v2|, |v1|, θ]`. The first D + 2 features (the residual memory and the two
 //! speeds, in the deformation's own units) are divided by their running RMS; θ is an angle in
@@ -21,7 +21,7 @@ pub const RMS_FLOOR: f64 = 1e-12;
 /// The RMS floor of each of the D + 2 normalised features: an RMS below it is treated as the
 /// floor, so that a feature that is zero up to rounding (a still scene's memory, times not
 /// exact in binary) stays near zero instead of being blown up to order one. The floor is the
-/// motion floor (SPEC §4: below it motion is optimisation noise): `motion_floor · extent` for
+/// motion floor (DESIGN §4.7: below it motion is optimisation noise): `motion_floor · extent` for
 /// features in scene units (the position memory and the two speeds), `motion_floor` for the
 /// other memory components (offsets of raw rotation, log-scale, opacity logit, SH DC), and at
 /// least [`RMS_FLOOR`].

@@ -1,4 +1,4 @@
-//! [`EvoState`]: the per-Gaussian evolution state of SPEC §4, its forward pass, commit and row
+//! [`EvoState`]: the per-Gaussian evolution state of DESIGN §4, its forward pass, commit and row
 //! maintenance (the backward pass is in [`crate::backward`], the per-row arithmetic in the
 //! private `kernel` module).
 
@@ -123,7 +123,7 @@ impl EvoState {
         self.memory.as_ref()
     }
 
-    /// The running RMS of Ψ's inputs (SPEC §4; see [`crate::norm`]).
+    /// The running RMS of Ψ's inputs (DESIGN §4.9; see [`crate::norm`]).
     pub fn input_norm(&self) -> &InputNorm {
         &self.psi_norm
     }

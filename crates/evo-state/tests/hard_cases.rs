@@ -48,7 +48,7 @@ fn zero_motion_has_zero_angle() {
         theta_after([[0.0; 3], [5e-5, 0.0, 0.0], [0.0; 3]], big),
         0.0
     );
-    // ... and above it the reversal is seen (SPEC's ε matters at this scale).
+    // ... and above it the reversal is seen (DESIGN §4.7's ε matters at this scale).
     let theta = theta_after([[0.0; 3], [5e-3, 0.0, 0.0], [0.0; 3]], big);
     let v = 5e-3f32 as f64;
     let expected = (-(v * v) / (v * v + 1e-6)).acos() as f32;
@@ -67,7 +67,7 @@ fn reversal_gives_pi() {
 
 #[test]
 fn colinear_vectors_whose_cosine_rounds_above_one() {
-    // Positions 0, v, 4v (exact in f32): v2 = v, v1 = 3v exactly. Search for v where SPEC's
+    // Positions 0, v, 4v (exact in f32): v2 = v, v1 = 3v exactly. Search for v where DESIGN §4.7's
     // cosine <v2, v1> / (|v2||v1| + 1e-6), computed as the implementation does (f64), rounds
     // above 1; the clamp must then give θ = 0 rather than NaN.
     let mut found = 0;

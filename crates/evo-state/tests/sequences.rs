@@ -92,7 +92,7 @@ fn warm_up_stages_by_hand() {
         }
         out += &trace(&st, &step, &z(k));
     }
-    // Statistics at frame 3: v1 = 3 - 1 = 2, v2 = 1 - 0 = 1, same direction; SPEC's ε gives
+    // Statistics at frame 3: v1 = 3 - 1 = 2, v2 = 1 - 0 = 1, same direction; DESIGN §4.7's ε gives
     // θ = arccos(2 / (2 + 1e-6)) ≈ 1e-3, not exactly 0.
     let step = st.forward(st.frames().times()[3], &z(3)).unwrap();
     let s = step.stats().unwrap()[0];
@@ -245,7 +245,7 @@ fn queries_between_and_beyond_frames() {
     insta::assert_snapshot!(out);
 }
 
-/// Ψ's inputs divided by their running RMS (SPEC §4), by hand. K is fixed (0.25) so every value
+/// Ψ's inputs divided by their running RMS (DESIGN §4.9), by hand. K is fixed (0.25) so every value
 /// is computable; the inputs and the running RMS do not depend on the gain mode. Two Gaussians,
 /// position only: row 0 follows z = [k², 0, 0] (as `warm_up_stages_by_hand`), row 1 moves at a
 /// constant velocity z = [0, 2k, 0] (prior exact, m = 0).

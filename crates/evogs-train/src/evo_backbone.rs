@@ -1,4 +1,4 @@
-//! The EvoGS backbone (SPEC §4–5): the observation network Φ (tri-plane + cubic B-spline + MLP at
+//! The EvoGS backbone (DESIGN §4–5): the observation network Φ (tri-plane + cubic B-spline + MLP at
 //! half the baseline's width) wrapped by evo-state's [`EvoState`] with its gain network Ψ.
 //!
 //! - Training forward (`training = true`): z = Φ(canonical means, t), then evo-state's forward at
@@ -7,7 +7,7 @@
 //! - Backward: evo-state's backward gives dL/dz (L_render + λ1 L_sup + λ2 L_prior) and dL/dΨ;
 //!   Φ's backward turns dL/dz into parameter gradients. With history re-queried from Φ ("without
 //!   buffer") the prior d̂ is a function of Φ at the history times: the training forward keeps
-//!   those queries' caches and the backward adds Φ's gradients through them (SPEC §4). The step
+//!   those queries' caches and the backward adds Φ's gradients through them (DESIGN §4.11). The step
 //!   is then committed (its frame's buffer and memory blocks, valid flag, Ψ's input RMS): "commit
 //!   after the step".
 //! - Evaluation forward (`training = false`): the same read-only query at any time, nothing kept,

@@ -1,4 +1,4 @@
-//! EvoGS's settings in a run's config (SPEC §4–6): the ablation switches and the shape of the
+//! EvoGS's settings in a run's config (DESIGN §4–6): the ablation switches and the shape of the
 //! observation network Φ. Every switch has a command-line spelling (its `FromStr`/`Display`):
 //!
 //! | setting | spellings | meaning |
@@ -10,7 +10,7 @@
 //! | [`Components`] | `pos,rot,scale[,opacity,colour]` | the deformation components |
 //!
 //! The motion floor ([`EvoSettings::motion_floor`], `--motion-floor`) is the trainer's own,
-//! 1e-3 of the scene extent per frame spacing instead of SPEC §4's 1e-6: see
+//! 1e-3 of the scene extent per frame spacing instead of evo-state's default 1e-6 (DESIGN §4.7): see
 //! [`TRAINER_MOTION_FLOOR`] for the measurement and the reasoning. Φ's tri-plane and B-spline
 //! train at 10× the network lr ([`EvoSettings::grid_lr_scale`], `--grid-lr-scale`; see
 //! [`TRAINER_GRID_LR_SCALE`]). Ψ trains at its own constant lr ([`EvoSettings::psi_lr`],
@@ -19,7 +19,7 @@
 //! The settings are recorded in `config.json` for every method; only `--method evogs` uses them
 //! (the baseline ignores them, except that it refuses opacity and colour components: D-3DGS's
 //! network has heads for position, rotation and scale only). EvoGS trains every component:
-//! opacity adds to the opacity logit, colour to the SH DC coefficients (SPEC §4).
+//! opacity adds to the opacity logit, colour to the SH DC coefficients (DESIGN §4.1).
 
 use std::fmt;
 use std::str::FromStr;
@@ -136,7 +136,7 @@ impl HistorySetting {
     }
 }
 
-/// Densification policy (SPEC §6).
+/// Densification policy (DESIGN §6).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum DensifyPolicy {
     /// 3DGS adaptive density control.
@@ -319,7 +319,7 @@ pub struct EvoSettings {
     pub hidden_layers: usize,
     /// `--motion-floor`: below this speed per frame spacing, relative to the scene extent, a
     /// Gaussian counts as still and its θ is 0 (see [`TRAINER_MOTION_FLOOR`]). Absent in older
-    /// `config.json` files: SPEC's 1e-6, which those runs were trained with.
+    /// `config.json` files: evo-state's 1e-6, which those runs were trained with.
     #[serde(default = "spec_motion_floor")]
     pub motion_floor: f32,
     /// `--grid-lr-scale`: factor on the network lr for Φ's tri-plane features and B-spline
@@ -327,7 +327,7 @@ pub struct EvoSettings {
     /// Absent in older `config.json` files: 1, which those runs were trained with.
     #[serde(default = "unit_scale")]
     pub grid_lr_scale: f32,
-    /// `--psi-lr`: Ψ's own constant learning rate (SPEC §4), default [`TRAINER_PSI_LR`].
+    /// `--psi-lr`: Ψ's own constant learning rate (DESIGN §4.9), default [`TRAINER_PSI_LR`].
     /// Absent (`null`) in older `config.json` files: Ψ then trained at the deformation network's
     /// decaying schedule, which those runs keep.
     #[serde(default)]
@@ -349,9 +349,8 @@ pub struct EvoSettings {
 /// `results/evogs-vs-baseline/README.md`).
 pub const TRAINER_GRID_LR_SCALE: f32 = 10.0;
 
-/// Ψ's learning rate (constant, Adam), chosen on training views only: see the lab notes in
-/// `results/ablation-monocular/README.md` for the sweep (training-view PSNR and the spread of K
-/// for 1e-4, 1e-3, 1e-2).
+/// Ψ's learning rate (constant, Adam; DESIGN §4.9). Provisional: 1e-3 is Adam's usual rate for a
+/// small MLP, not yet chosen by a sweep on training views.
 pub const TRAINER_PSI_LR: f32 = 1e-3;
 
 /// serde's default of [`EvoSettings::grid_lr_scale`].
@@ -359,18 +358,18 @@ fn unit_scale() -> f32 {
     1.0
 }
 
-/// serde's default of [`EvoSettings::motion_floor`]: SPEC §4's (evo-state's) default.
+/// serde's default of [`EvoSettings::motion_floor`]: evo-state's default (DESIGN §4.7).
 fn spec_motion_floor() -> f32 {
     evo_state::EvoConfig::default().motion_floor
 }
 
 /// The trainer's motion floor: 1e-3 of the scene extent per frame spacing, a deliberate
-/// deviation from SPEC §4's 1e-6 (evo-state keeps SPEC's default; the trainer sets its own).
+/// deviation from the paper's 1e-6 (DESIGN §4.7; evo-state keeps 1e-6, the trainer sets its own).
 ///
 /// Why: θ is the angle between two consecutive velocities of a Gaussian's evolved position. For
 /// a Gaussian that does not move, those velocities are optimisation noise (Φ's output changing
 /// between the iterations that wrote the buffer's frames), and the angle between two noise
-/// vectors averages π/2 or more, so with SPEC's floor the trigger (τ_θ = π/3) blocked almost
+/// vectors averages π/2 or more, so with a floor of 1e-6 the trigger (τ_θ = π/3) blocked almost
 /// every densification. Measured with `evogs train --motion-report` on the training views of
 /// `evogs synth --preset jump --size 64 --frames 24` (preset tiny): during the densification
 /// window every decade of speed below 1e-3·extent per frame spacing had a mean θ of 1.5–1.9 rad

@@ -19,8 +19,8 @@
 //! `arguments/__init__.py`, `scene/deform_model.py`, `utils/time_utils.py`) and 3DGS's
 //! `scene/gaussian_model.py`; each module says what it follows.
 //!
-//! Deliberate deviation from SPEC §4: EvoGS's motion floor is 1e-3 of the scene extent per frame
-//! spacing, not 1e-6 (evo-state keeps SPEC's default; the trainer sets its own, `--motion-floor`).
+//! Deliberate deviation from the paper (DESIGN §4.7): EvoGS's motion floor is 1e-3 of the scene extent per frame
+//! spacing, not 1e-6 (evo-state keeps 1e-6; the trainer sets its own, `--motion-floor`).
 //! Below it θ is measurement noise that would block the uncertainty trigger everywhere; see
 //! [`evo_settings::TRAINER_MOTION_FLOOR`] for the measurement and the reasoning.
 //!

@@ -2,7 +2,7 @@
 //! `L = Σ w·d + λ1 L_sup + λ2 L_prior` at a frame with a full history (h = 3), the gradients the
 //! backbone returns for Φ's buffers (fixed gain: K is a constant) and for Ψ (learned gain: its
 //! inputs are constants) match central differences of `L` recomputed from the public pieces (Φ's
-//! forward, evo-state's read-only forward and SPEC §4's loss formulas, summed in f64). With the
+//! forward, evo-state's read-only forward and DESIGN §4.11's loss formulas, summed in f64). With the
 //! history re-queried from Φ, d̂ is a function of Φ at the history times, so Φ's gradients include
 //! the paths through d̂ (the rendering loss and L_sup; L_prior's d̂ is held at its value: the
 //! stop-gradient).
@@ -74,7 +74,7 @@ fn evolve(b: &EvoBackbone, g: &Gaussians, t: f32) -> (evo_state::Step, Vec<f32>)
     (b.evo().forward_with(t, &z, &mut source).unwrap(), z)
 }
 
-/// L recomputed from Φ, evo-state's read-only forward and SPEC §4's formulas, with `sg_prior`
+/// L recomputed from Φ, evo-state's read-only forward and DESIGN §4.11's formulas, with `sg_prior`
 /// (when given) as the d̂ inside L_prior: the stop-gradient, for a finite difference that moves
 /// Φ at the history times.
 fn loss_with_prior(
