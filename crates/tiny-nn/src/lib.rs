@@ -2,8 +2,9 @@
 //!
 //! What it is: batched forward and backward passes over N rows (row-major `N × width` f32 slices
 //! at the API) for multi-layer perceptrons ([`Mlp`]), input encoders with gradients (sinusoidal,
-//! tri-plane, uniform cubic B-spline over time), the Adam optimiser with the 3DGS learning-rate
-//! schedule and per-row moment edits ([`Adam`]), and bit-exact safetensors weights files. Matrix
+//! tri-plane / HexPlane, uniform cubic B-spline over time, multi-resolution hash grid), the Adam
+//! optimiser with the 3DGS learning-rate schedule and per-row moment edits ([`Adam`]), and
+//! bit-exact safetensors weights files. Matrix
 //! products go through the `gemm` crate in f32; rows are split into blocks processed in parallel
 //! with rayon. Each network stores its parameters and cached activations in f32 or f16
 //! ([`Precision`]), one switch per network, always accumulating in f32; f16 storage saturates at
@@ -20,7 +21,10 @@
 //!   `forward_with` / `backward_with` let an encoder fill input blocks and consume input-gradient
 //!   blocks without materialising them; `forward_reusing` keeps a cache's memory across steps.
 //! - [`encoding`]: [`Sinusoidal`] (D-3DGS ordering), [`TriPlane`] (concat or product, gradients to
-//!   planes and positions), [`BSplineTime`] (uniform cubic, exact at t = 0 and t = 1).
+//!   planes and positions; with a [`TimeAxis`] the six-plane HexPlane of 4DGaussians and its
+//!   regularisers), [`BSplineTime`] (uniform cubic, exact at t = 0 and t = 1), [`HashGrid`]
+//!   (multi-resolution hash grid of Instant-NGP / Grid4D, f32 or f16 tables, deterministic
+//!   gradient scatter).
 //! - [`nets`]: [`ObservationNet`] (EvoGS Φ: tri-plane + B-spline → MLP, output starts at 0) and
 //!   [`DeformNet`] (D-3DGS: sinusoidal xyz and t → depth-8 MLP with skip → 10 outputs).
 //! - [`adam`]: [`Adam`] with groups, [`LrSchedule`] (constant or 3DGS exponential), per-row moment
@@ -92,9 +96,13 @@ pub mod weights;
 pub use activation::Activation;
 pub use adam::{Adam, AdamGroup, ExponentialLr, GroupId, LrSchedule};
 pub use encoding::bspline::{BSplineCache, BSplineConfig, BSplineGrads, BSplineTime};
+pub use encoding::hashgrid::{
+    HashGrid, HashGridCache, HashGridConfig, HashGridGrads, HashLevel, Interpolation, Outside,
+};
 pub use encoding::sinusoidal::Sinusoidal;
 pub use encoding::triplane::{
-    PlaneCombine, TriPlane, TriPlaneCache, TriPlaneConfig, TriPlaneGrads,
+    PlaneCombine, PlaneRegulariser, TimeAxis, TriPlane, TriPlaneCache, TriPlaneConfig,
+    TriPlaneGrads,
 };
 pub use error::NnError;
 pub use mlp::{LayerShape, Mlp, MlpCache, MlpConfig, MlpGrads};

@@ -74,8 +74,15 @@ pub struct ObservationGrads {
 }
 
 impl ObservationNet {
-    /// Builds Φ.
+    /// Builds Φ. Its tri-plane is spatial (time goes through the B-spline): a tri-plane with a
+    /// time axis is an error.
     pub fn new(config: ObservationConfig) -> Result<Self, NnError> {
+        if config.triplane.time.is_some() {
+            return Err(NnError::Config(
+                "observation network: the tri-plane has a time axis (time goes through the B-spline)"
+                    .into(),
+            ));
+        }
         let triplane = config
             .triplane
             .clone()
@@ -314,18 +321,18 @@ impl Kernel for BackwardRows<'_> {
             .zip(self.times)
             .zip(self.d_positions.chunks_exact_mut(3))
         {
-            let gp = self.net.triplane.backward_row(
+            self.net.triplane.backward_row(
                 self.planes,
                 p,
                 &g[..wx],
                 self.d_planes,
                 self.feat,
                 self.dfeat,
+                dp,
             );
             self.net
                 .bspline
                 .backward_row(self.ctrl, t, &g[wx..], self.d_controls);
-            dp.copy_from_slice(&gp);
         }
     }
 }

@@ -1,6 +1,8 @@
-//! Input encoders: fixed sinusoidal features, and learnable tri-plane and B-spline features.
+//! Input encoders: fixed sinusoidal features, and learnable tri-plane, B-spline and hash-grid
+//! features.
 
 pub mod bspline;
+pub mod hashgrid;
 pub mod sinusoidal;
 pub mod triplane;
 
