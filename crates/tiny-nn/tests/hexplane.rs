@@ -2,6 +2,9 @@
 //! documented layout, f64 finite differences, 4DGaussians' sizes and initialisation, clamping of
 //! times, and the three regularisers.
 
+// The f64 references index planes and channels by position, as the formulas are written.
+#![allow(clippy::needless_range_loop)]
+
 mod common;
 
 use common::{check_fd, dot, vals};

@@ -217,15 +217,15 @@ impl HashLevel {
         if self.dense {
             let mut idx = 0usize;
             let mut stride = 1usize;
-            for d in 0..dims {
-                idx += v[d] as usize * stride;
-                stride *= self.resolution[d] as usize;
+            for (&vd, &rd) in v[..dims].iter().zip(&self.resolution) {
+                idx += vd as usize * stride;
+                stride *= rd as usize;
             }
             idx
         } else {
             let mut h = 0u32;
-            for d in 0..dims {
-                h ^= v[d].wrapping_mul(PRIMES[d]);
+            for (&vd, &pd) in v[..dims].iter().zip(&PRIMES) {
+                h ^= vd.wrapping_mul(pd);
             }
             h as usize & (self.entries - 1)
         }
@@ -311,7 +311,7 @@ impl HashGrid {
             }
         }
         let mut inv_extent = [0f32; MAX_DIMS];
-        for a in 0..d {
+        for (a, inv) in inv_extent.iter_mut().enumerate().take(d) {
             let (n0, n1) = (config.base_resolution[a], config.finest_resolution[a]);
             if !(n0.is_finite() && n1.is_finite() && n0 >= 2.0 && n1 >= n0) {
                 return bad(format!(
@@ -324,7 +324,7 @@ impl HashGrid {
                     "box axis {a}: [{lo}, {hi}] is not a finite non-empty interval"
                 ));
             }
-            inv_extent[a] = 1.0 / (hi - lo);
+            *inv = 1.0 / (hi - lo);
         }
         let table = 1usize << config.log2_table;
         let mut levels = Vec::with_capacity(config.levels);
@@ -483,8 +483,8 @@ impl HashGrid {
             cell.entry[k] = if level.dense { idx } else { idx & mask };
             cell.w[k] = w;
             if grad {
-                for g in 0..D {
-                    let mut dw = if bit(g) { dw1[g] } else { -dw1[g] };
+                for (g, &dwg) in dw1.iter().enumerate().take(D) {
+                    let mut dw = if bit(g) { dwg } else { -dwg };
                     for a in 0..D {
                         if a != g {
                             dw *= if bit(a) { w1[a] } else { w0[a] };
