@@ -7,9 +7,9 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
+use evogs_metrics::lpips::Backbone;
 use evogs_train::ablate::{AblationRequest, AblationResult, Progress, run_ablation, select};
 use evogs_train::eval::EvalLpips;
-use evogs_train::metrics::lpips::Backbone;
 use evogs_train::{Preset, TrainConfig};
 use indicatif::{ProgressBar, ProgressStyle};
 

@@ -3,9 +3,9 @@
 
 use anyhow::{Result, anyhow};
 use evogs_io::Split;
+use evogs_metrics::lpips::Backbone;
 use evogs_train::LoadedRun;
 use evogs_train::eval::{EvalLpips, EvalReport, evaluate};
-use evogs_train::metrics::lpips::Backbone;
 
 use crate::args::EvalArgs;
 

@@ -22,10 +22,10 @@ pub enum TrainError {
     Densify(#[from] densify::DensifyError),
     /// A metric could not be computed.
     #[error("metrics: {0}")]
-    Metrics(#[from] crate::metrics::MetricsError),
+    Metrics(#[from] evogs_metrics::MetricsError),
     /// LPIPS weights are malformed, or an image is too small for its network.
     #[error(transparent)]
-    Lpips(#[from] crate::metrics::lpips::LpipsError),
+    Lpips(#[from] evogs_metrics::lpips::LpipsError),
     /// A file of a run (config, checkpoint, weights) or a dataset is unusable.
     #[error("{}: {problem}", path.display())]
     File {

@@ -17,9 +17,9 @@ use splat_raster::RenderOptions;
 
 use crate::data::load_split;
 use crate::error::TrainError;
-use crate::metrics::lpips::{Backbone, Lpips, LpipsError};
-use crate::metrics::{ImageSize, flicker, psnr, ssim, trajectory_jitter};
 use crate::run::{LoadedRun, write_json, write_text};
+use evogs_metrics::lpips::{Backbone, Lpips, LpipsError};
+use evogs_metrics::{ImageSize, flicker, psnr, ssim, trajectory_jitter};
 
 /// One evaluated image.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -62,7 +62,7 @@ pub struct EvalLpips {
 
 impl EvalLpips {
     /// Loads `backbones` from the weights directory found for `dir` (the search order of
-    /// [`crate::metrics::lpips::weights`]). A backbone without a weights file is noted in
+    /// [`evogs_metrics::lpips::weights`]). A backbone without a weights file is noted in
     /// [`EvalLpips::missing`] and skipped; a malformed file is an error.
     pub fn find(backbones: &[Backbone], dir: Option<&Path>) -> Result<Self, TrainError> {
         let mut out = Self::default();

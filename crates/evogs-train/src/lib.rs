@@ -1,8 +1,8 @@
 //! `evogs-train`: the training pipeline for dynamic Gaussian scenes.
 //!
 //! What it is: the composition of the workspace's crates into a trainer (scene state kept aligned
-//! through densify's row plans, deformation backbones, losses, schedules, checkpoints), synthetic
-//! scene generation, and the image and temporal metrics shared by training and evaluation.
+//! through densify's row plans, deformation backbones, losses, schedules, checkpoints) and synthetic
+//! scene generation.
 //!
 //! - [`ablate`], [`ablate_plot`]: the paper's ablation ladder, its runner, table and plot;
 //! - [`config`]: the D-3DGS recipe and the presets (`paper`, `cpu`, `tiny`);
@@ -12,8 +12,7 @@
 //! - [`trainer`]: the training loop; [`run`]: run directories, `train` and resume;
 //! - [`checkpoint`]: exact checkpoints; [`eval`], [`render`]: evaluation, rendering, export;
 //! - [`motion_report`]: a diagnostic of EvoGS's motion statistics (speeds and θ by decade);
-//! - [`metrics`]: PSNR, SSIM, the loss with its gradient, flicker, jitter; [`synth`]: synthetic
-//!   scenes in the D-NeRF layout.
+//! - [`synth`]: synthetic scenes in the D-NeRF layout.
 //!
 //! The recipe follows Deformable-3D-Gaussians (`ingra14m/Deformable-3D-Gaussians`: `train.py`,
 //! `arguments/__init__.py`, `scene/deform_model.py`, `utils/time_utils.py`) and 3DGS's
@@ -24,8 +23,8 @@
 //! Below it θ is measurement noise that would block the uncertainty trigger everywhere; see
 //! [`evo_settings::TRAINER_MOTION_FLOOR`] for the measurement and the reasoning.
 //!
-//! What it is not: a rasterizer, a network library, a file-format reader or a command line. Those
-//! are `splat-raster`, `tiny-nn`, `evogs-io` and `evogs-cli`.
+//! What it is not: a rasterizer, a network library, a file-format reader, a metrics library or a
+//! command line. Those are `splat-raster`, `tiny-nn`, `evogs-io`, `evogs-metrics` and `evogs-cli`.
 
 pub mod ablate;
 pub mod ablate_plot;
@@ -39,7 +38,6 @@ pub mod eval;
 pub mod evo_backbone;
 pub mod evo_settings;
 pub mod init;
-pub mod metrics;
 pub mod motion_report;
 pub mod render;
 pub mod run;

@@ -36,10 +36,10 @@ use crate::deformed::{DeformedGeometry, deformation_gradient};
 use crate::error::TrainError;
 use crate::evo_settings::DensifyPolicy;
 use crate::init::random_gaussians;
-use crate::metrics::{ImageSize, photometric_loss, psnr};
 use crate::motion_report::{MotionReport, pixels_per_unit};
 use crate::state::SceneState;
 use crate::timers::{Phase, PhaseTimes};
+use evogs_metrics::{ImageSize, photometric_loss, psnr};
 
 /// What one iteration did.
 #[derive(Clone, Copy, Debug, PartialEq)]

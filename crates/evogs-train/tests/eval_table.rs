@@ -5,8 +5,8 @@
 mod common;
 
 use evogs_io::Split;
+use evogs_metrics::lpips::Backbone;
 use evogs_train::eval::{EvalLpips, EvalReport, evaluate, markdown};
-use evogs_train::metrics::lpips::Backbone;
 use evogs_train::{LoadedRun, Preset, TrainConfig, TrainRequest, train};
 
 /// Every run of digits becomes one `#`.
@@ -74,7 +74,7 @@ fn eval_table_of_a_tiny_run() {
     without.mean_lpips_alex = None;
     without.images.iter_mut().for_each(|i| i.lpips_alex = None);
     without.lpips_missing = vec![
-        evogs_train::metrics::lpips::LpipsError::Missing {
+        evogs_metrics::lpips::LpipsError::Missing {
             backbone: Backbone::Alex,
             path: "/nowhere/lpips_alex.safetensors".into(),
         }

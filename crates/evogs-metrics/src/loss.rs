@@ -2,8 +2,8 @@
 
 use rayon::prelude::*;
 
-use super::ssim::ssim_sum_and_grad;
-use super::{ImageSize, MetricsError, Real, check_image};
+use crate::ssim::ssim_sum_and_grad;
+use crate::{ImageSize, MetricsError, Real, check_image};
 
 /// Weight of the L1 term.
 pub const L1_WEIGHT: f64 = 0.8;

@@ -7,8 +7,8 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use evogs_train::metrics::ImageSize;
-use evogs_train::metrics::lpips::{Backbone, Lpips, LpipsError};
+use evogs_metrics::ImageSize;
+use evogs_metrics::lpips::{Backbone, Lpips, LpipsError};
 use serde_json::Value;
 
 const TOLERANCE: f64 = 1e-4;
@@ -187,8 +187,8 @@ fn missing_and_malformed_weights_say_what_to_do() {
     );
     assert!(!msg.contains('\n'));
     // A VGG file read as AlexNet: named by file and tensor.
-    let vgg = evogs_train::metrics::lpips::weights_file(
-        &evogs_train::metrics::lpips::weights_dir(None).unwrap(),
+    let vgg = evogs_metrics::lpips::weights_file(
+        &evogs_metrics::lpips::weights_dir(None).unwrap(),
         Backbone::Vgg,
     );
     let err = Lpips::load(Backbone::Alex, &vgg).unwrap_err().to_string();

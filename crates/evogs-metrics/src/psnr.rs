@@ -1,6 +1,6 @@
 //! Mean squared error and PSNR over RGB in `[0, 1]`.
 
-use super::{ImageSize, MetricsError, Real, check_image};
+use crate::{ImageSize, MetricsError, Real, check_image};
 
 /// Mean squared error over all pixels and channels.
 pub fn mse<T: Real>(size: ImageSize, a: &[[T; 3]], b: &[[T; 3]]) -> Result<f64, MetricsError> {

@@ -1,4 +1,4 @@
-//! Image and temporal metrics shared by training and evaluation (SPEC §7).
+//! `evogs-metrics`: the image and temporal metrics shared by training and evaluation (SPEC §7).
 //!
 //! - [`psnr`] and [`mse`]: per image, over RGB in `[0, 1]`.
 //! - [`ssim`]: 3DGS's SSIM (`utils/loss_utils.py`): 11×11 Gaussian window, σ = 1.5, C1 = 0.01²,
@@ -13,6 +13,9 @@
 //!
 //! Images are row-major `[r, g, b]` slices (`index = y * width + x`), as `splat-raster` renders
 //! them.
+//!
+//! What it is not: a renderer, a trainer or an image reader. Metrics take plain slices; the only
+//! workspace crate it depends on is `tiny-nn`, whose matrix product runs LPIPS's convolutions.
 
 mod error;
 mod gaussian_blur;

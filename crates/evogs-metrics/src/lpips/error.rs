@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use thiserror::Error;
 
 use super::Backbone;
-use crate::metrics::MetricsError;
+use crate::MetricsError;
 
 /// Why LPIPS could not be loaded or computed.
 #[derive(Debug, Error)]

@@ -1,6 +1,6 @@
 //! Temporal consistency metrics (SPEC §7): fixed-camera flicker and trajectory jitter.
 
-use super::{ImageSize, MetricsError, check_image};
+use crate::{ImageSize, MetricsError, check_image};
 
 /// Flicker of a fixed-camera sequence.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -1,6 +1,6 @@
 //! The photometric loss gradient against f64 finite differences, and its f32 version against f64.
 
-use evogs_train::metrics::{ImageSize, photometric_loss, ssim};
+use evogs_metrics::{ImageSize, photometric_loss, ssim};
 use proptest::prelude::*;
 
 /// A ground truth and a rendering that differs from it by at least 0.02 in every channel (so the

@@ -28,7 +28,7 @@ use rayon::prelude::*;
 pub use error::LpipsError;
 pub use weights::{WEIGHTS_ENV, weights_dir, weights_file};
 
-use crate::metrics::{ImageSize, check_image};
+use crate::{ImageSize, check_image};
 use layers::{Conv, Maps};
 
 /// Two RGB images of one size, as LPIPS compares them.

@@ -1,9 +1,11 @@
-//! Photometric loss + gradient and SSIM at 400×400 (the size of a D-NeRF image at half resolution).
+//! LPIPS of one 400×400 pair (a D-NeRF image at half resolution), AlexNet and VGG16 backbones.
+//! Needs the weights (`scripts/lpips-weights`).
 
 use bench_support::{CpuTime, clock_prefix};
 use criterion::measurement::{Measurement, WallTime};
 use criterion::{Criterion, criterion_group, criterion_main};
-use evogs_train::metrics::{ImageSize, photometric_loss, ssim};
+use evogs_metrics::ImageSize;
+use evogs_metrics::lpips::{Backbone, Lpips};
 use std::hint::black_box;
 
 fn images(size: ImageSize) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
@@ -30,13 +32,18 @@ fn images(size: ImageSize) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
 fn bench<M: Measurement + 'static>(c: &mut Criterion<M>) {
     let size = ImageSize::new(400, 400);
     let (rendered, gt) = images(size);
-    let mut group = c.benchmark_group(format!("{}metrics_400x400", clock_prefix::<M>()));
-    group.bench_function("loss_and_gradient", |b| {
-        b.iter(|| photometric_loss(size, black_box(&rendered), black_box(&gt)).unwrap())
-    });
-    group.bench_function("ssim", |b| {
-        b.iter(|| ssim(size, black_box(&rendered), black_box(&gt)).unwrap())
-    });
+    let mut group = c.benchmark_group(format!("{}lpips_400x400", clock_prefix::<M>()));
+    group.sample_size(10);
+    for backbone in Backbone::ALL {
+        let lpips = Lpips::find(backbone, None).unwrap_or_else(|e| panic!("{e}"));
+        group.bench_function(backbone.name(), |b| {
+            b.iter(|| {
+                lpips
+                    .distance(size, black_box(&rendered), black_box(&gt))
+                    .unwrap()
+            })
+        });
+    }
     group.finish();
 }
 

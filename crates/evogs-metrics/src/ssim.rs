@@ -13,8 +13,8 @@
 
 use rayon::prelude::*;
 
-use super::gaussian_blur::{blur, kernel_in};
-use super::{ImageSize, MetricsError, Real, check_image};
+use crate::gaussian_blur::{blur, kernel_in};
+use crate::{ImageSize, MetricsError, Real, check_image};
 
 /// Stabiliser of the luminance term, `0.01²`.
 pub const SSIM_C1: f64 = 0.01 * 0.01;
@@ -158,7 +158,7 @@ mod tests {
         // centre tap squared, w = k5².
         let size = ImageSize::new(1, 1);
         let (p, q) = (0.8, 0.3);
-        let w = crate::metrics::ssim_kernel()[5].powi(2);
+        let w = crate::ssim_kernel()[5].powi(2);
         let (mx, my) = (w * p, w * q);
         let (sxx, syy, sxy) = (
             w * p * p - mx * mx,

@@ -7,7 +7,7 @@
 
 use rayon::prelude::*;
 
-use super::Real;
+use crate::Real;
 
 /// Side of the SSIM window in pixels.
 pub const SSIM_WINDOW: usize = 11;
