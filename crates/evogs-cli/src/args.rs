@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
+use evogs_train::camera_path::CameraSpec;
 use splat_raster::BackendChoice;
 
 /// Dynamic 3D Gaussian Splatting with EvoGS: train on D-NeRF scenes, evaluate, render, export.
@@ -23,6 +24,8 @@ pub enum Command {
     Eval(EvalArgs),
     /// Render Gaussians (a trained run at a time, a 3DGS PLY, or the built-in demo scene) to PNG.
     Render(RenderArgs),
+    /// Render a trained run along a camera path into an mp4, a GIF or PNG frames.
+    Video(crate::video_cmd::VideoArgs),
     /// Generate a procedural dynamic scene (D-NeRF layout) with its ground truth.
     Synth(crate::synth_cmd::SynthArgs),
     /// Export a run's deformed Gaussians at a time as a standard 3DGS PLY.
@@ -197,21 +200,21 @@ pub struct RenderArgs {
     #[arg(long, value_name = "RUN", requires = "camera")]
     pub run: Option<PathBuf>,
 
-    /// Camera to render from: a nerfies camera JSON file. Needs --ply or --run.
-    #[arg(long, value_name = "CAMERA.json")]
-    pub camera: Option<PathBuf>,
+    /// Camera to render from: a nerfies camera JSON file, or dataset:SPLIT:INDEX (a camera of
+    /// the run's dataset, at the run's resolution; needs --run). Needs --ply or --run.
+    #[arg(long, value_name = "CAMERA")]
+    pub camera: Option<CameraSpec>,
 
     /// Time at which to render a run: training times lie in [0, 1]; any finite time is accepted
     /// (between frames, or beyond them: Φ's B-spline clamps to [0, 1], EvoGS's prior
-    /// extrapolates the last frames).
+    /// extrapolates the last frames) [default: the dataset camera's time, else 0].
     #[arg(
         long,
         value_name = "T",
         requires = "run",
-        default_value_t = 0.0,
         allow_negative_numbers = true
     )]
-    pub time: f32,
+    pub time: Option<f32>,
 
     /// Render N frames of a run at times evenly spaced over [0, 1] into the folder --out, plus
     /// strip.png with all frames side by side.

@@ -126,8 +126,8 @@ pub fn run_demo(args: &DemoArgs) -> Result<(u64, Vec<DemoRow>)> {
             &RenderArgs {
                 ply: None,
                 run: Some(out.clone()),
-                camera: Some(camera.clone()),
-                time: 0.0,
+                camera: Some(evogs_train::camera_path::CameraSpec::File(camera.clone())),
+                time: None,
                 sweep: Some(8),
                 out: out.join("sweep"),
                 background: [0.0; 3],

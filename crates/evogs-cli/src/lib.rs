@@ -5,7 +5,8 @@
 //! ([`export_cmd`]), `demo` ([`demo_cmd`]: baseline vs EvoGS on the embedded synthetic scene), `ablate`
 //! ([`ablate_cmd`]: the paper's ablation ladder), and `render` ([`render`]: a 3DGS PLY from a nerfies camera, the built-in
 //! procedural scene of [`demo_scene`], or a trained run at a time or a time sweep via
-//! [`render_run`]), and `synth` ([`synth_cmd`]: procedural scenes in the D-NeRF layout).
+//! [`render_run`]), `synth` ([`synth_cmd`]: procedural scenes in the D-NeRF layout), and `video` ([`video_cmd`]: a
+//! run along a camera path into an mp4, a GIF or PNG frames).
 //!
 //! What it is not: a trainer or a scene generator; training, evaluation, export and synthetic
 //! scenes live in `evogs-train`, file formats in `evogs-io`, rendering in `splat-raster`. Errors are `anyhow`
@@ -21,5 +22,6 @@ pub mod render;
 pub mod render_run;
 pub mod synth_cmd;
 pub mod train_cmd;
+pub mod video_cmd;
 
 pub use args::{Cli, Command, EvalArgs, ExportArgs, RenderArgs, TrainArgs};

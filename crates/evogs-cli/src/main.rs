@@ -91,6 +91,16 @@ fn main() -> ExitCode {
                 report.height
             );
         }),
+        Command::Video(args) => evogs_cli::video_cmd::run_video(args).map(|r| {
+            println!("{}", r.backend);
+            println!(
+                "wrote {} ({} frames, {}x{})",
+                args.out.display(),
+                r.frames,
+                r.width,
+                r.height
+            );
+        }),
         Command::Demo(args) => evogs_cli::demo_cmd::run_demo(args).map(|(n, rows)| {
             print!("{}", evogs_cli::demo_cmd::table(n, &rows));
             println!("wrote {}", args.out.display());

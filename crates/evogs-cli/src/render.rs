@@ -6,6 +6,8 @@ use anyhow::{Context, Result, bail};
 use evogs_io::{ImageRgb, read_nerfies_camera, read_ply, save_png};
 use splat_raster::{Camera, Gaussians, RenderOptions, select_rasterizer};
 
+use evogs_train::camera_path::CameraSpec;
+
 use crate::args::RenderArgs;
 use crate::demo_scene;
 
@@ -66,7 +68,10 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderReport> {
     let mut warnings = Vec::new();
     let (gaussians, camera, source, viewpoint): (Gaussians, Camera, String, String) =
         match (&args.ply, &args.camera) {
-            (Some(ply), Some(camera_path)) => {
+            (Some(_), Some(CameraSpec::Dataset { .. })) => {
+                bail!("--camera dataset:SPLIT:INDEX needs --run (the run's dataset)")
+            }
+            (Some(ply), Some(CameraSpec::File(camera_path))) => {
                 let loaded = read_ply(ply)?;
                 if loaded.nonfinite_rows > 0 {
                     warnings.push(format!(

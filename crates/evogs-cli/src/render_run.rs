@@ -1,26 +1,59 @@
-//! `evogs render --run`: a trained run from a nerfies camera at a time, or a time sweep.
+//! `evogs render --run`: a trained run from a camera (a nerfies file or a dataset camera) at a
+//! time, or a time sweep.
 
 use std::path::Path;
 
 use anyhow::{Context, Result};
 use evogs_io::read_nerfies_camera;
 use evogs_train::LoadedRun;
+use evogs_train::camera_path::{CameraSpec, dataset_camera};
 use evogs_train::render::{render_at, sweep};
+use splat_raster::Camera;
 
 use crate::args::RenderArgs;
 use crate::render::{RenderReport, check_output_name, resize_camera};
 
+/// A camera named on the command line, read: the camera, the time it carries (a dataset
+/// camera's), and a warning about what rendering ignores (skew, distortion).
+pub struct ResolvedCamera {
+    /// The camera.
+    pub camera: Camera,
+    /// The dataset frame's time, for a dataset camera.
+    pub time: Option<f32>,
+    /// A one-line warning.
+    pub warning: Option<String>,
+}
+
+/// Reads `spec`: a nerfies camera file, or a camera of `run`'s dataset at the run's resolution.
+pub fn resolve_camera(spec: &CameraSpec, run: &LoadedRun) -> Result<ResolvedCamera> {
+    Ok(match spec {
+        CameraSpec::File(path) => {
+            let info = read_nerfies_camera(path)?;
+            ResolvedCamera {
+                camera: info.camera,
+                time: None,
+                warning: info.warning().map(|w| format!("{}: {w}", path.display())),
+            }
+        }
+        CameraSpec::Dataset { split, index } => {
+            let (camera, time) = dataset_camera(run, *split, *index)?;
+            ResolvedCamera {
+                camera,
+                time: Some(time),
+                warning: None,
+            }
+        }
+    })
+}
+
 /// Renders `run` as `args` ask: one image at `--time`, or `--sweep N` frames into a folder.
 pub fn render_run(run: &Path, args: &RenderArgs) -> Result<RenderReport> {
-    let camera_path = args.camera.as_ref().context("--run needs --camera")?;
+    let spec = args.camera.as_ref().context("--run needs --camera")?;
     let mut loaded = LoadedRun::open(run)?;
     let backend = loaded.use_backend(args.backend)?;
-    let info = read_nerfies_camera(camera_path)?;
-    let mut warnings = Vec::new();
-    if let Some(w) = info.warning() {
-        warnings.push(format!("{}: {w}", camera_path.display()));
-    }
-    let camera = resize_camera(info.camera, args.width, args.height);
+    let resolved = resolve_camera(spec, &loaded)?;
+    let warnings = resolved.warning.into_iter().collect();
+    let camera = resize_camera(resolved.camera, args.width, args.height);
     let stats = match args.sweep {
         Some(n) => {
             let s = sweep(&mut loaded, &camera, n as usize, &args.out)?;
@@ -32,9 +65,10 @@ pub fn render_run(run: &Path, args: &RenderArgs) -> Result<RenderReport> {
         }
         None => {
             check_output_name(&args.out)?;
-            let image = render_at(&mut loaded, &camera, args.time)?;
+            let time = args.time.or(resolved.time).unwrap_or(0.0);
+            let image = render_at(&mut loaded, &camera, time)?;
             evogs_io::save_png(&args.out, &image)?;
-            format!("rendered {} at time {}", run.display(), args.time)
+            format!("rendered {} at time {time}", run.display())
         }
     };
     Ok(RenderReport {

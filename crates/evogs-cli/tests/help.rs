@@ -36,8 +36,8 @@ fn no_subcommand_shows_usage_and_fails() {
 }
 
 #[test]
-fn train_eval_export_help() {
-    for name in ["train", "eval", "export"] {
+fn train_eval_export_video_help() {
+    for name in ["train", "eval", "export", "video"] {
         let text = help(&[name, "--help"]);
         assert_eq!(text, help(&["help", name]));
         insta::assert_snapshot!(format!("evogs_{name}_help"), text);

@@ -2,8 +2,8 @@
 //! place, so a reader never sees a half-written file and a failed write leaves the old one intact.
 
 use std::fs::File;
-use std::io::{BufWriter, Write};
-use std::path::Path;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
 
 use crate::IoError;
 
@@ -13,43 +13,97 @@ pub fn write_atomically<F>(path: &Path, fill: F) -> Result<(), IoError>
 where
     F: FnOnce(&mut BufWriter<File>) -> Result<(), IoError>,
 {
-    let dir = match path.parent() {
+    let mut file = AtomicFile::create(path)?;
+    fill(file.writer())?;
+    file.commit()
+}
+
+/// A file being written atomically: a buffered temporary file beside `path`, renamed over it by
+/// [`AtomicFile::commit`]; dropped without a commit, the temporary file is removed and `path` is
+/// untouched. For content that arrives piece by piece (video frames).
+pub struct AtomicFile {
+    path: PathBuf,
+    writer: BufWriter<File>,
+    temp_path: tempfile::TempPath,
+}
+
+impl std::io::Write for AtomicFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.writer.write(buf)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.writer.flush()
+    }
+}
+
+/// The directory a path is in (`.` for a bare file name).
+pub(crate) fn parent_dir(path: &Path) -> &Path {
+    match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
-    };
-    let temp = tempfile::Builder::new()
-        .prefix(".evogs-tmp-")
-        .tempfile_in(dir)
-        .map_err(|e| IoError::io(path, e))?;
-    let (file, temp_path) = temp.into_parts();
-    let mut writer = BufWriter::with_capacity(1 << 20, file);
-    fill(&mut writer)?;
-    writer.flush().map_err(|e| IoError::io(path, e))?;
-    let file = writer
-        .into_inner()
-        .map_err(|e| IoError::io(path, e.into_error()))?;
-    // Temporary files are created private (0600); give the output the mode an existing file had,
-    // or the usual 0644 for a new one.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        let mode = std::fs::metadata(path)
-            .map(|m| m.permissions().mode() & 0o7777)
-            .unwrap_or(0o644);
-        file.set_permissions(std::fs::Permissions::from_mode(mode))
-            .map_err(|e| IoError::io(path, e))?;
     }
-    file.sync_all().map_err(|e| IoError::io(path, e))?;
-    drop(file);
-    temp_path
-        .persist(path)
-        .map_err(|e| IoError::io(path, e.error))?;
-    Ok(())
+}
+
+impl AtomicFile {
+    /// Creates the temporary file in `path`'s directory (an error naming `path` when it cannot).
+    pub fn create(path: &Path) -> Result<Self, IoError> {
+        let temp = tempfile::Builder::new()
+            .prefix(".evogs-tmp-")
+            .tempfile_in(parent_dir(path))
+            .map_err(|e| IoError::io(path, e))?;
+        let (file, temp_path) = temp.into_parts();
+        Ok(Self {
+            path: path.to_path_buf(),
+            writer: BufWriter::with_capacity(1 << 20, file),
+            temp_path,
+        })
+    }
+
+    /// The target path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The buffered temporary file.
+    pub fn writer(&mut self) -> &mut BufWriter<File> {
+        &mut self.writer
+    }
+
+    /// Flushes, syncs and renames the temporary file over the target.
+    pub fn commit(self) -> Result<(), IoError> {
+        let Self {
+            path,
+            writer,
+            temp_path,
+        } = self;
+        let file = writer
+            .into_inner()
+            .map_err(|e| IoError::io(&path, e.into_error()))?;
+        // Temporary files are created private (0600); give the output the mode an existing file had,
+        // or the usual 0644 for a new one.
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let mode = std::fs::metadata(&path)
+                .map(|m| m.permissions().mode() & 0o7777)
+                .unwrap_or(0o644);
+            file.set_permissions(std::fs::Permissions::from_mode(mode))
+                .map_err(|e| IoError::io(&path, e))?;
+        }
+        file.sync_all().map_err(|e| IoError::io(&path, e))?;
+        drop(file);
+        temp_path
+            .persist(&path)
+            .map_err(|e| IoError::io(&path, e.error))?;
+        Ok(())
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::io::Write;
 
     #[test]
     fn failed_fill_leaves_existing_file_and_no_temp_files() {

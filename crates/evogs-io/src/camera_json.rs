@@ -25,6 +25,45 @@ pub fn read_nerfies_camera(path: &Path) -> Result<CameraInfo, IoError> {
     parse_nerfies(&fields)
 }
 
+/// One camera of a camera path: a nerfies camera and the scene time it shows.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TimedCamera {
+    /// The camera (skew and distortion kept, ignored by rendering).
+    pub info: CameraInfo,
+    /// The scene time (training times lie in [0, 1]).
+    pub time: f32,
+}
+
+/// Reads a camera path: a JSON array of nerfies camera objects, each with a finite `time`
+/// (`[{"orientation": …, "position": …, …, "time": 0.25}, …]`), at least one. Errors name the
+/// element, e.g. `[2].time`.
+pub fn read_camera_path(path: &Path) -> Result<Vec<TimedCamera>, IoError> {
+    let value = load_json(path)?;
+    let serde_json::Value::Array(items) = &value else {
+        return Err(IoError::field(
+            path,
+            "(root)",
+            "expected an array of nerfies cameras with times",
+        ));
+    };
+    if items.is_empty() {
+        return Err(IoError::field(path, "(root)", "the camera path is empty"));
+    }
+    items
+        .iter()
+        .enumerate()
+        .map(|(k, item)| {
+            let fields = Fields::object(path, item, &format!("[{k}]"))?;
+            let info = parse_nerfies(&fields)?;
+            let time = fields.number("time")? as f32;
+            if !time.is_finite() {
+                return Err(fields.error("time", "not a finite f32"));
+            }
+            Ok(TimedCamera { info, time })
+        })
+        .collect()
+}
+
 /// An image size field `[w, h]` as whole numbers in `1..=MAX_IMAGE_SIDE`.
 pub(crate) fn image_side(fields: &Fields<'_>, key: &str, value: f64) -> Result<u32, IoError> {
     if value.fract() != 0.0 || value < 1.0 || value > MAX_IMAGE_SIDE as f64 {

@@ -25,9 +25,12 @@ pub mod nerfies;
 pub mod neu3d;
 pub mod npy;
 pub mod ply;
+pub mod video;
 
 pub use camera_info::{CameraInfo, Distortion, warning_for_all};
-pub use camera_json::{nerfies_camera_json, read_nerfies_camera, write_nerfies_camera};
+pub use camera_json::{
+    TimedCamera, nerfies_camera_json, read_camera_path, read_nerfies_camera, write_nerfies_camera,
+};
 pub use dataset::{
     Dataset, Format, Frame, LoadOptions, NerfiesSplit, Normalisation, PointCloud, TimeDenominator,
     detect_format, load_dataset,
@@ -36,3 +39,4 @@ pub use dnerf::{DnerfFrame, Split, read_dnerf_split, read_transforms};
 pub use error::IoError;
 pub use image_io::{ImageRgb, load_image, load_view, resize_image, save_png};
 pub use ply::{LoadedPly, read_ply, read_ply_bytes, write_ply, write_ply_to};
+pub use video::{VideoFormat, VideoWriter};

@@ -223,3 +223,38 @@ fn writing_refuses_invalid_cameras_and_keeps_the_old_file() {
     assert!(err.to_string().contains("cam.json"), "{err}");
     assert_eq!(std::fs::read_to_string(&path).unwrap(), "old");
 }
+
+#[test]
+fn camera_path_reads_each_camera_with_its_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let with_time = |t: &str| HYPERNERF_SAMPLE.replacen('{', &format!("{{\n  \"time\": {t},"), 1);
+    let text = format!("[{}, {}]", with_time("0.75"), with_time("0.25"));
+    let path = write_temp(dir.path(), "path.json", &text);
+    let cams = evogs_io::read_camera_path(&path).unwrap();
+    let single = read_nerfies_camera(&write_temp(dir.path(), "c.json", HYPERNERF_SAMPLE)).unwrap();
+    assert_eq!(cams.len(), 2);
+    // File order is kept (the path sorts by time itself).
+    assert_eq!(cams[0].time, 0.75);
+    assert_eq!(cams[1].time, 0.25);
+    assert_eq!(cams[1].info, single);
+}
+
+#[test]
+fn camera_path_errors_name_the_element_and_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        ("{}", "(root)"),
+        ("[]", "empty"),
+        (
+            &format!("[{HYPERNERF_SAMPLE}]") as &str,
+            "`[0].time`: missing",
+        ),
+        ("[3]", "`[0]`: expected an object"),
+    ];
+    for (text, expected) in cases {
+        let path = write_temp(dir.path(), "bad.json", text);
+        let err = evogs_io::read_camera_path(&path).unwrap_err().to_string();
+        assert!(err.contains("bad.json") && err.contains(expected), "{err}");
+        assert!(!err.contains('\n'), "{err}");
+    }
+}

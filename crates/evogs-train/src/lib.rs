@@ -7,10 +7,12 @@
 //! - [`ablate`], [`ablate_plot`]: the paper's ablation ladder, its runner, table and plot;
 //! - [`config`]: the D-3DGS recipe and the presets (`paper`, `cpu`, `tiny`);
 //! - [`backbone`]: the deformation-backbone trait and the D-3DGS backbone;
+//! - [`camera_path`]: video camera paths (orbit, spiral, keyframes) and dataset cameras;
 //! - [`evo_backbone`], [`evo_settings`]: EvoGS (Φ + evo-state + Ψ) and its switches;
 //! - [`state`]: canonical Gaussians, Adam groups and statistics, aligned through densify's plans;
 //! - [`trainer`]: the training loop; [`run`]: run directories, `train` and resume;
 //! - [`checkpoint`]: exact checkpoints; [`eval`], [`render`]: evaluation, rendering, export;
+//! - [`video`]: the frames of a video (path, times) and side-by-side comparisons;
 //! - [`motion_report`]: a diagnostic of EvoGS's motion statistics (speeds and θ by decade);
 //! - [`synth`]: synthetic scenes in the D-NeRF layout.
 //!
@@ -29,6 +31,7 @@
 pub mod ablate;
 pub mod ablate_plot;
 pub mod backbone;
+pub mod camera_path;
 pub mod checkpoint;
 pub mod config;
 pub mod data;
@@ -45,6 +48,7 @@ pub mod state;
 pub mod synth;
 pub mod timers;
 pub mod trainer;
+pub mod video;
 
 pub use backbone::{Backbone, D3dgsBackbone, DEFORM_DIM, DensifyCues};
 pub use config::{Background, Method, Preset, TrainConfig};
