@@ -105,7 +105,7 @@ pub use encoding::triplane::{
     TriPlaneGrads,
 };
 pub use error::NnError;
-pub use mlp::{LayerShape, Mlp, MlpCache, MlpConfig, MlpGrads};
+pub use mlp::{Init, LayerShape, Mlp, MlpCache, MlpConfig, MlpGrads};
 pub use nets::{
     DeformCache, DeformConfig, DeformGrads, DeformNet, ObservationCache, ObservationConfig,
     ObservationGrads, ObservationNet,

@@ -32,6 +32,20 @@ pub const ROW_BLOCK: usize = 256;
 /// products a longer inner dimension).
 pub const BACKWARD_BLOCK: usize = 1024;
 
+/// How the hidden layers of an [`Mlp`] start (the output layer: [`MlpConfig::zero_output`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Init {
+    /// PyTorch's `nn.Linear` default on every layer, `W, b ~ U(-1/√in, 1/√in)` (D-3DGS). Each
+    /// ReLU layer then keeps about 1/6 of its input's second moment, so after 8 layers the output
+    /// hardly depends on the input until training has grown the weights.
+    #[default]
+    Torch,
+    /// He (Kaiming-uniform for ReLU) hidden layers, `W ~ U(-√(6/in), √(6/in))`, `b = 0`: the
+    /// activations keep their second moment through depth, so the output depends on the input
+    /// from the first step. The output layer is still PyTorch's default (or zero).
+    He,
+}
+
 /// Shape and settings of an [`Mlp`]. Build with [`MlpConfig::new`] and the chained setters.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MlpConfig {
@@ -51,6 +65,8 @@ pub struct MlpConfig {
     pub skip_after: Option<usize>,
     /// Start the output layer's weights and bias at zero.
     pub zero_output: bool,
+    /// Initialisation of the hidden layers.
+    pub init: Init,
     /// Storage precision of parameters and activations.
     pub precision: Precision,
     /// Seed of the deterministic initialisation.
@@ -70,6 +86,7 @@ impl MlpConfig {
             output_activation: Activation::Identity,
             skip_after: None,
             zero_output: false,
+            init: Init::Torch,
             precision: Precision::F32,
             seed: 0,
         }
@@ -92,6 +109,11 @@ impl MlpConfig {
     /// Starts the output layer at zero.
     pub fn zero_output(mut self, zero: bool) -> Self {
         self.zero_output = zero;
+        self
+    }
+    /// Sets the hidden layers' initialisation.
+    pub fn init(mut self, init: Init) -> Self {
+        self.init = init;
         self
     }
     /// Sets the storage precision.
@@ -173,9 +195,9 @@ pub struct MlpGrads {
 }
 
 impl Mlp {
-    /// Builds and initialises a network: every layer `W, b ~ U(-1/√in, 1/√in)` (PyTorch's
-    /// `nn.Linear` default) from a ChaCha8 stream seeded by `config.seed`; the output layer is
-    /// zero when `config.zero_output`.
+    /// Builds and initialises a network from a ChaCha8 stream seeded by `config.seed`: every
+    /// layer `W, b ~ U(-1/√in, 1/√in)` (PyTorch's `nn.Linear` default), or the hidden layers He
+    /// with zero bias ([`Init::He`]); the output layer is zero when `config.zero_output`.
     pub fn new(config: MlpConfig) -> Result<Self, NnError> {
         if config.input == 0 || config.output == 0 {
             return Err(NnError::Config(
@@ -222,8 +244,18 @@ impl Mlp {
             if l == config.hidden_layers && config.zero_output {
                 continue;
             }
-            let bound = 1.0 / (shape.input as f32).sqrt();
-            let end = shape.bias_offset + shape.output;
+            let he = config.init == Init::He && l < config.hidden_layers;
+            let bound = if he {
+                (6.0 / shape.input as f32).sqrt()
+            } else {
+                1.0 / (shape.input as f32).sqrt()
+            };
+            // He: weights only, the bias stays zero.
+            let end = if he {
+                shape.bias_offset
+            } else {
+                shape.bias_offset + shape.output
+            };
             for v in &mut values[shape.weight_offset..end] {
                 *v = rng.random_range(-bound..bound);
             }

@@ -4,7 +4,7 @@ use crate::encoding::bspline::{BSplineConfig, BSplineTime};
 use crate::encoding::sinusoidal::Sinusoidal;
 use crate::encoding::triplane::{TriPlane, TriPlaneConfig};
 use crate::error::{NnError, check_len};
-use crate::mlp::{Mlp, MlpCache, MlpConfig};
+use crate::mlp::{Init, Mlp, MlpCache, MlpConfig};
 use crate::precision::{Precision, StoreMut, StoreRef};
 use crate::reduce::add_into;
 use crate::simd::{Kernel, vectorised};
@@ -375,6 +375,10 @@ pub struct DeformConfig {
     pub xyz_freqs: usize,
     /// Frequencies of the time encoding (6 for synthetic scenes, 10 for real ones).
     pub t_freqs: usize,
+    /// Initialisation of the hidden layers (D-3DGS: PyTorch's default).
+    pub init: Init,
+    /// Start the heads at zero, so the deformation starts at zero (D-3DGS: PyTorch's default).
+    pub zero_heads: bool,
     /// Storage precision.
     pub precision: Precision,
     /// Seed.
@@ -390,6 +394,8 @@ impl DeformConfig {
             skip_after: Some(4),
             xyz_freqs: 10,
             t_freqs: 6,
+            init: Init::Torch,
+            zero_heads: false,
             precision: Precision::F32,
             seed: 0,
         }
@@ -437,6 +443,8 @@ impl DeformNet {
             config.depth,
             Self::OUTPUT,
         )
+        .init(config.init)
+        .zero_output(config.zero_heads)
         .precision(config.precision)
         .seed(config.seed);
         if let Some(s) = config.skip_after {

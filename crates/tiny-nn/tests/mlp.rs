@@ -294,3 +294,60 @@ fn reused_cache_gives_the_same_results() {
         a.backward(&fresh, &d, true).unwrap()
     );
 }
+
+/// Spread of the outputs over rows: how much the output depends on the input.
+fn output_spread(mlp: &Mlp, rows: usize) -> f64 {
+    let x = vals(rows * mlp.config().input, 11, 1.0);
+    let (y, _) = mlp.forward(&x, rows).unwrap();
+    let d = mlp.config().output;
+    (0..d)
+        .map(|o| {
+            let col: Vec<f64> = (0..rows).map(|r| f64::from(y[r * d + o])).collect();
+            let mean = col.iter().sum::<f64>() / rows as f64;
+            (col.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / rows as f64).sqrt()
+        })
+        .sum::<f64>()
+        / d as f64
+}
+
+#[test]
+fn he_init_keeps_an_eight_layer_network_sensitive_to_its_input() {
+    use tiny_nn::Init;
+    let build = |init| {
+        MlpConfig::new(16, 64, 8, 4)
+            .skip_after(4)
+            .init(init)
+            .seed(3)
+            .build()
+            .unwrap()
+    };
+    let (torch, he) = (build(Init::Torch), build(Init::He));
+    // PyTorch's default keeps ~1/6 of the second moment per ReLU layer: after 8 layers the
+    // output barely moves with the input. He keeps it.
+    let (s_torch, s_he) = (output_spread(&torch, 256), output_spread(&he, 256));
+    assert!(s_he > 10.0 * s_torch, "spread He {s_he} vs Torch {s_torch}");
+    // He: hidden weights within √(6/in), hidden biases zero; the output layer is PyTorch's.
+    let p = he.params().to_vec_f32();
+    let layers = he.layers();
+    for (l, ly) in layers.iter().enumerate() {
+        let w = &p[ly.weight_offset..ly.bias_offset];
+        let b = &p[ly.bias_offset..ly.bias_offset + ly.output];
+        let hidden = l + 1 < layers.len();
+        let bound = if hidden {
+            (6.0 / ly.input as f32).sqrt()
+        } else {
+            1.0 / (ly.input as f32).sqrt()
+        };
+        assert!(w.iter().all(|v| v.abs() <= bound), "layer {l}");
+        assert!(w.iter().any(|v| v.abs() > 0.5 * bound), "layer {l}");
+        assert_eq!(b.iter().all(|&v| v == 0.0), hidden, "layer {l}");
+    }
+    // Zero output with He: the network starts at exactly zero.
+    let zero = MlpConfig::new(16, 64, 8, 4)
+        .init(Init::He)
+        .zero_output(true)
+        .build()
+        .unwrap();
+    let (y, _) = zero.forward(&vals(64, 2, 1.0), 4).unwrap();
+    assert!(y.iter().all(|&v| v == 0.0));
+}

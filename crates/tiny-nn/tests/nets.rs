@@ -107,6 +107,7 @@ fn small_deform(precision: Precision) -> DeformNet {
         t_freqs: 2,
         precision,
         seed: 5,
+        ..DeformConfig::d3dgs()
     })
     .unwrap()
 }
