@@ -15,7 +15,7 @@ use densify::PerGaussian;
 use splat_raster::GaussiansView;
 use tiny_nn::{DeformCache, DeformConfig, DeformNet, Parameters, Precision, StoreMut, StoreRef};
 
-use crate::config::NetSettings;
+use crate::config::{NetInit, NetSettings};
 use crate::deformed::Appearance;
 use crate::error::TrainError;
 
@@ -163,6 +163,11 @@ impl D3dgsBackbone {
             skip_after: settings.skip_after,
             xyz_freqs: settings.xyz_freqs,
             t_freqs: settings.t_freqs,
+            init: match settings.init {
+                NetInit::Torch => tiny_nn::Init::Torch,
+                NetInit::He => tiny_nn::Init::He,
+            },
+            zero_heads: settings.init == NetInit::He,
             precision: Precision::F32,
             seed,
         })?;

@@ -160,9 +160,12 @@ pub struct TrainRequest {
 
 /// Trains (or resumes) a run, calling `progress` after every iteration, and writes the run
 /// directory. Returns the summary that `train_metrics.json` holds.
+///
+/// `progress` gets the trainer mutably so that it can evaluate the model in between (e.g.
+/// [`Trainer::deformed_at`], which runs the backbone); it must not change the training state.
 pub fn train(
     request: &TrainRequest,
-    progress: &mut dyn FnMut(&StepReport, &Trainer),
+    progress: &mut dyn FnMut(&StepReport, &mut Trainer),
 ) -> Result<TrainSummary, TrainError> {
     let paths = RunPaths::new(&request.out);
     let mut trainer = if request.resume {
@@ -236,7 +239,7 @@ pub fn train(
     let mut last = None;
     while trainer.iteration < end {
         let report = trainer.step()?;
-        progress(&report, &trainer);
+        progress(&report, &mut trainer);
         if report
             .iteration
             .is_multiple_of(trainer.config.checkpoint_every)

@@ -54,6 +54,9 @@ pub struct StepReport {
     pub gaussians: usize,
     /// Whether densification changed the Gaussian set.
     pub densified: bool,
+    /// L2 norm of the backbone's parameter gradients this iteration (`None` before the
+    /// warm-up ends: the network is not used then). A diagnostic of the deformation's training.
+    pub net_grad_norm: Option<f64>,
 }
 
 /// The backbone a config asks for.
@@ -319,6 +322,13 @@ impl Trainer {
             psnr: train_psnr,
             gaussians: self.state.len(),
             densified,
+            net_grad_norm: net_grads.as_ref().map(|g| {
+                g.iter()
+                    .flatten()
+                    .map(|&v| f64::from(v) * f64::from(v))
+                    .sum::<f64>()
+                    .sqrt()
+            }),
         })
     }
 
@@ -354,6 +364,21 @@ impl Trainer {
     pub fn deformed_at(&mut self, time: f32) -> Result<Gaussians, TrainError> {
         let deforms = self.deforms_at(self.iteration.max(1));
         deformed_gaussians(&self.state.gaussians, self.backbone.as_mut(), deforms, time)
+    }
+
+    /// Renders the model at `time` from `camera` on the run's backend and background with every
+    /// SH band, as evaluation does (colours not clamped). Changes nothing in the training state.
+    pub fn render(
+        &mut self,
+        camera: &splat_raster::Camera,
+        time: f32,
+    ) -> Result<Vec<[f32; 3]>, TrainError> {
+        let g = self.deformed_at(time)?;
+        let opts = RenderOptions {
+            background: self.config.background.rgb(),
+            sh_degree: None,
+        };
+        Ok(self.raster.forward(g.view(), camera, &opts)?.color)
     }
 }
 
