@@ -35,6 +35,9 @@ pub enum Command {
     Demo(crate::demo_cmd::DemoArgs),
     /// Run the paper's ablation ladder at equal iterations on one dataset (table, JSON, plot).
     Ablate(crate::ablate_cmd::AblateArgs),
+    /// Train and evaluate D-NeRF scenes × methods: one table with the published figures, a
+    /// PSNR-against-time plot, a picture per scene.
+    Bench(crate::bench_cmd::BenchArgs),
 }
 
 /// Arguments of `evogs train`.
@@ -103,7 +106,8 @@ pub struct TrainArgs {
     pub motion_report: bool,
 
     /// Settings preset: paper (D-3DGS reference, width 256, 40K iterations), cpu (400×400 on
-    /// 2 cores, width 64, 3K iterations), tiny (CI, width 32, 300 iterations).
+    /// 2 cores, width 64, 3K iterations), tiny (CI, width 32, 300 iterations), dnerf (the D-NeRF
+    /// benchmark at 400×400: 12K iterations, He-initialised network whose lr is not compressed).
     #[arg(long, default_value = "cpu")]
     pub preset: String,
 
@@ -111,7 +115,7 @@ pub struct TrainArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub iterations: Option<u64>,
 
-    /// Image resize factor, e.g. 2 trains lego at 400×400 [preset: cpu 2, paper 1].
+    /// Image resize factor, e.g. 2 trains lego at 400×400 [preset: cpu and dnerf 2, paper 1].
     #[arg(long, value_name = "F")]
     pub downscale: Option<f32>,
 

@@ -3,7 +3,7 @@
 //! What it is: argument parsing ([`args`]) and one thin module per subcommand: `train`
 //! ([`train_cmd`]: settings from the flags, progress bar), `eval` ([`eval_cmd`]), `export`
 //! ([`export_cmd`]), `demo` ([`demo_cmd`]: baseline vs EvoGS on the embedded synthetic scene), `ablate`
-//! ([`ablate_cmd`]: the paper's ablation ladder), and `render` ([`render`]: a 3DGS PLY from a nerfies camera, the built-in
+//! ([`ablate_cmd`]: the paper's ablation ladder), `bench` ([`bench_cmd`]: the D-NeRF benchmark), and `render` ([`render`]: a 3DGS PLY from a nerfies camera, the built-in
 //! procedural scene of [`demo_scene`], or a trained run at a time or a time sweep via
 //! [`render_run`]), `synth` ([`synth_cmd`]: procedural scenes in the D-NeRF layout), and `video` ([`video_cmd`]: a
 //! run along a camera path into an mp4, a GIF or PNG frames).
@@ -14,6 +14,7 @@
 
 pub mod ablate_cmd;
 pub mod args;
+pub mod bench_cmd;
 pub mod demo_cmd;
 pub mod demo_scene;
 pub mod eval_cmd;

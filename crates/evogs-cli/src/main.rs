@@ -112,6 +112,13 @@ fn main() -> ExitCode {
                 args.out.join("ablation.md").display()
             );
         }),
+        Command::Bench(args) => evogs_cli::bench_cmd::run_bench_cmd(args).map(|runs| {
+            println!(
+                "ran {} runs; wrote {}",
+                runs.len(),
+                args.out.join("bench.md").display()
+            );
+        }),
         Command::Synth(args) => evogs_cli::synth_cmd::run_synth(args)
             .map(|summary| println!("{}", evogs_cli::synth_cmd::report_line(args, &summary))),
     };

@@ -5,6 +5,8 @@
 //! scene generation.
 //!
 //! - [`ablate`], [`ablate_plot`]: the paper's ablation ladder, its runner, table and plot;
+//! - [`bench`], [`bench_plot`]: the D-NeRF benchmark (scenes × methods, table with the published
+//!   figures, PSNR-against-time plot, pictures);
 //! - [`config`]: the D-3DGS recipe and the presets (`paper`, `cpu`, `tiny`);
 //! - [`backbone`]: the deformation-backbone trait and the D-3DGS backbone;
 //! - [`camera_path`]: video camera paths (orbit, spiral, keyframes) and dataset cameras;
@@ -31,6 +33,8 @@
 pub mod ablate;
 pub mod ablate_plot;
 pub mod backbone;
+pub mod bench;
+pub mod bench_plot;
 pub mod camera_path;
 pub mod checkpoint;
 pub mod config;

@@ -1,0 +1,706 @@
+//! The D-NeRF benchmark (issue Q): trains every scene × method of a request with one config,
+//! evaluates each run on its test and val splits, and writes one table with the published
+//! figures beside ours ([`table`]: `bench.md`, and `bench.json`), a PSNR-against-training-time
+//! plot (`bench.png`, [`crate::bench_plot`]) and a picture per scene (`<scene>.png`: ground truth
+//! | each method, at the earliest, middle and latest time of the scene's headline split).
+//!
+//! - The headline split is the one the literature reports ([`headline_split`]): lego's val split
+//!   (its test split does not match the training motion; D-3DGS reports val), the test split of
+//!   every other scene. Both splits are evaluated and tabled for every scene.
+//! - The curve: every `eval_every` iterations the run is rendered on its headline split from
+//!   inside the training loop; the time axis is training time only (the evaluations are timed
+//!   and subtracted). It is a report, never used to choose settings.
+//! - Peak memory: the process's peak resident set (`VmHWM`), reset before each run where Linux
+//!   allows (`/proc/self/clear_refs`), read after training; `None` elsewhere.
+//! - Non-finite values: the trained canonical Gaussians are checked; a NaN or Inf during training
+//!   already stops the run with an error naming the Gaussian.
+//!
+//! What it is not: a timing harness (times are wall-clock on whatever else runs on the machine;
+//! the table says so) or a place that chooses settings.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use evogs_io::{ImageRgb, Split};
+use serde::Serialize;
+
+use crate::config::{Method, TrainConfig};
+use crate::data::{SplitViews, load_split};
+use crate::error::TrainError;
+use crate::eval::evaluate;
+use crate::metrics::{ImageSize, psnr};
+use crate::run::{LoadedRun, TrainRequest, train};
+
+/// One scene: a name (table rows, file names) and its dataset directory.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BenchScene {
+    /// Short name, e.g. `lego`.
+    pub name: String,
+    /// Dataset directory.
+    pub data: PathBuf,
+}
+
+impl BenchScene {
+    /// The scene in `dir`, named by the directory's last component without a `dnerf-` prefix
+    /// (`…/dnerf-lego` is `lego`).
+    pub fn from_dir(dir: &Path) -> Self {
+        let base = dir
+            .file_name()
+            .map_or_else(|| "scene".to_string(), |n| n.to_string_lossy().into_owned());
+        let name = base.strip_prefix("dnerf-").unwrap_or(&base).to_string();
+        Self {
+            name,
+            data: dir.to_path_buf(),
+        }
+    }
+}
+
+/// The split the literature reports for a D-NeRF scene: `val` for lego (its test split shows
+/// the shovel at other angles than its training frames; D-3DGS evaluates on val), `test`
+/// otherwise.
+pub fn headline_split(scene: &str) -> Split {
+    if scene.contains("lego") {
+        Split::Val
+    } else {
+        Split::Test
+    }
+}
+
+/// A published figure.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Published {
+    /// The method.
+    pub method: &'static str,
+    /// The scene (our short name).
+    pub scene: &'static str,
+    /// Image side in pixels (D-NeRF images are square).
+    pub resolution: u32,
+    /// The split the figure is on.
+    pub split: &'static str,
+    /// PSNR (dB).
+    pub psnr: f64,
+    /// SSIM.
+    pub ssim: f64,
+    /// LPIPS (VGG).
+    pub lpips: f64,
+    /// Where it is published.
+    pub source: &'static str,
+}
+
+const D3DGS_README: &str = "ingra14m/Deformable-3D-Gaussians README, 400x400 table";
+const D3DGS_PAPER: &str = "Deformable 3D Gaussians (CVPR 2024), Table 1, 800x800";
+
+/// Deformable-3D-Gaussians' published figures for the D-NeRF scenes: its repository's 400×400
+/// table (every scene but lego) and its paper's 800×800 table (lego on val, as it recommends).
+pub const PUBLISHED: [Published; 11] = [
+    Published {
+        method: "D-3DGS",
+        scene: "lego",
+        resolution: 800,
+        split: "val",
+        psnr: 33.07,
+        ssim: 0.9794,
+        lpips: 0.0183,
+        source: D3DGS_PAPER,
+    },
+    Published {
+        method: "D-3DGS",
+        scene: "jumpingjacks",
+        resolution: 800,
+        split: "test",
+        psnr: 37.72,
+        ssim: 0.9897,
+        lpips: 0.0126,
+        source: D3DGS_PAPER,
+    },
+    Published {
+        method: "D-3DGS",
+        scene: "hook",
+        resolution: 800,
+        split: "test",
+        psnr: 37.42,
+        ssim: 0.9867,
+        lpips: 0.0144,
+        source: D3DGS_PAPER,
+    },
+    Published {
+        method: "D-3DGS",
+        scene: "mutant",
+        resolution: 800,
+        split: "test",
+        psnr: 42.63,
+        ssim: 0.9951,
+        lpips: 0.0052,
+        source: D3DGS_PAPER,
+    },
+    Published {
+        method: "D-3DGS",
+        scene: "jumpingjacks",
+        resolution: 400,
+        split: "test",
+        psnr: 39.10,
+        ssim: 0.9930,
+        lpips: 0.0090,
+        source: D3DGS_README,
+    },
+    Published {
+        method: "D-3DGS",
+        scene: "hook",
+        resolution: 400,
+        split: "test",
+        psnr: 37.77,
+        ssim: 0.9897,
+        lpips: 0.0103,
+        source: D3DGS_README,
+    },
+    Published {
+        method: "D-3DGS",
+        scene: "mutant",
+        resolution: 400,
+        split: "test",
+        psnr: 43.73,
+        ssim: 0.9969,
+        lpips: 0.0029,
+        source: D3DGS_README,
+    },
+    Published {
+        method: "D-3DGS",
+        scene: "standup",
+        resolution: 400,
+        split: "test",
+        psnr: 45.38,
+        ssim: 0.9967,
+        lpips: 0.0032,
+        source: D3DGS_README,
+    },
+    Published {
+        method: "D-3DGS",
+        scene: "hellwarrior",
+        resolution: 400,
+        split: "test",
+        psnr: 42.11,
+        ssim: 0.9885,
+        lpips: 0.0153,
+        source: D3DGS_README,
+    },
+    Published {
+        method: "D-3DGS",
+        scene: "trex",
+        resolution: 400,
+        split: "test",
+        psnr: 38.40,
+        ssim: 0.9959,
+        lpips: 0.0041,
+        source: D3DGS_README,
+    },
+    Published {
+        method: "D-3DGS",
+        scene: "bouncingballs",
+        resolution: 400,
+        split: "test",
+        psnr: 41.46,
+        ssim: 0.9958,
+        lpips: 0.0046,
+        source: D3DGS_README,
+    },
+];
+
+/// The published figure for `scene` closest to `resolution` (the same resolution when there is
+/// one, else the nearest).
+pub fn published_for(scene: &str, resolution: u32) -> Option<&'static Published> {
+    PUBLISHED
+        .iter()
+        .filter(|p| p.scene == scene)
+        .min_by_key(|p| p.resolution.abs_diff(resolution))
+}
+
+/// A split's mean scores.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SplitScore {
+    /// `test` or `val`.
+    pub split: String,
+    /// Images.
+    pub images: usize,
+    /// Mean PSNR (dB).
+    pub psnr: f64,
+    /// Mean SSIM.
+    pub ssim: f64,
+    /// Mean LPIPS, when the evaluation computes it (not yet: see [`crate::eval`]).
+    pub lpips: Option<f64>,
+}
+
+/// One point of a run's curve.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct CurvePoint {
+    /// Iterations done.
+    pub iteration: u64,
+    /// Training time so far (s), evaluations excluded.
+    pub seconds: f64,
+    /// Mean PSNR on the headline split (dB).
+    pub psnr: f64,
+}
+
+/// One trained and evaluated run.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BenchRun {
+    /// Scene name.
+    pub scene: String,
+    /// Method.
+    pub method: Method,
+    /// Run directory.
+    pub run: PathBuf,
+    /// Image side in pixels.
+    pub resolution: u32,
+    /// Iterations trained.
+    pub iterations: u64,
+    /// Training time (s, wall clock, curve evaluations excluded).
+    pub seconds: f64,
+    /// Peak resident memory of the process during the run (bytes), where measurable.
+    pub peak_rss_bytes: Option<u64>,
+    /// Gaussians at the end.
+    pub gaussians: usize,
+    /// Non-finite values in the trained canonical Gaussians (0 for a healthy run).
+    pub non_finite: usize,
+    /// The headline split ([`headline_split`]).
+    pub headline: String,
+    /// Test and val scores (headline first).
+    pub scores: Vec<SplitScore>,
+    /// PSNR on the headline split against training time.
+    pub curve: Vec<CurvePoint>,
+}
+
+impl BenchRun {
+    /// The score on `split`, when evaluated.
+    pub fn score(&self, split: &str) -> Option<&SplitScore> {
+        self.scores.iter().find(|s| s.split == split)
+    }
+}
+
+/// What to run.
+#[derive(Clone, Debug)]
+pub struct BenchRequest {
+    /// Scenes, in table order.
+    pub scenes: Vec<BenchScene>,
+    /// Methods, in table order.
+    pub methods: Vec<Method>,
+    /// Settings of every run (each run sets `method`).
+    pub config: TrainConfig,
+    /// Curve points every this many iterations (and at the end).
+    pub eval_every: u64,
+    /// Output directory: `<scene>/<method>/` run directories, the table, the plot, the pictures.
+    pub out: PathBuf,
+}
+
+/// Progress of [`run_bench`].
+#[derive(Debug)]
+pub enum BenchProgress<'a> {
+    /// A run starts.
+    Started {
+        /// Scene name.
+        scene: &'a str,
+        /// Method.
+        method: Method,
+    },
+    /// A curve point of the current run.
+    Point {
+        /// Scene name.
+        scene: &'a str,
+        /// Method.
+        method: Method,
+        /// The point.
+        point: CurvePoint,
+    },
+    /// A run is done.
+    Finished {
+        /// Its result.
+        run: &'a BenchRun,
+    },
+}
+
+/// Peak resident set of this process in bytes (`VmHWM`), on Linux.
+pub fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Resets the peak resident set to the current one (Linux `clear_refs` 5); returns whether it
+/// could.
+pub fn reset_peak_rss() -> bool {
+    std::fs::write("/proc/self/clear_refs", "5").is_ok()
+}
+
+/// Mean PSNR of the trainer's renders of `views` (colours clamped to [0, 1], as evaluation).
+fn mean_psnr(trainer: &mut crate::Trainer, views: &SplitViews) -> Result<f64, TrainError> {
+    let mut sum = 0.0;
+    for v in &views.views {
+        let colour: Vec<[f32; 3]> = trainer
+            .render(&v.camera, v.time)?
+            .into_iter()
+            .map(|c| c.map(|x| x.clamp(0.0, 1.0)))
+            .collect();
+        let size = ImageSize::new(v.image.width as usize, v.image.height as usize);
+        sum += psnr(size, &colour, &v.image.pixels)?;
+    }
+    Ok(sum / views.views.len().max(1) as f64)
+}
+
+/// Trains and evaluates one scene × method into `out` (its run directory).
+fn bench_one(
+    scene: &BenchScene,
+    config: TrainConfig,
+    eval_every: u64,
+    out: &Path,
+    progress: &mut dyn FnMut(BenchProgress<'_>),
+) -> Result<BenchRun, TrainError> {
+    let method = config.method;
+    let headline = headline_split(&scene.name);
+    let curve_views = load_split(
+        &scene.data,
+        headline,
+        config.background.rgb(),
+        config.downscale,
+    )?;
+    let resolution = curve_views.views.first().map_or(0, |v| v.image.width);
+    let measured_peak = reset_peak_rss();
+    let started = Instant::now();
+    let mut eval_seconds = 0.0;
+    let mut curve = Vec::new();
+    let mut failure = None;
+    let iterations = config.iterations;
+    let summary = train(
+        &TrainRequest {
+            data: scene.data.clone(),
+            out: out.to_path_buf(),
+            config,
+            resume: false,
+            stop_after: None,
+            resume_backend: None,
+        },
+        &mut |report, trainer| {
+            if failure.is_some()
+                || !(report.iteration.is_multiple_of(eval_every) || report.iteration == iterations)
+            {
+                return;
+            }
+            let t = Instant::now();
+            let seconds = t.duration_since(started).as_secs_f64() - eval_seconds;
+            match mean_psnr(trainer, &curve_views) {
+                Ok(psnr) => {
+                    let point = CurvePoint {
+                        iteration: report.iteration,
+                        seconds,
+                        psnr,
+                    };
+                    curve.push(point);
+                    progress(BenchProgress::Point {
+                        scene: &scene.name,
+                        method,
+                        point,
+                    });
+                }
+                Err(e) => failure = Some(e),
+            }
+            eval_seconds += t.elapsed().as_secs_f64();
+        },
+    )?;
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    let peak_rss_bytes = peak_rss_bytes().filter(|_| measured_peak);
+    let seconds = started.elapsed().as_secs_f64() - eval_seconds;
+    let mut run = LoadedRun::open(out)?;
+    run.use_backend(run.run.train.backend)?;
+    let g = &run.canonical;
+    let non_finite = [
+        g.means.as_flattened(),
+        g.log_scales.as_flattened(),
+        g.rotations.as_flattened(),
+        &g.opacity_logits,
+        &g.sh,
+    ]
+    .iter()
+    .map(|v| v.iter().filter(|x| !x.is_finite()).count())
+    .sum();
+    let mut scores = Vec::new();
+    let other = if headline == Split::Val {
+        Split::Test
+    } else {
+        Split::Val
+    };
+    for split in [headline, other] {
+        let report = evaluate(&mut run, split)?;
+        scores.push(SplitScore {
+            split: split.name().to_string(),
+            images: report.images.len(),
+            psnr: report.mean_psnr,
+            ssim: report.mean_ssim,
+            lpips: None,
+        });
+    }
+    Ok(BenchRun {
+        scene: scene.name.clone(),
+        method,
+        run: out.to_path_buf(),
+        resolution,
+        iterations: summary.iteration,
+        seconds,
+        peak_rss_bytes,
+        gaussians: summary.gaussians,
+        non_finite,
+        headline: headline.name().to_string(),
+        scores,
+        curve,
+    })
+}
+
+/// Runs every scene × method of `request`, writes the outputs ([`write_outputs`]) and returns
+/// the runs (scene-major, in the request's orders).
+pub fn run_bench(
+    request: &BenchRequest,
+    progress: &mut dyn FnMut(BenchProgress<'_>),
+) -> Result<Vec<BenchRun>, TrainError> {
+    if request.scenes.is_empty() || request.methods.is_empty() {
+        return Err(TrainError::config(
+            "bench",
+            "nothing to run: give at least one scene and one method",
+        ));
+    }
+    if request.eval_every == 0 {
+        return Err(TrainError::config("eval_every", "must be at least 1"));
+    }
+    request.config.validate()?;
+    std::fs::create_dir_all(&request.out).map_err(|e| TrainError::io(&request.out, e))?;
+    let mut runs = Vec::new();
+    for scene in &request.scenes {
+        for &method in &request.methods {
+            progress(BenchProgress::Started {
+                scene: &scene.name,
+                method,
+            });
+            let mut config = request.config.clone();
+            config.method = method;
+            let out = request.out.join(&scene.name).join(method.to_string());
+            let run = bench_one(scene, config, request.eval_every, &out, progress)?;
+            progress(BenchProgress::Finished { run: &run });
+            runs.push(run);
+        }
+        // The outputs so far, so that an interrupted bench leaves its finished scenes.
+        write_outputs(&request.out, &request.config, &runs)?;
+        write_picture(&request.out, scene, &runs)?;
+    }
+    Ok(runs)
+}
+
+fn fmt_opt(v: Option<f64>, digits: usize) -> String {
+    v.map_or_else(|| "–".to_string(), |v| format!("{v:.digits$}"))
+}
+
+/// The markdown table: one row per run (headline split first, then the other split), and the
+/// published figure for each scene beside ours.
+pub fn table(config: &TrainConfig, runs: &[BenchRun]) -> String {
+    let mut s = format!(
+        "# evogs bench: preset `{}`, {} iterations, seed {}\n\n\
+         Headline split: lego val, the other scenes test (as D-3DGS reports them). Times are \
+         wall clock on the machine as it was (see the README for what else ran); curve \
+         evaluations are excluded. LPIPS: not computed yet (–).\n\n\
+         | scene | method | split | PSNR (dB) | SSIM | LPIPS | other split PSNR | Gaussians | peak memory (MiB) | training (min) | non-finite | published (D-3DGS) |\n\
+         | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |\n",
+        config.preset.name(),
+        config.iterations,
+        config.seed
+    );
+    for r in runs {
+        let head = r.score(&r.headline);
+        let other = r.scores.iter().find(|x| x.split != r.headline);
+        let published = published_for(&r.scene, r.resolution).map_or_else(
+            || "–".to_string(),
+            |p| {
+                format!(
+                    "{:.2} / {:.4} / {:.4} ({}, {}×{})",
+                    p.psnr, p.ssim, p.lpips, p.split, p.resolution, p.resolution
+                )
+            },
+        );
+        s += &format!(
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} | {} | {} |\n",
+            r.scene,
+            r.method,
+            r.headline,
+            fmt_opt(head.map(|x| x.psnr), 2),
+            fmt_opt(head.map(|x| x.ssim), 4),
+            fmt_opt(head.and_then(|x| x.lpips), 4),
+            other.map_or_else(
+                || "–".to_string(),
+                |o| format!("{:.2} ({})", o.psnr, o.split)
+            ),
+            r.gaussians,
+            fmt_opt(r.peak_rss_bytes.map(|b| b as f64 / (1024.0 * 1024.0)), 0),
+            r.seconds / 60.0,
+            r.non_finite,
+            published
+        );
+    }
+    s
+}
+
+fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), TrainError> {
+    use std::io::Write;
+    evogs_io::atomic::write_atomically(path, |w| {
+        w.write_all(bytes).map_err(|cause| evogs_io::IoError::Io {
+            path: path.to_path_buf(),
+            cause,
+        })
+    })?;
+    Ok(())
+}
+
+fn write_png(path: &Path, image: &image::RgbImage) -> Result<(), TrainError> {
+    evogs_io::atomic::write_atomically(path, |w| {
+        image
+            .write_to(w, image::ImageFormat::Png)
+            .map_err(|cause| evogs_io::IoError::Image {
+                path: path.to_path_buf(),
+                cause,
+            })
+    })?;
+    Ok(())
+}
+
+/// Writes `bench.md`, `bench.json` and `bench.png` into `out`, each atomically.
+pub fn write_outputs(
+    out: &Path,
+    config: &TrainConfig,
+    runs: &[BenchRun],
+) -> Result<(), TrainError> {
+    write_bytes(&out.join("bench.md"), table(config, runs).as_bytes())?;
+    let json_path = out.join("bench.json");
+    let json = serde_json::to_string_pretty(&serde_json::json!({
+        "config": config,
+        "runs": runs,
+        "published": PUBLISHED,
+    }))
+    .map_err(|e| TrainError::file(&json_path, e.to_string()))?;
+    write_bytes(&json_path, json.as_bytes())?;
+    let png = out.join("bench.png");
+    let image = crate::bench_plot::plot(runs)
+        .map_err(|problem| TrainError::file(&png, format!("plotting: {problem}")))?;
+    write_png(&png, &image)
+}
+
+/// Side of a picture cell in pixels.
+const CELL: u32 = 256;
+
+/// `image` scaled to a `CELL`-wide cell (nearest pixel; D-NeRF images are square).
+fn cell(image: &ImageRgb) -> image::RgbImage {
+    let (w, h) = (image.width.max(1), image.height.max(1));
+    let ch = (CELL as u64 * h as u64 / w as u64).max(1) as u32;
+    image::RgbImage::from_fn(CELL, ch, |x, y| {
+        let sx = (x as u64 * w as u64 / CELL as u64) as u32;
+        let sy = (y as u64 * h as u64 / ch as u64) as u32;
+        image::Rgb(image.get(sx, sy).map(evogs_io::image_io::to_u8))
+    })
+}
+
+/// Writes `<scene>.png`: one row per time (the earliest, middle and latest view of the scene's
+/// headline split), columns ground truth then each method of `runs` for this scene.
+pub fn write_picture(out: &Path, scene: &BenchScene, runs: &[BenchRun]) -> Result<(), TrainError> {
+    let runs: Vec<&BenchRun> = runs.iter().filter(|r| r.scene == scene.name).collect();
+    if runs.is_empty() {
+        return Ok(());
+    }
+    let mut loaded = Vec::with_capacity(runs.len());
+    for r in &runs {
+        let mut run = LoadedRun::open(&r.run)?;
+        run.use_backend(run.run.train.backend)?;
+        loaded.push(run);
+    }
+    let c = &loaded[0].run.train;
+    let views = load_split(
+        &scene.data,
+        headline_split(&scene.name),
+        c.background.rgb(),
+        c.downscale,
+    )?;
+    let mut order: Vec<usize> = (0..views.views.len()).collect();
+    order.sort_by(|&a, &b| views.views[a].time.total_cmp(&views.views[b].time));
+    let Some(&last) = order.last() else {
+        return Ok(());
+    };
+    let picks = [order[0], order[order.len() / 2], last];
+    let mut rows = Vec::new();
+    for &k in &picks {
+        let v = &views.views[k];
+        let mut cells = vec![cell(&v.image)];
+        for run in &mut loaded {
+            let image = crate::render::render_at(run, &v.camera, v.time)?;
+            cells.push(cell(&image));
+        }
+        rows.push(cells);
+    }
+    let (cw, ch) = (CELL, rows[0][0].height());
+    let gap = 4;
+    let cols = rows[0].len() as u32;
+    let mut canvas = image::RgbImage::from_pixel(
+        cols * cw + (cols - 1) * gap,
+        3 * ch + 2 * gap,
+        image::Rgb([255, 255, 255]),
+    );
+    for (ri, row) in rows.iter().enumerate() {
+        for (ci, img) in row.iter().enumerate() {
+            image::imageops::replace(
+                &mut canvas,
+                img,
+                i64::from(ci as u32 * (cw + gap)),
+                i64::from(ri as u32 * (ch + gap)),
+            );
+        }
+    }
+    write_png(&out.join(format!("{}.png", scene.name)), &canvas)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scenes_are_named_by_their_directory() {
+        let s = BenchScene::from_dir(Path::new("/data/dnerf-lego"));
+        assert_eq!(s.name, "lego");
+        assert_eq!(BenchScene::from_dir(Path::new("hook")).name, "hook");
+    }
+
+    #[test]
+    fn lego_reports_val_the_others_test() {
+        assert_eq!(headline_split("lego"), Split::Val);
+        assert_eq!(headline_split("jumpingjacks"), Split::Test);
+    }
+
+    #[test]
+    fn published_figures_prefer_the_same_resolution() {
+        let p = published_for("hook", 400).unwrap();
+        assert_eq!((p.resolution, p.psnr), (400, 37.77));
+        let p = published_for("hook", 800).unwrap();
+        assert_eq!((p.resolution, p.psnr), (800, 37.42));
+        // Lego has only the 800×800 val figure.
+        let p = published_for("lego", 400).unwrap();
+        assert_eq!((p.resolution, p.split, p.psnr), (800, "val", 33.07));
+        assert!(published_for("mine", 400).is_none());
+    }
+
+    #[test]
+    fn peak_memory_reads_and_resets_on_linux() {
+        if std::fs::metadata("/proc/self/status").is_err() {
+            return;
+        }
+        let held = vec![1u8; 64 << 20];
+        let peak = peak_rss_bytes().unwrap();
+        assert!(peak >= 64 << 20, "{peak}");
+        drop(held);
+        if reset_peak_rss() {
+            // The 64 MiB are gone, so the peak after the reset is lower.
+            assert!(peak_rss_bytes().unwrap() < peak);
+        }
+    }
+}
