@@ -50,3 +50,10 @@ fn ablate_help() {
     assert_eq!(text, help(&["help", "ablate"]));
     insta::assert_snapshot!("evogs_ablate_help", text);
 }
+
+#[test]
+fn bench_help() {
+    let text = help(&["bench", "--help"]);
+    assert_eq!(text, help(&["help", "bench"]));
+    insta::assert_snapshot!("evogs_bench_help", text);
+}

@@ -1,8 +1,12 @@
 //! Adding a backbone's deformation to canonical Gaussians: mean + Δposition, raw quaternion +
-//! Δrotation, log-scale + Δscale (D-3DGS adds `d_rotation` to the raw quaternion and `d_scaling`
-//! to the raw scale before activation, `gaussian_renderer/__init__.py`), and, where the backbone
+//! Δrotation, log-scale + Δscale (DESIGN §4.1), and, where the backbone
 //! deforms appearance (EvoGS's optional components, SPEC §4), opacity logit + Δopacity and SH DC
 //! + Δcolour. Appearance that is not deformed is read from the canonical Gaussians, never copied.
+//!
+//! D-3DGS adds `d_rotation` to the *normalised* quaternion and `d_scaling` to the *activated*
+//! scale (`gaussian_renderer/__init__.py`: `pc.get_rotation + d_rotation`,
+//! `pc.get_scaling + d_scaling`). Here both are added to the raw parameters, for every backbone
+//! alike (DESIGN §11): a scale offset then stays relative and can never make a scale negative.
 
 use splat_raster::{Gaussians, GaussiansView, Gradients};
 

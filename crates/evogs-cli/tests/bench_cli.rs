@@ -1,0 +1,144 @@
+//! `evogs bench` end to end through the binary on two tiny synthetic scenes and both methods:
+//! the table holds one row per scene × method with both splits, the JSON holds the runs with
+//! their curves and peak memory, the plot and one picture per scene decode; bad input gives a
+//! one-line error naming the setting.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn evogs(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_evogs"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn synth(preset: &str, out: &Path) {
+    let o = evogs(&[
+        "synth",
+        "--preset",
+        preset,
+        "--out",
+        s(out),
+        "--size",
+        "32",
+        "--frames",
+        "8",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn benches_two_scenes_with_both_methods() {
+    let dir = tempfile::tempdir().unwrap();
+    // `dnerf-` is dropped from the scene's name, as for the real D-NeRF folders.
+    let (a, b) = (dir.path().join("dnerf-jump"), dir.path().join("wave"));
+    synth("jump", &a);
+    synth("wave", &b);
+    let out = dir.path().join("bench");
+    let data = format!("{},{}", s(&a), s(&b));
+    let o = evogs(&[
+        "bench",
+        "--data",
+        &data,
+        "--out",
+        s(&out),
+        "--preset",
+        "tiny",
+        "--iterations",
+        "20",
+        "--eval-every",
+        "10",
+        "--seed",
+        "2",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let log = stderr(&o);
+    for scene in ["jump", "wave"] {
+        for method in ["baseline", "evogs"] {
+            assert!(log.contains(&format!("{scene} {method}: started")), "{log}");
+            assert!(
+                log.contains(&format!("{scene} {method}: finished")),
+                "{log}"
+            );
+            assert!(
+                out.join(scene)
+                    .join(method)
+                    .join("eval_test.json")
+                    .is_file()
+            );
+            assert!(out.join(scene).join(method).join("eval_val.json").is_file());
+        }
+        let picture = image::open(out.join(format!("{scene}.png"))).unwrap();
+        // Ground truth and two methods side by side, three times down.
+        assert!(picture.width() > 2 * picture.height() / 3, "{picture:?}");
+    }
+    let table = std::fs::read_to_string(out.join("bench.md")).unwrap();
+    let rows: Vec<Vec<&str>> = table
+        .lines()
+        .filter(|l| l.starts_with("| ") && !l.starts_with("| scene") && !l.starts_with("| ---"))
+        .map(|l| l.split('|').map(str::trim).collect())
+        .collect();
+    let keys: Vec<(&str, &str, &str)> = rows.iter().map(|r| (r[1], r[2], r[3])).collect();
+    assert_eq!(
+        keys,
+        [
+            ("jump", "baseline", "test"),
+            ("jump", "evogs", "test"),
+            ("wave", "baseline", "test"),
+            ("wave", "evogs", "test")
+        ],
+        "{table}"
+    );
+    assert!(
+        table.contains("preset `tiny`, 20 iterations, seed 2"),
+        "{table}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("bench.json")).unwrap()).unwrap();
+    let runs = json["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 4);
+    for run in runs {
+        let curve = run["curve"].as_array().unwrap();
+        let iterations: Vec<u64> = curve
+            .iter()
+            .map(|p| p["iteration"].as_u64().unwrap())
+            .collect();
+        assert_eq!(iterations, [10, 20], "{run}");
+        assert!(
+            curve
+                .iter()
+                .all(|p| p["psnr"].as_f64().unwrap().is_finite())
+        );
+        assert_eq!(run["non_finite"].as_u64(), Some(0));
+        assert_eq!(run["scores"].as_array().unwrap().len(), 2);
+    }
+    assert!(!json["published"].as_array().unwrap().is_empty());
+    image::open(out.join("bench.png")).unwrap();
+}
+
+#[test]
+fn unknown_method_is_a_one_line_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = evogs(&[
+        "bench",
+        "--data",
+        s(dir.path()),
+        "--out",
+        s(&dir.path().join("out")),
+        "--methods",
+        "baseline,evo",
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert_eq!(e.trim().lines().count(), 1, "{e}");
+    assert!(e.contains("method") && e.contains("evo"), "{e}");
+}
