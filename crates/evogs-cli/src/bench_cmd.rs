@@ -8,6 +8,8 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 use evogs_train::bench::{BenchProgress, BenchRequest, BenchRun, BenchScene, run_bench};
+use evogs_train::eval::EvalLpips;
+use evogs_train::metrics::lpips::Backbone;
 use evogs_train::{Method, Preset, TrainConfig};
 
 /// Arguments of `evogs bench`.
@@ -46,6 +48,16 @@ pub struct BenchArgs {
     /// Seed of every run.
     #[arg(long, value_name = "S")]
     pub seed: Option<u64>,
+
+    /// Also report LPIPS with the VGG16 backbone (the one D-3DGS publishes); AlexNet's is
+    /// always reported when its weights are installed.
+    #[arg(long)]
+    pub lpips_vgg: bool,
+
+    /// Directory of the LPIPS weights [default: $EVOGS_LPIPS_WEIGHTS, else
+    /// ~/.cache/evogs/lpips; `scripts/lpips-weights` installs them there].
+    #[arg(long, value_name = "DIR")]
+    pub lpips_weights: Option<PathBuf>,
 }
 
 /// Runs `evogs bench`; returns the runs (the outputs are written).
@@ -70,7 +82,16 @@ pub fn run_bench_cmd(args: &BenchArgs) -> Result<Vec<BenchRun>> {
         eval_every: args.eval_every,
         out: args.out.clone(),
     };
-    Ok(run_bench(&request, &mut |p| match p {
+    let backbones: &[Backbone] = if args.lpips_vgg {
+        &Backbone::ALL
+    } else {
+        &[Backbone::Alex]
+    };
+    let lpips = EvalLpips::find(backbones, args.lpips_weights.as_deref())?;
+    for line in &lpips.missing {
+        eprintln!("LPIPS not reported: {line}");
+    }
+    Ok(run_bench(&request, &lpips, &mut |p| match p {
         BenchProgress::Started { scene, method } => eprintln!("{scene} {method}: started"),
         BenchProgress::Point {
             scene,

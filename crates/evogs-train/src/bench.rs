@@ -27,7 +27,7 @@ use serde::Serialize;
 use crate::config::{Method, TrainConfig};
 use crate::data::{SplitViews, load_split};
 use crate::error::TrainError;
-use crate::eval::evaluate;
+use crate::eval::{EvalLpips, evaluate};
 use crate::metrics::{ImageSize, psnr};
 use crate::run::{LoadedRun, TrainRequest, train};
 
@@ -225,8 +225,10 @@ pub struct SplitScore {
     pub psnr: f64,
     /// Mean SSIM.
     pub ssim: f64,
-    /// Mean LPIPS, when the evaluation computes it (not yet: see [`crate::eval`]).
-    pub lpips: Option<f64>,
+    /// Mean LPIPS with the AlexNet backbone, when its weights were loaded.
+    pub lpips_alex: Option<f64>,
+    /// Mean LPIPS with the VGG16 backbone (the one D-3DGS reports), when asked for and loaded.
+    pub lpips_vgg: Option<f64>,
 }
 
 /// One point of a run's curve.
@@ -352,6 +354,7 @@ fn bench_one(
     config: TrainConfig,
     eval_every: u64,
     out: &Path,
+    lpips: &EvalLpips,
     progress: &mut dyn FnMut(BenchProgress<'_>),
 ) -> Result<BenchRun, TrainError> {
     let method = config.method;
@@ -430,13 +433,14 @@ fn bench_one(
         Split::Val
     };
     for split in [headline, other] {
-        let report = evaluate(&mut run, split)?;
+        let report = evaluate(&mut run, split, lpips)?;
         scores.push(SplitScore {
             split: split.name().to_string(),
             images: report.images.len(),
             psnr: report.mean_psnr,
             ssim: report.mean_ssim,
-            lpips: None,
+            lpips_alex: report.mean_lpips_alex,
+            lpips_vgg: report.mean_lpips_vgg,
         });
     }
     Ok(BenchRun {
@@ -455,10 +459,12 @@ fn bench_one(
     })
 }
 
-/// Runs every scene × method of `request`, writes the outputs ([`write_outputs`]) and returns
-/// the runs (scene-major, in the request's orders).
+/// Runs every scene × method of `request`, evaluates each with the LPIPS networks of `lpips`,
+/// writes the outputs ([`write_outputs`]) and returns the runs (scene-major, in the request's
+/// orders).
 pub fn run_bench(
     request: &BenchRequest,
+    lpips: &EvalLpips,
     progress: &mut dyn FnMut(BenchProgress<'_>),
 ) -> Result<Vec<BenchRun>, TrainError> {
     if request.scenes.is_empty() || request.methods.is_empty() {
@@ -482,7 +488,7 @@ pub fn run_bench(
             let mut config = request.config.clone();
             config.method = method;
             let out = request.out.join(&scene.name).join(method.to_string());
-            let run = bench_one(scene, config, request.eval_every, &out, progress)?;
+            let run = bench_one(scene, config, request.eval_every, &out, lpips, progress)?;
             progress(BenchProgress::Finished { run: &run });
             runs.push(run);
         }
@@ -504,9 +510,10 @@ pub fn table(config: &TrainConfig, runs: &[BenchRun]) -> String {
         "# evogs bench: preset `{}`, {} iterations, seed {}\n\n\
          Headline split: lego val, the other scenes test (as D-3DGS reports them). Times are \
          wall clock on the machine as it was (see the README for what else ran); curve \
-         evaluations are excluded. LPIPS: not computed yet (–).\n\n\
-         | scene | method | split | PSNR (dB) | SSIM | LPIPS | other split PSNR | Gaussians | peak memory (MiB) | training (min) | non-finite | published (D-3DGS) |\n\
-         | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |\n",
+         evaluations are excluded. LPIPS: AlexNet and VGG16 backbones (– where not computed); \
+         D-3DGS publishes VGG16.\n\n\
+         | scene | method | split | PSNR (dB) | SSIM | LPIPS (Alex) | LPIPS (VGG) | other split PSNR | Gaussians | peak memory (MiB) | training (min) | non-finite | published (D-3DGS) |\n\
+         | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |\n",
         config.preset.name(),
         config.iterations,
         config.seed
@@ -524,13 +531,14 @@ pub fn table(config: &TrainConfig, runs: &[BenchRun]) -> String {
             },
         );
         s += &format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} | {} | {} |\n",
             r.scene,
             r.method,
             r.headline,
             fmt_opt(head.map(|x| x.psnr), 2),
             fmt_opt(head.map(|x| x.ssim), 4),
-            fmt_opt(head.and_then(|x| x.lpips), 4),
+            fmt_opt(head.and_then(|x| x.lpips_alex), 4),
+            fmt_opt(head.and_then(|x| x.lpips_vgg), 4),
             other.map_or_else(
                 || "–".to_string(),
                 |o| format!("{:.2} ({})", o.psnr, o.split)
