@@ -7,9 +7,9 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
+use evogs_metrics::lpips::Backbone;
 use evogs_train::bench::{BenchProgress, BenchRequest, BenchRun, BenchScene, run_bench};
 use evogs_train::eval::EvalLpips;
-use evogs_train::metrics::lpips::Backbone;
 use evogs_train::{Method, Preset, TrainConfig};
 
 /// Arguments of `evogs bench`.

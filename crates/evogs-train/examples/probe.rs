@@ -13,9 +13,9 @@
 use std::path::PathBuf;
 
 use evogs_io::Split;
+use evogs_metrics::{ImageSize, psnr};
 use evogs_train::config::{Method, Preset, TrainConfig};
 use evogs_train::data::load_split;
-use evogs_train::metrics::{ImageSize, psnr};
 use evogs_train::run::{LoadedRun, TrainRequest, train};
 use splat_raster::RenderOptions;
 

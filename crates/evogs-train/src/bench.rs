@@ -28,8 +28,8 @@ use crate::config::{Method, TrainConfig};
 use crate::data::{SplitViews, load_split};
 use crate::error::TrainError;
 use crate::eval::{EvalLpips, evaluate};
-use crate::metrics::{ImageSize, psnr};
 use crate::run::{LoadedRun, TrainRequest, train};
+use evogs_metrics::{ImageSize, psnr};
 
 /// One scene: a name (table rows, file names) and its dataset directory.
 #[derive(Clone, Debug, PartialEq, Eq)]
