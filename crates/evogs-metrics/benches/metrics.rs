@@ -1,9 +1,10 @@
-//! Photometric loss + gradient and SSIM at 400×400 (the size of a D-NeRF image at half resolution).
+//! Photometric loss + gradient (plain reference and the fast workspace, in one run) and SSIM at
+//! 400×400 (the size of a D-NeRF image at half resolution).
 
 use bench_support::{CpuTime, clock_prefix};
 use criterion::measurement::{Measurement, WallTime};
 use criterion::{Criterion, criterion_group, criterion_main};
-use evogs_metrics::{ImageSize, photometric_loss, ssim};
+use evogs_metrics::{ImageSize, LossWorkspace, photometric_loss, ssim};
 use std::hint::black_box;
 
 fn images(size: ImageSize) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
@@ -33,6 +34,14 @@ fn bench<M: Measurement + 'static>(c: &mut Criterion<M>) {
     let mut group = c.benchmark_group(format!("{}metrics_400x400", clock_prefix::<M>()));
     group.bench_function("loss_and_gradient", |b| {
         b.iter(|| photometric_loss(size, black_box(&rendered), black_box(&gt)).unwrap())
+    });
+    let mut workspace = LossWorkspace::new();
+    group.bench_function("loss_and_gradient_fast", |b| {
+        b.iter(|| {
+            workspace
+                .compute(size, black_box(&rendered), black_box(&gt))
+                .unwrap()
+        })
     });
     group.bench_function("ssim", |b| {
         b.iter(|| ssim(size, black_box(&rendered), black_box(&gt)).unwrap())

@@ -8,6 +8,8 @@
 //!   with respect to the rendered image (analytic SSIM backward through the separable Gaussian
 //!   convolutions). Generic over [`Real`] so the same code runs in f32 (training) and f64 (the
 //!   finite-difference checks).
+//! - [`LossWorkspace`]: the same loss and gradient (and the MSE), fast and allocation-free, for
+//!   the training loop; [`photometric_loss`] is its plain reference.
 //! - [`flicker`] and [`trajectory_jitter`]: the temporal consistency metrics.
 //! - [`lpips`]: LPIPS with the AlexNet or VGG16 backbone from the published weights.
 //!
@@ -18,6 +20,7 @@
 //! workspace crate it depends on is `tiny-nn`, whose matrix product runs LPIPS's convolutions.
 
 mod error;
+mod fast_loss;
 mod gaussian_blur;
 mod loss;
 pub mod lpips;
@@ -27,9 +30,10 @@ mod ssim;
 mod temporal;
 
 pub use error::MetricsError;
+pub use fast_loss::{LossValues, LossWorkspace};
 pub use gaussian_blur::{SSIM_SIGMA, SSIM_WINDOW, ssim_kernel};
 pub use loss::{L1_WEIGHT, PhotometricLoss, SSIM_WEIGHT, photometric_loss};
-pub use psnr::{mse, psnr};
+pub use psnr::{mse, psnr, psnr_from_mse};
 pub use real::Real;
 pub use ssim::{SSIM_C1, SSIM_C2, ssim};
 pub use temporal::{Flicker, Jitter, flicker, trajectory_jitter};

@@ -17,12 +17,16 @@ pub fn mse<T: Real>(size: ImageSize, a: &[[T; 3]], b: &[[T; 3]]) -> Result<f64, 
 /// PSNR in dB for a peak of 1: `−10·log10(MSE)`, as 3DGS's `20·log10(1/sqrt(mse))`. Identical
 /// images give `f64::INFINITY`.
 pub fn psnr<T: Real>(size: ImageSize, a: &[[T; 3]], b: &[[T; 3]]) -> Result<f64, MetricsError> {
-    let m = mse(size, a, b)?;
-    Ok(if m == 0.0 {
+    Ok(psnr_from_mse(mse(size, a, b)?))
+}
+
+/// PSNR in dB of a mean squared error, for a peak of 1 (`f64::INFINITY` for 0).
+pub fn psnr_from_mse(mse: f64) -> f64 {
+    if mse == 0.0 {
         f64::INFINITY
     } else {
-        -10.0 * m.log10()
-    })
+        -10.0 * mse.log10()
+    }
 }
 
 #[cfg(test)]
