@@ -56,6 +56,11 @@ pub struct TrainArgs {
     #[arg(long, default_value = "baseline", value_name = "baseline|evogs")]
     pub method: String,
 
+    /// Deformation backbone: d3dgs (Deformable-3D-Gaussians' MLP) or 4dgs (4DGaussians'
+    /// HexPlane field with its regularisers; baseline method only for now).
+    #[arg(long, default_value = "d3dgs", value_name = "d3dgs|4dgs")]
+    pub backbone: evogs_train::BackboneKind,
+
     /// EvoGS gain K: learned (Ψ), or fixed at a number in [0, 1] (0 = prior only, 1 =
     /// observation only) [default: learned].
     #[arg(long, value_name = "learned|0|0.5|1")]
@@ -126,7 +131,7 @@ pub struct TrainArgs {
     /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
     #[arg(
         long,
-        conflicts_with_all = ["data", "method", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr"]
+        conflicts_with_all = ["data", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr"]
     )]
     pub resume: bool,
 

@@ -30,6 +30,7 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
         config.background = b.parse::<Background>()?;
     }
     config.method = method;
+    config.backbone = args.backbone;
     let e = &mut config.evogs;
     if let Some(v) = &args.gain {
         e.gain = v.parse()?;

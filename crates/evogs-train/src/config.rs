@@ -70,6 +70,42 @@ impl fmt::Display for Method {
     }
 }
 
+/// The deformation backbone (`--backbone`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum BackboneKind {
+    /// Deformable-3D-Gaussians' deformation MLP ([`crate::D3dgsBackbone`]).
+    #[default]
+    #[serde(rename = "d3dgs")]
+    D3dgs,
+    /// 4DGaussians' HexPlane field ([`crate::hex_backbone::HexBackbone`]).
+    #[serde(rename = "4dgs")]
+    FourDgs,
+}
+
+impl FromStr for BackboneKind {
+    type Err = TrainError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "d3dgs" => Ok(Self::D3dgs),
+            "4dgs" => Ok(Self::FourDgs),
+            other => Err(TrainError::config(
+                "backbone",
+                format!("unknown backbone `{other}`; expected d3dgs or 4dgs"),
+            )),
+        }
+    }
+}
+
+impl fmt::Display for BackboneKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::D3dgs => "d3dgs",
+            Self::FourDgs => "4dgs",
+        })
+    }
+}
+
 /// Background colour composited behind the Gaussians and behind the images' alpha.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -279,6 +315,9 @@ pub struct TrainConfig {
     pub preset: Preset,
     /// The deformation method.
     pub method: Method,
+    /// The deformation backbone; runs written before it existed read as `d3dgs`.
+    #[serde(default)]
+    pub backbone: BackboneKind,
     /// Seed of initialisation, frame order, network initialisation and split sampling.
     pub seed: u64,
     /// Training iterations (counted from 1, as D-3DGS).
@@ -328,6 +367,7 @@ impl TrainConfig {
         let paper = Self {
             preset: Preset::Paper,
             method: Method::Baseline,
+            backbone: BackboneKind::D3dgs,
             seed: 0,
             iterations: 40_000,
             warm_up: 3_000,
@@ -484,6 +524,15 @@ impl TrainConfig {
         }
         if self.method == Method::Evogs {
             self.evogs.validate()?;
+            if self.backbone != BackboneKind::D3dgs {
+                return Err(TrainError::config(
+                    "backbone",
+                    format!(
+                        "EvoGS({}) is not implemented yet; --method evogs needs --backbone d3dgs",
+                        self.backbone
+                    ),
+                ));
+            }
         }
         let c = self.evogs.components;
         if self.method == Method::Baseline && (c.opacity || c.colour) {
@@ -544,6 +593,16 @@ mod tests {
     fn method_and_names_parse() {
         assert_eq!("baseline".parse::<Method>().unwrap(), Method::Baseline);
         assert_eq!("evogs".parse::<Method>().unwrap(), Method::Evogs);
+        assert_eq!(
+            "4dgs".parse::<BackboneKind>().unwrap(),
+            BackboneKind::FourDgs
+        );
+        assert_eq!(
+            "d3dgs".parse::<BackboneKind>().unwrap(),
+            BackboneKind::D3dgs
+        );
+        assert!("grid4d".parse::<BackboneKind>().is_err());
+        assert_eq!(BackboneKind::FourDgs.to_string(), "4dgs");
         let e = "evo".parse::<Method>().unwrap_err().to_string();
         assert!(e.contains("baseline or evogs"), "{e}");
         assert!("cpu".parse::<Preset>().is_ok());

@@ -30,7 +30,7 @@ use rand_chacha::ChaCha8Rng;
 use splat_raster::{BackendInfo, DynRasterizer, Gaussians, RenderOptions, select_rasterizer};
 
 use crate::backbone::{Backbone, D3dgsBackbone};
-use crate::config::{Method, TrainConfig};
+use crate::config::{BackboneKind, Method, TrainConfig};
 use crate::data::SplitViews;
 use crate::deformed::{DeformedGeometry, deformation_gradient};
 use crate::error::TrainError;
@@ -62,10 +62,13 @@ pub struct StepReport {
 /// The backbone a config asks for.
 pub fn make_backbone(config: &TrainConfig) -> Result<Box<dyn Backbone>, TrainError> {
     match config.method {
-        Method::Baseline => Ok(Box::new(D3dgsBackbone::new(
-            &config.net,
-            config.seed ^ 0xD3D6_5000,
-        )?)),
+        Method::Baseline => match config.backbone {
+            BackboneKind::D3dgs => Ok(Box::new(D3dgsBackbone::new(
+                &config.net,
+                config.seed ^ 0xD3D6_5000,
+            )?)),
+            BackboneKind::FourDgs => Ok(Box::new(crate::hex_backbone::HexBackbone::new(config)?)),
+        },
         Method::Evogs => Ok(Box::new(crate::evo_backbone::EvoBackbone::new(config)?)),
     }
 }

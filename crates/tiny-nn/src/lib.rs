@@ -27,6 +27,8 @@
 //!   gradient scatter).
 //! - [`nets`]: [`ObservationNet`] (EvoGS Φ: tri-plane + B-spline → MLP, output starts at 0) and
 //!   [`DeformNet`] (D-3DGS: sinusoidal xyz and t → depth-8 MLP with skip → 10 outputs).
+//! - [`hexfield`]: [`HexDeformNet`] (4DGaussians: HexPlane → feature layer → position, rotation
+//!   and scale heads, with the HexPlane's regularisers).
 //! - [`adam`]: [`Adam`] with groups, [`LrSchedule`] (constant or 3DGS exponential), per-row moment
 //!   reset and remapping; moments are public `Vec<f32>`.
 //! - [`weights`]: [`weights::save`] / [`weights::load`] of any [`Parameters`] as safetensors.
@@ -85,6 +87,7 @@ pub mod activation;
 pub mod adam;
 pub mod encoding;
 pub mod error;
+pub mod hexfield;
 pub mod linalg;
 pub mod mlp;
 pub mod nets;
@@ -105,6 +108,7 @@ pub use encoding::triplane::{
     TriPlaneGrads,
 };
 pub use error::NnError;
+pub use hexfield::{HEX_OUTPUT, HexDeformCache, HexDeformConfig, HexDeformGrads, HexDeformNet};
 pub use mlp::{Init, LayerShape, Mlp, MlpCache, MlpConfig, MlpGrads};
 pub use nets::{
     DeformCache, DeformConfig, DeformGrads, DeformNet, ObservationCache, ObservationConfig,

@@ -1,0 +1,135 @@
+//! The 4DGaussians backbone (`--backbone 4dgs`): its HexPlane deformation field
+//! ([`tiny_nn::HexDeformNet`]) with its plane regularisers.
+//!
+//! What it is (`hustvl/4DGaussians`, D-NeRF settings `arguments/dnerf/dnerf_default.py`):
+//! - the field: HexPlane of 32 channels, space resolutions 64 · [1, 2], 25 time texels, feature
+//!   layer and heads of width 64 ([`HexDeformConfig::dnerf`]), over the box of the initial
+//!   points (4DGaussians: `set_aabb` from the initial point cloud's bounds; ours is the cube
+//!   `[-h, h]³` of [`TrainConfig::init_half_extent`]);
+//! - deformation of position, rotation and scale (its D-NeRF defaults `no_do`, `no_dshs`);
+//! - the regularisers of the fine stage (`train.py` `scene_reconstruction`, `stage == "fine"`):
+//!   `plane_tv_weight = 1e-4` ([`SPACE_SMOOTHNESS`]), `time_smoothness_weight = 1e-2`
+//!   ([`TIME_SMOOTHNESS`]), `l1_time_planes = 1e-4` ([`TIME_L1`]); the field runs only after
+//!   the warm-up, so its regularisers are those of the fine stage;
+//! - learning rates: 4DGaussians' grid lr is 10× its MLP lr (`grid_lr_init = 1.6e-3`,
+//!   `deformation_lr_init = 1.6e-4`, both decaying 100×), so the planes take the network
+//!   schedule times [`GRID_LR_SCALE`] and the MLPs the network schedule.
+//! - the two-stage schedule: 4DGaussians' static coarse stage (`coarse_iterations = 3000`) is
+//!   the trainer's warm-up ([`TrainConfig::warm_up`]), during which no backbone runs.
+//!
+//! What it is not: EvoGS(4DGS) (Φ built from this field), which is not implemented yet.
+
+use std::path::Path;
+
+use splat_core::GaussiansView;
+use tiny_nn::{
+    HEX_OUTPUT, HexDeformCache, HexDeformConfig, HexDeformNet, Parameters, StoreMut, StoreRef,
+};
+
+use crate::backbone::{Backbone, DEFORM_DIM, GEOMETRY_DIM};
+use crate::config::TrainConfig;
+use crate::error::TrainError;
+
+/// 4DGaussians' `plane_tv_weight` (D-NeRF).
+pub const SPACE_SMOOTHNESS: f32 = 1e-4;
+/// 4DGaussians' `time_smoothness_weight` (D-NeRF).
+pub const TIME_SMOOTHNESS: f32 = 1e-2;
+/// 4DGaussians' `l1_time_planes` (D-NeRF).
+pub const TIME_L1: f32 = 1e-4;
+/// 4DGaussians' `grid_lr_init / deformation_lr_init`.
+pub const GRID_LR_SCALE: f32 = 10.0;
+
+/// The 4DGaussians backbone.
+pub struct HexBackbone {
+    net: HexDeformNet,
+    cache: Option<HexDeformCache>,
+    regularisers: f64,
+}
+
+impl HexBackbone {
+    /// The D-NeRF field over the initial cube of `config`, initialised from its seed.
+    pub fn new(config: &TrainConfig) -> Result<Self, TrainError> {
+        let h = config.init_half_extent;
+        let net = HexDeformNet::new(HexDeformConfig::dnerf(
+            [-h; 3],
+            [h; 3],
+            config.seed ^ 0x4D65_0000,
+        ))?;
+        Ok(Self {
+            net,
+            cache: None,
+            regularisers: 0.0,
+        })
+    }
+}
+
+impl Backbone for HexBackbone {
+    fn name(&self) -> &'static str {
+        "4dgs"
+    }
+
+    fn forward(
+        &mut self,
+        canonical: GaussiansView<'_>,
+        time: f32,
+        training: bool,
+    ) -> Result<Vec<f32>, TrainError> {
+        let n = canonical.len();
+        let positions: Vec<f32> = canonical.means.iter().flat_map(|m| *m).collect();
+        let times = vec![time; n];
+        let (geometry, cache) = self.net.forward(&positions, &times, n)?;
+        self.cache = training.then_some(cache);
+        let mut out = vec![0.0f32; n * DEFORM_DIM];
+        for (row, g) in out
+            .chunks_exact_mut(DEFORM_DIM)
+            .zip(geometry.chunks_exact(HEX_OUTPUT))
+        {
+            row[..GEOMETRY_DIM].copy_from_slice(g);
+        }
+        Ok(out)
+    }
+
+    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, TrainError> {
+        let cache = self.cache.as_ref().ok_or_else(|| {
+            TrainError::config("backbone", "backward called without a training forward")
+        })?;
+        let geometry: Vec<f32> = d_deform
+            .chunks_exact(DEFORM_DIM)
+            .flat_map(|r| r[..GEOMETRY_DIM].iter().copied())
+            .collect();
+        let mut g = self.net.backward(cache, &geometry)?;
+        self.regularisers =
+            self.net
+                .regularise(SPACE_SMOOTHNESS, TIME_SMOOTHNESS, TIME_L1, &mut g)?;
+        let [p, r, s] = g.heads;
+        Ok(vec![g.hexplane, g.trunk, p, r, s])
+    }
+
+    fn params(&self) -> Vec<(String, StoreRef<'_>)> {
+        self.net.named_params()
+    }
+
+    fn params_mut(&mut self) -> Vec<(String, StoreMut<'_>)> {
+        self.net.named_params_mut()
+    }
+
+    fn lr_scale(&self, name: &str) -> f32 {
+        if name == "hexplane" {
+            GRID_LR_SCALE
+        } else {
+            1.0
+        }
+    }
+
+    fn loss_terms(&self) -> f64 {
+        self.regularisers
+    }
+
+    fn save(&self, path: &Path) -> Result<(), TrainError> {
+        Ok(tiny_nn::weights::save(path, &self.net)?)
+    }
+
+    fn load(&mut self, path: &Path) -> Result<(), TrainError> {
+        Ok(tiny_nn::weights::load(path, &mut self.net)?)
+    }
+}
