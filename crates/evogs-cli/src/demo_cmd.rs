@@ -1,5 +1,5 @@
 //! `evogs demo [--quick]`: needs no files. Builds the embedded synthetic scene
-//! (`synth::embedded_scene`, written in the D-NeRF layout under `OUT/scene`), trains the baseline
+//! (`evogs_synth::embedded_scene`, written in the D-NeRF layout under `OUT/scene`), trains the baseline
 //! (D-3DGS) and EvoGS with the same preset and iteration budget, evaluates both on the test split
 //! (renders under `OUT/<method>/renders/test/`), renders a fixed-camera time sweep with its strip
 //! for each (`OUT/<method>/sweep/strip.png`, from the first test camera), and returns a
@@ -10,10 +10,10 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 use evogs_io::Split;
+use evogs_synth::{embedded_scene, write_dnerf};
 use evogs_train::ablate::train_and_evaluate;
 use evogs_train::data::load_split;
 use evogs_train::eval::EvalLpips;
-use evogs_train::synth::{embedded_scene, write_dnerf};
 use evogs_train::{Method, Preset, TrainConfig};
 use splat_raster::BackendChoice;
 

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::builder::PossibleValue;
 use clap::{Args, ValueEnum};
-use evogs_train::synth::{Preset, SceneSpec, SceneSummary, generate, write_dnerf};
+use evogs_synth::{Preset, SceneSpec, SceneSummary, generate, write_dnerf};
 
 /// A preset as a command-line value; names and help come from the library.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -5,8 +5,8 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use evogs_io::Split;
+use evogs_synth::{embedded_scene, write_dnerf};
 use evogs_train::data::load_split;
-use evogs_train::synth::{embedded_scene, write_dnerf};
 use evogs_train::{Components, Method, Preset, TrainConfig, Trainer};
 
 fn trainer(method: Method, components: Components, data: &std::path::Path) -> Trainer {

@@ -1,8 +1,7 @@
 //! `evogs-train`: the training pipeline for dynamic Gaussian scenes.
 //!
 //! What it is: the composition of the workspace's crates into a trainer (scene state kept aligned
-//! through densify's row plans, deformation backbones, losses, schedules, checkpoints) and synthetic
-//! scene generation.
+//! through densify's row plans, deformation backbones, losses, schedules, checkpoints).
 //!
 //! - [`ablate`], [`ablate_plot`]: the paper's ablation ladder, its runner, table and plot;
 //! - [`bench`], [`bench_plot`]: the D-NeRF benchmark (scenes × methods, table with the published
@@ -15,8 +14,7 @@
 //! - [`trainer`]: the training loop; [`run`]: run directories, `train` and resume;
 //! - [`checkpoint`]: exact checkpoints; [`eval`], [`render`]: evaluation, rendering, export;
 //! - [`video`]: the frames of a video (path, times) and side-by-side comparisons;
-//! - [`motion_report`]: a diagnostic of EvoGS's motion statistics (speeds and θ by decade);
-//! - [`synth`]: synthetic scenes in the D-NeRF layout.
+//! - [`motion_report`]: a diagnostic of EvoGS's motion statistics (speeds and θ by decade).
 //!
 //! The recipe follows Deformable-3D-Gaussians (`ingra14m/Deformable-3D-Gaussians`: `train.py`,
 //! `arguments/__init__.py`, `scene/deform_model.py`, `utils/time_utils.py`) and 3DGS's
@@ -27,8 +25,9 @@
 //! Below it θ is measurement noise that would block the uncertainty trigger everywhere; see
 //! [`evo_settings::TRAINER_MOTION_FLOOR`] for the measurement and the reasoning.
 //!
-//! What it is not: a rasterizer, a network library, a file-format reader, a metrics library or a
-//! command line. Those are `splat-raster`, `tiny-nn`, `evogs-io`, `evogs-metrics` and `evogs-cli`.
+//! What it is not: a rasterizer, a network library, a file-format reader, a metrics library, a scene
+//! generator or a command line. Those are `splat-raster`, `tiny-nn`, `evogs-io`, `evogs-metrics`,
+//! `evogs-synth` and `evogs-cli`.
 
 pub mod ablate;
 pub mod ablate_plot;
@@ -50,7 +49,6 @@ pub mod motion_report;
 pub mod render;
 pub mod run;
 pub mod state;
-pub mod synth;
 pub mod timers;
 pub mod trainer;
 pub mod video;

@@ -6,7 +6,7 @@ use std::hash::{Hash, Hasher};
 use std::path::Path;
 
 use evogs_io::{Split, load_image, read_dnerf_split};
-use evogs_train::synth::{
+use evogs_synth::{
     GROUND_TRUTH_FILE, Part, Preset, SceneSpec, SceneSummary, SyntheticScene, embedded_scene,
     generate, read_ground_truth, write_dnerf,
 };

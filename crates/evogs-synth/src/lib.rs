@@ -1,4 +1,5 @@
-//! Procedural dynamic scenes with exact ground truth (SPEC §8).
+//! `evogs-synth`: procedural dynamic scenes with exact ground truth (SPEC §8), and the demo's
+//! embedded scene.
 //!
 //! A scene is an object — a checkered *body* sphere and a small *satellite* cube beside it — made
 //! of SH-degree-0 Gaussians, moved by only the effects its [`SceneSpec`] enables (each an
@@ -23,6 +24,9 @@
 //! `local = p + wave(p, t) [body] + jump(t) [satellite]`,
 //! `x(t) = R(t)·local + T_rigid(t) + T_large(t)`, `q(t) = q_R(t) ⊗ q`; the occluder follows its
 //! own orbit. See [`MotionModel`].
+//!
+//! What it is not: a trainer or a dataset reader (those are `evogs-train` and `evogs-io`; the
+//! written scenes load with `evogs_io::read_dnerf_split` like any D-NeRF scene).
 
 mod cameras;
 mod effects;
