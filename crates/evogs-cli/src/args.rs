@@ -28,7 +28,7 @@ pub enum Command {
     Video(crate::video_cmd::VideoArgs),
     /// Generate a procedural dynamic scene (D-NeRF layout) with its ground truth.
     Synth(crate::synth_cmd::SynthArgs),
-    /// Export a run's deformed Gaussians at a time as a standard 3DGS PLY.
+    /// Export a run's deformed Gaussians at a time, or a sequence, as 3DGS PLY or .splat.
     Export(ExportArgs),
     /// Train the baseline and EvoGS on the built-in synthetic scene and compare them (no files
     /// needed).
@@ -184,13 +184,31 @@ pub struct ExportArgs {
     #[arg(long, value_name = "RUN")]
     pub run: PathBuf,
 
-    /// Time: training times lie in [0, 1]; any finite time is accepted (between frames, or
-    /// beyond them: Φ's B-spline clamps to [0, 1], EvoGS's prior extrapolates the last frames).
-    #[arg(long, value_name = "T", allow_negative_numbers = true)]
-    pub time: f32,
+    /// Time of one frame: training times lie in [0, 1]; any finite time is accepted (between
+    /// frames, or beyond them: Φ's B-spline clamps to [0, 1], EvoGS's prior extrapolates the
+    /// last frames).
+    #[arg(
+        long,
+        value_name = "T",
+        allow_negative_numbers = true,
+        required_unless_present = "frames",
+        conflicts_with = "frames"
+    )]
+    pub time: Option<f32>,
 
-    /// Output PLY file (3DGS layout), written atomically.
-    #[arg(long, value_name = "FRAME.ply")]
+    /// A sequence of N frames at times evenly spaced over [0, 1] into the folder --out
+    /// (frame_0000.ply, ... and sequence.json: format, count, files, times, Gaussians, the
+    /// canonical bounds).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub frames: Option<u32>,
+
+    /// File format: ply (INRIA 3DGS, every SH band, f32) or splat (32 bytes a Gaussian: DC colour
+    /// only, 8-bit colour, opacity and rotation; sorted by volume x opacity, largest first).
+    #[arg(long, default_value = "ply", value_name = "ply|splat")]
+    pub format: evogs_train::render::ExportFormat,
+
+    /// Output file (with --time) or folder (with --frames), each file written atomically.
+    #[arg(long, value_name = "OUT")]
     pub out: PathBuf,
 }
 

@@ -75,8 +75,11 @@ fn main() -> ExitCode {
                 args.run.display()
             );
         }),
-        Command::Export(args) => run_export(args).map(|n| {
-            println!("wrote {} ({n} Gaussians)", args.out.display());
+        Command::Export(args) => run_export(args).map(|(files, n)| {
+            println!(
+                "wrote {} ({files} file(s), {n} Gaussians in the first)",
+                args.out.display()
+            );
         }),
         Command::Render(args) => run_render(args).map(|report| {
             for warning in &report.warnings {

@@ -394,3 +394,68 @@ fn bad_input_gives_one_line_errors_and_writes_nothing() {
         "leftovers"
     );
 }
+
+#[test]
+fn exported_sequences_read_back_and_render_within_their_precision() {
+    use splat_raster::{CpuRasterizer, Rasterizer, RenderOptions};
+    let f = fixture();
+    let mut run = LoadedRun::open(&f.run).unwrap();
+    let camera = evogs_train::camera_path::split_cameras(&run, evogs_io::Split::Test).unwrap()[0].0;
+    let options = RenderOptions {
+        background: [0.0; 3],
+        sh_degree: Some(0),
+    };
+    let render = |g: &splat_raster::Gaussians| {
+        CpuRasterizer::new()
+            .forward(g.view(), &camera, &options)
+            .unwrap()
+            .color
+    };
+    for format in ["ply", "splat"] {
+        let dir = f.dir.path().join(format);
+        let out = ok(&evogs(&[
+            "export",
+            "--run",
+            s(&f.run),
+            "--frames",
+            "3",
+            "--format",
+            format,
+            "--out",
+            s(&dir),
+        ]));
+        assert!(out.contains("3 file(s)"), "{out}");
+        let seq: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("sequence.json")).unwrap())
+                .unwrap();
+        assert_eq!(seq["format"], format);
+        assert_eq!(seq["count"], 3);
+        assert_eq!(seq["times"], serde_json::json!([0.0, 0.5, 1.0]));
+        let file = dir.join(format!("frame_0001.{format}"));
+        let direct = run.deformed(0.5).unwrap();
+        assert_eq!(seq["gaussians"][1], direct.len());
+        if format == "ply" {
+            // Lossless: the deformed Gaussians exactly.
+            assert_eq!(evogs_io::read_ply(&file).unwrap().gaussians, direct);
+        } else {
+            // 32 bytes a Gaussian; DC colour only, 8-bit colour, opacity and rotation.
+            assert_eq!(
+                std::fs::metadata(&file).unwrap().len(),
+                32 * direct.len() as u64
+            );
+            let back = evogs_io::read_splat(&file).unwrap();
+            assert_eq!(back.len(), direct.len());
+            let (a, b) = (render(&back), render(&direct));
+            let err: Vec<f32> = a
+                .iter()
+                .flatten()
+                .zip(b.iter().flatten())
+                .map(|(x, y)| (x - y).abs())
+                .collect();
+            let mean = err.iter().sum::<f32>() / err.len() as f32;
+            let max = err.iter().copied().fold(0.0, f32::max);
+            // Measured: mean 0.0020, max 0.0147 (colour values in [0, 1]).
+            assert!(mean < 0.005 && max < 0.04, "mean {mean}, max {max}");
+        }
+    }
+}

@@ -25,6 +25,7 @@ pub mod nerfies;
 pub mod neu3d;
 pub mod npy;
 pub mod ply;
+pub mod splat;
 pub mod video;
 
 pub use camera_info::{CameraInfo, Distortion, warning_for_all};
@@ -39,4 +40,5 @@ pub use dnerf::{DnerfFrame, Split, read_dnerf_split, read_transforms};
 pub use error::IoError;
 pub use image_io::{ImageRgb, load_image, load_view, resize_image, save_png};
 pub use ply::{LoadedPly, read_ply, read_ply_bytes, write_ply, write_ply_to};
+pub use splat::{read_splat, write_splat};
 pub use video::{VideoFormat, VideoWriter};

@@ -106,3 +106,123 @@ pub fn export_frame(run: &mut LoadedRun, time: f32, out: &Path) -> Result<usize,
     write_ply(out, g.view())?;
     Ok(g.len())
 }
+
+/// The file formats of [`export_sequence`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ExportFormat {
+    /// The INRIA 3DGS PLY (every SH band, f32; DESIGN §2.2).
+    Ply,
+    /// The 32-byte `.splat` of web viewers (`evogs_io::splat`: DC colour only, 8-bit colour and
+    /// rotation).
+    Splat,
+}
+
+impl ExportFormat {
+    /// The file extension.
+    pub fn extension(self) -> &'static str {
+        match self {
+            Self::Ply => "ply",
+            Self::Splat => "splat",
+        }
+    }
+}
+
+impl std::str::FromStr for ExportFormat {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "ply" => Ok(Self::Ply),
+            "splat" => Ok(Self::Splat),
+            _ => Err(format!(
+                "unknown export format `{s}`; expected ply or splat"
+            )),
+        }
+    }
+}
+
+/// Writes the deformed Gaussians of `run` at `time` in `format` (atomically); returns how many.
+pub fn export_frame_as(
+    run: &mut LoadedRun,
+    time: f32,
+    format: ExportFormat,
+    out: &Path,
+) -> Result<usize, TrainError> {
+    check_time(time)?;
+    let g = run.deformed(time)?;
+    match format {
+        ExportFormat::Ply => {
+            write_ply(out, g.view())?;
+            Ok(g.len())
+        }
+        ExportFormat::Splat => Ok(evogs_io::write_splat(out, g.view())?),
+    }
+}
+
+/// `sequence.json` of an exported sequence.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Sequence {
+    /// The files' format.
+    pub format: ExportFormat,
+    /// Number of frames.
+    pub count: usize,
+    /// The file of each frame, in time order.
+    pub files: Vec<String>,
+    /// The time of each frame.
+    pub times: Vec<f32>,
+    /// Gaussians in each file.
+    pub gaussians: Vec<usize>,
+    /// The canonical Gaussians' bounding box: least and greatest mean per axis.
+    pub bounds: [[f32; 3]; 2],
+}
+
+/// Exports `count` (≥ 1) frames at times `k / (count − 1)` (0 for one frame) into `dir`:
+/// `frame_0000.<ext>`, … and `sequence.json` (written last), each file atomically.
+pub fn export_sequence(
+    run: &mut LoadedRun,
+    count: usize,
+    format: ExportFormat,
+    dir: &Path,
+) -> Result<Sequence, TrainError> {
+    if count == 0 {
+        return Err(TrainError::config(
+            "frames",
+            "0; a sequence needs at least 1",
+        ));
+    }
+    std::fs::create_dir_all(dir).map_err(|e| TrainError::io(dir, e))?;
+    let mut seq = Sequence {
+        format,
+        count,
+        files: Vec::with_capacity(count),
+        times: Vec::with_capacity(count),
+        gaussians: Vec::with_capacity(count),
+        bounds: bounds(&run.canonical.means),
+    };
+    for k in 0..count {
+        let t = if count > 1 {
+            k as f32 / (count - 1) as f32
+        } else {
+            0.0
+        };
+        let name = format!("frame_{k:04}.{}", format.extension());
+        let n = export_frame_as(run, t, format, &dir.join(&name))?;
+        seq.files.push(name);
+        seq.times.push(t);
+        seq.gaussians.push(n);
+    }
+    crate::run::write_json(&dir.join("sequence.json"), &seq)?;
+    Ok(seq)
+}
+
+fn bounds(means: &[[f32; 3]]) -> [[f32; 3]; 2] {
+    let mut b = [[f32::INFINITY; 3], [f32::NEG_INFINITY; 3]];
+    for m in means.iter().filter(|m| m.iter().all(|v| v.is_finite())) {
+        for k in 0..3 {
+            b[0][k] = b[0][k].min(m[k]);
+            b[1][k] = b[1][k].max(m[k]);
+        }
+    }
+    b
+}
