@@ -230,6 +230,19 @@ pub fn load_checkpoint(
         .ok_or_else(|| TrainError::field(path, META_KEY, "missing checkpoint metadata"))?;
     let meta: CheckpointMeta = serde_json::from_str(meta_json)
         .map_err(|e| TrainError::field(path, META_KEY, format!("invalid JSON: {e}")))?;
+    // Every Gaussian stores at least one f32 of its own: a count beyond that is a damaged
+    // header, refused before anything of that size is allocated.
+    if meta.gaussians > bytes.len() / 4 {
+        return Err(TrainError::field(
+            path,
+            "gaussians",
+            format!(
+                "{} Gaussians cannot fit in a file of {} bytes",
+                meta.gaussians,
+                bytes.len()
+            ),
+        ));
+    }
     if meta.sh_degree != state.gaussians.sh_degree {
         return Err(TrainError::field(
             path,
