@@ -138,6 +138,10 @@ pub struct DensifyConfig {
     pub reset_opacity: f32,
     /// Seed of the split sampling (combined with the iteration).
     pub seed: u64,
+    /// Densification never grows the count past this (brush's `max_splats`): when the clones and
+    /// splits a step wants would exceed it, those with the largest mean gradient go first and
+    /// the rest wait (counted in [`crate::PlanSummary::capped`]). `None`: no limit.
+    pub max_gaussians: Option<usize>,
 }
 
 impl Default for DensifyConfig {
@@ -159,6 +163,7 @@ impl Default for DensifyConfig {
             split_children: 2,
             reset_opacity: 0.01,
             seed: 0,
+            max_gaussians: None,
         }
     }
 }

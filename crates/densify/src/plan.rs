@@ -84,6 +84,8 @@ pub struct PlanSummary {
     /// Gaussians with a large gradient that the uncertainty-aware trigger kept from densifying
     /// (`None` when the trigger is off).
     pub blocked: Option<usize>,
+    /// Gaussians with a large gradient left undensified by `max_gaussians`.
+    pub capped: usize,
     /// Rows whose opacity is reset.
     pub reset: usize,
     /// Gaussians after the plan.
@@ -112,6 +114,9 @@ impl fmt::Display for PlanSummary {
         )?;
         if let Some(b) = self.blocked {
             write!(f, "blocked {b}, ")?;
+        }
+        if self.capped > 0 {
+            write!(f, "capped {}, ", self.capped)?;
         }
         write!(f, "reset {} → {} Gaussians", self.reset, self.after)
     }

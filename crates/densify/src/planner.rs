@@ -206,7 +206,7 @@ pub fn make_plan(
             }
         };
         let stats = input.stats;
-        let decisions: Vec<(Densify, Prune)> = (0..n)
+        let mut decisions: Vec<(Densify, Prune)> = (0..n)
             .into_par_iter()
             .with_min_len(4096)
             .map(|i| {
@@ -227,6 +227,9 @@ pub fn make_plan(
             })
             .collect();
 
+        if let Some(max) = config.max_gaussians {
+            summary.capped = cap_growth(&mut decisions, stats, max, config.split_children);
+        }
         // Only the densified rows' d̃ is read: check those for non-finite values.
         if let Some((_, d, off)) = deformation
             && let Some(i) = (0..n).find(|&i| {
@@ -334,4 +337,42 @@ pub fn make_plan(
         clears_stats: densify,
         summary,
     })
+}
+
+/// Demotes clones and splits to `Densify::No` so that the rows after the plan (kept rows plus
+/// new ones, before the new rows' own prune) do not exceed `max`: candidates are taken by mean
+/// gradient, largest first (ties by index), each accepted when it still fits. Returns how many
+/// were demoted. Never removes rows: when the rows kept without densifying already exceed
+/// `max`, every candidate waits.
+fn cap_growth(
+    decisions: &mut [(Densify, Prune)],
+    stats: &crate::DensifyStats,
+    max: usize,
+    children: usize,
+) -> usize {
+    let mut rows = decisions.iter().filter(|d| d.1 == Prune::No).count();
+    let mut candidates: Vec<usize> = (0..decisions.len())
+        .filter(|&i| matches!(decisions[i].0, Densify::Clone | Densify::Split))
+        .collect();
+    candidates.sort_by(|&a, &b| {
+        stats
+            .mean_grad(b)
+            .total_cmp(&stats.mean_grad(a))
+            .then(a.cmp(&b))
+    });
+    let mut capped = 0;
+    for i in candidates {
+        // A clone adds a row; a split replaces its parent (kept unless pruned) by its children.
+        let after = match decisions[i].0 {
+            Densify::Clone => rows + 1,
+            _ => rows + children - usize::from(decisions[i].1 == Prune::No),
+        };
+        if after <= max {
+            rows = after;
+        } else {
+            decisions[i].0 = Densify::No;
+            capped += 1;
+        }
+    }
+    capped
 }

@@ -605,3 +605,47 @@ fn evolution_cues_come_from_evo_state_steps() {
     assert!(stats.mean_theta(0) < 0.05, "{}", stats.mean_theta(0));
     assert!(stats.mean_theta(1) > 1.0, "{}", stats.mean_theta(1));
 }
+
+#[test]
+fn max_gaussians_keeps_the_largest_gradients_and_never_grows_past_the_cap() {
+    // Five small Gaussians (clone candidates) and two large ones (split candidates, 2 children),
+    // all above the gradient threshold; gradients make the order 6, 2, 5, 0, 3, 4, 1.
+    let mut g = gaussians(7, 0.005);
+    g.log_scales[5] = [0.05f32.ln(); 3];
+    g.log_scales[6] = [0.05f32.ln(); 3];
+    let grads = [0.004, 0.001, 0.006, 0.003, 0.002, 0.005, 0.007];
+    let stats = stats_with_grads(&grads);
+    let uncapped = plan_at(&standard(), &g, &stats, 600);
+    assert_eq!(uncapped.new_len(), 7 + 5 + 2);
+    assert_eq!(uncapped.summary.capped, 0);
+    for max in [0, 7, 8, 9, 10, 11, 13, 14, 20] {
+        let config = DensifyConfig {
+            max_gaussians: Some(max),
+            ..standard()
+        };
+        let plan = plan_at(&config, &g, &stats, 600);
+        assert!(
+            plan.new_len() <= max.max(7),
+            "cap {max}: {} rows",
+            plan.new_len()
+        );
+        // Greedy by gradient: 6 splits (+1), 2 clones (+1), 5 splits (+1), then clones 0, 3, 4, 1.
+        let expected = 7 + (max.saturating_sub(7)).min(7);
+        assert_eq!(plan.new_len(), expected, "cap {max}");
+        let densified = plan.summary.cloned + plan.summary.split;
+        assert_eq!(densified + plan.summary.capped, 7, "cap {max}");
+    }
+    // At cap 9 the two largest gradients (split 6, clone 2) grow the set.
+    let config = DensifyConfig {
+        max_gaussians: Some(9),
+        ..standard()
+    };
+    let plan = plan_at(&config, &g, &stats, 600);
+    assert_eq!((plan.summary.split, plan.summary.cloned), (1, 1));
+    assert_eq!(plan.rows.parent_from_new, vec![2, 6, 6]);
+    assert!(
+        plan.summary.to_string().contains("capped 5"),
+        "{}",
+        plan.summary
+    );
+}

@@ -131,7 +131,7 @@ pub struct TrainArgs {
     /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
     #[arg(
         long,
-        conflicts_with_all = ["data", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr"]
+        conflicts_with_all = ["data", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "max_gaussians"]
     )]
     pub resume: bool,
 
@@ -144,6 +144,11 @@ pub struct TrainArgs {
     /// the run's unless given [default: cpu].
     #[arg(long, value_name = "cpu|wgpu|auto", value_parser = parse_backend)]
     pub backend: Option<BackendChoice>,
+
+    /// Densification never grows the Gaussians past this count (the largest gradients are
+    /// densified first) [default: no limit].
+    #[arg(long, value_name = "N")]
+    pub max_gaussians: Option<usize>,
 
     /// Stop after this many iterations in total (the run stays resumable).
     #[arg(long, value_name = "N", hide = true)]

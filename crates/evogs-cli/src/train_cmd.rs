@@ -59,6 +59,7 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     if let Some(v) = args.psi_lr {
         e.psi_lr = Some(v);
     }
+    config.densify.max_gaussians = args.max_gaussians;
     config.seed = args.seed;
     config.backend = args.backend.unwrap_or_default();
     config.validate()?;

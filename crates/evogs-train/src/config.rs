@@ -290,6 +290,10 @@ pub struct DensifySettings {
     pub max_screen_radius: f32,
     /// Prune above this fraction of the extent in world size, after the first reset (0.1).
     pub max_world_fraction: f32,
+    /// Densification never grows the Gaussians past this count (`--max-gaussians`; brush's
+    /// `max_splats`); none by default. Runs written before it existed read as none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_gaussians: Option<usize>,
 }
 
 impl Default for DensifySettings {
@@ -304,6 +308,7 @@ impl Default for DensifySettings {
             min_opacity: 0.005,
             max_screen_radius: 20.0,
             max_world_fraction: 0.1,
+            max_gaussians: None,
         }
     }
 }

@@ -97,6 +97,7 @@ pub fn densify_config(config: &TrainConfig) -> DensifyConfig {
         min_opacity: d.min_opacity,
         max_screen_radius: d.max_screen_radius,
         max_world_fraction: d.max_world_fraction,
+        max_gaussians: d.max_gaussians,
         seed: config.seed,
         trigger,
         deformation_alpha,
