@@ -16,6 +16,8 @@ pub struct Cli {
 }
 
 /// The subcommands.
+// Parsed once per process: the size of the largest variant does not matter.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Train a dynamic scene on a D-NeRF dataset into a run directory.
@@ -38,6 +40,20 @@ pub enum Command {
     /// Train and evaluate D-NeRF scenes × methods: one table with the published figures, a
     /// PSNR-against-time plot, a picture per scene.
     Bench(crate::bench_cmd::BenchArgs),
+    /// Plot a run's training log (loss, PSNR, Gaussians against the iteration) as a PNG.
+    Plot(PlotArgs),
+}
+
+/// Arguments of `evogs plot`.
+#[derive(Debug, Args)]
+pub struct PlotArgs {
+    /// Run directory (holds `train_log.jsonl`).
+    #[arg(value_name = "RUN")]
+    pub run: PathBuf,
+
+    /// Output PNG [default: RUN/train_log.png].
+    #[arg(long, value_name = "FILE.png")]
+    pub out: Option<PathBuf>,
 }
 
 /// Arguments of `evogs train`.

@@ -122,6 +122,15 @@ fn main() -> ExitCode {
                 args.out.join("bench.md").display()
             );
         }),
+        Command::Plot(args) => {
+            let out = args
+                .out
+                .clone()
+                .unwrap_or_else(|| args.run.join("train_log.png"));
+            evogs_train::train_plot::plot_run(&args.run, &out)
+                .map(|n| println!("plotted {n} log lines; wrote {}", out.display()))
+                .map_err(anyhow::Error::from)
+        }
         Command::Synth(args) => evogs_cli::synth_cmd::run_synth(args)
             .map(|summary| println!("{}", evogs_cli::synth_cmd::report_line(args, &summary))),
     };

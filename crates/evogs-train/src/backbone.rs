@@ -105,6 +105,11 @@ pub trait Backbone: Send {
         None
     }
 
+    /// Statistics of the gain K of the latest training step (EvoGS; none for D-3DGS).
+    fn gain_stats(&self) -> Option<crate::train_log::GainStats> {
+        None
+    }
+
     /// Bytes of per-Gaussian state the backbone stores (EvoGS's buffer and residual memory; 0
     /// for D-3DGS).
     fn state_bytes(&self) -> usize {

@@ -313,6 +313,11 @@ impl Default for DensifySettings {
     }
 }
 
+/// The default of [`TrainConfig::log_every`].
+fn default_log_every() -> u64 {
+    100
+}
+
 /// Everything a training run is made from; saved as `config.json` in the run directory.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TrainConfig {
@@ -349,6 +354,10 @@ pub struct TrainConfig {
     pub densify: DensifySettings,
     /// A checkpoint is written every this many iterations (and at the end).
     pub checkpoint_every: u64,
+    /// A line of `train_log.jsonl` is written every this many iterations (and at the end);
+    /// runs written before it existed read as 100.
+    #[serde(default = "default_log_every")]
+    pub log_every: u64,
     /// EvoGS's switches and Φ's shape (used by `method = evogs`; recorded for every run).
     #[serde(default)]
     pub evogs: crate::evo_settings::EvoSettings,
@@ -386,6 +395,7 @@ impl TrainConfig {
             lr: LrSettings::default(),
             densify: DensifySettings::default(),
             checkpoint_every: 5_000,
+            log_every: default_log_every(),
             evogs: crate::evo_settings::EvoSettings::default(),
             backend: splat_raster::BackendChoice::Cpu,
         };
@@ -509,9 +519,13 @@ impl TrainConfig {
         if self.sh_degree > 3 {
             return bad("sh_degree", "must be 0..=3");
         }
-        if self.sh_interval == 0 || self.checkpoint_every == 0 || self.densify.interval == 0 {
+        if self.sh_interval == 0
+            || self.checkpoint_every == 0
+            || self.densify.interval == 0
+            || self.log_every == 0
+        {
             return bad(
-                "sh_interval / checkpoint_every / densify.interval",
+                "sh_interval / checkpoint_every / densify.interval / log_every",
                 "must be at least 1",
             );
         }

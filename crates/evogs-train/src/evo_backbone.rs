@@ -426,6 +426,11 @@ impl Backbone for EvoBackbone {
         })
     }
 
+    fn gain_stats(&self) -> Option<crate::train_log::GainStats> {
+        let t = self.training.as_ref()?;
+        crate::train_log::GainStats::of(t.step.gains(), t.step.rows())
+    }
+
     fn densify_cues(&self, extent: f32) -> Result<DensifyCues, TrainError> {
         let Some(t) = &self.training else {
             return Ok(DensifyCues::default());

@@ -50,6 +50,8 @@ pub mod render;
 pub mod run;
 pub mod state;
 pub mod timers;
+pub mod train_log;
+pub mod train_plot;
 pub mod trainer;
 pub mod video;
 

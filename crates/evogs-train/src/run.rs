@@ -8,6 +8,8 @@
 //! - `deform.safetensors`: the backbone's weights (EvoGS: Φ as `phi.*` and Ψ as `psi`);
 //! - `evo_state.safetensors` (EvoGS only): the evolution state (buffer, valid frames, memory, Ψ),
 //!   evo-state's own format, written together with every checkpoint;
+//! - `train_log.jsonl`: one line per `log_every` iterations (loss, PSNR, Gaussians, it/s, peak
+//!   memory, K for EvoGS; [`crate::train_log`]);
 //! - `train_metrics.json`: iterations done, time, iterations/s, last loss and PSNR, Gaussians,
 //!   per-phase times ([`TrainSummary`]);
 //! - `eval_<split>.json`, `eval_<split>.md`, `renders/<split>/*.png`: written by evaluation.
@@ -30,6 +32,7 @@ use crate::data::{load_dataset_split, load_split, open_dataset};
 use crate::error::TrainError;
 use crate::state::SceneState;
 use crate::timers::PhaseTimes;
+use crate::train_log::TrainLog;
 use crate::trainer::{StepReport, Trainer, deformed_gaussians, make_backbone};
 
 /// The paths of a run directory.
@@ -63,6 +66,10 @@ impl RunPaths {
     /// `evo_state.safetensors` (EvoGS runs): the evolution state, written with every checkpoint.
     pub fn evo_state(&self) -> PathBuf {
         self.root.join("evo_state.safetensors")
+    }
+    /// `train_log.jsonl` ([`crate::train_log`]).
+    pub fn train_log(&self) -> PathBuf {
+        self.root.join("train_log.jsonl")
     }
     /// `train_metrics.json`.
     pub fn train_metrics(&self) -> PathBuf {
@@ -234,12 +241,26 @@ pub fn train(
     let end = request.stop_after.map_or(trainer.config.iterations, |s| {
         s.min(trainer.config.iterations)
     });
+    let mut log = TrainLog::open(
+        &paths.train_log(),
+        trainer.config.log_every,
+        trainer.iteration,
+    )?;
     let start_iteration = trainer.iteration;
     let started = Instant::now();
     let mut last = None;
     while trainer.iteration < end {
         let report = trainer.step()?;
         progress(&report, &mut trainer);
+        log.record(
+            &paths.train_log(),
+            report.iteration,
+            report.loss,
+            report.psnr,
+            report.gaussians,
+            trainer.backbone.gain_stats(),
+            report.iteration == end,
+        )?;
         if report
             .iteration
             .is_multiple_of(trainer.config.checkpoint_every)

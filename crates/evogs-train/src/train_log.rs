@@ -1,0 +1,177 @@
+//! `train_log.jsonl`: one JSON line every `log_every` iterations (and at the end of each
+//! process) with the interval's mean loss and PSNR, the Gaussian count, iterations/s, the
+//! process's peak resident memory and, for EvoGS, statistics of the gain K of the interval's
+//! last step. A resumed run keeps the lines up to its checkpoint and continues after them.
+//!
+//! Written whole through a temporary file and a rename at every line (the file is small: one
+//! line per interval), so a kill never leaves half a line. Not a metrics store: evaluation
+//! scores are in `eval_<split>.json`.
+
+use std::path::Path;
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::TrainError;
+use crate::run::write_text;
+
+/// Statistics of K over the Gaussians of one step (EvoGS).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GainStats {
+    /// Mean K.
+    pub mean: f64,
+    /// Smallest K.
+    pub min: f32,
+    /// Largest K.
+    pub max: f32,
+}
+
+impl GainStats {
+    /// The statistics of `gains` over `rows` Gaussians (`None` for no rows).
+    pub fn of(gains: &evo_state::Gains, rows: usize) -> Option<Self> {
+        if rows == 0 {
+            return None;
+        }
+        let (mut sum, mut min, mut max) = (0.0f64, f32::INFINITY, f32::NEG_INFINITY);
+        for i in 0..rows {
+            let k = gains.at(i);
+            sum += f64::from(k);
+            min = min.min(k);
+            max = max.max(k);
+        }
+        Some(Self {
+            mean: sum / rows as f64,
+            min,
+            max,
+        })
+    }
+}
+
+/// One line of `train_log.jsonl`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LogLine {
+    /// Iterations completed.
+    pub iteration: u64,
+    /// Training seconds up to this line, summed over the processes of the run.
+    pub seconds: f64,
+    /// Mean loss over the iterations since the previous line.
+    pub loss: f64,
+    /// Mean training-view PSNR (dB) over the same iterations.
+    pub psnr: f64,
+    /// Gaussians after `iteration`.
+    pub gaussians: usize,
+    /// Iterations per second over the interval.
+    pub iterations_per_second: f64,
+    /// Peak resident memory of the process so far (Linux `VmHWM`; `None` where unknown).
+    pub peak_rss_bytes: Option<u64>,
+    /// K of the interval's last step (EvoGS only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gain: Option<GainStats>,
+}
+
+/// The peak resident memory of this process (Linux `/proc/self/status` `VmHWM`).
+pub fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Reads `train_log.jsonl`; every problem names the file and the line.
+pub fn read_log(path: &Path) -> Result<Vec<LogLine>, TrainError> {
+    let text = std::fs::read_to_string(path).map_err(|e| TrainError::io(path, e))?;
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, l)| {
+            serde_json::from_str(l)
+                .map_err(|e| TrainError::file(path, format!("line {}: invalid JSON: {e}", i + 1)))
+        })
+        .collect()
+}
+
+/// The log of a run being trained: the lines so far and the current interval.
+pub struct TrainLog {
+    lines: Vec<LogLine>,
+    every: u64,
+    loss_sum: f64,
+    psnr_sum: f64,
+    count: u64,
+    interval_start: Instant,
+    seconds_before: f64,
+}
+
+impl TrainLog {
+    /// A log writing a line every `every` iterations, continuing the lines of `path` up to
+    /// `iteration` (a resumed run; lines past its checkpoint are dropped) or starting empty.
+    pub fn open(path: &Path, every: u64, iteration: u64) -> Result<Self, TrainError> {
+        let mut lines = if iteration > 0 && path.is_file() {
+            read_log(path)?
+        } else {
+            Vec::new()
+        };
+        lines.retain(|l| l.iteration <= iteration);
+        let seconds_before = lines.last().map_or(0.0, |l| l.seconds);
+        Ok(Self {
+            lines,
+            every: every.max(1),
+            loss_sum: 0.0,
+            psnr_sum: 0.0,
+            count: 0,
+            interval_start: Instant::now(),
+            seconds_before,
+        })
+    }
+
+    /// The lines so far.
+    pub fn lines(&self) -> &[LogLine] {
+        &self.lines
+    }
+
+    /// Adds one iteration; at a multiple of `every`, or when `last`, writes the line (the whole
+    /// file, atomically) to `path`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn record(
+        &mut self,
+        path: &Path,
+        iteration: u64,
+        loss: f64,
+        psnr: f64,
+        gaussians: usize,
+        gain: Option<GainStats>,
+        last: bool,
+    ) -> Result<(), TrainError> {
+        self.loss_sum += loss;
+        self.psnr_sum += psnr;
+        self.count += 1;
+        if !(iteration.is_multiple_of(self.every) || last) {
+            return Ok(());
+        }
+        let elapsed = self.interval_start.elapsed().as_secs_f64();
+        let seconds = self.seconds_before + elapsed;
+        let n = self.count as f64;
+        self.lines.push(LogLine {
+            iteration,
+            seconds,
+            loss: self.loss_sum / n,
+            psnr: self.psnr_sum / n,
+            gaussians,
+            iterations_per_second: n / elapsed.max(1e-9),
+            peak_rss_bytes: peak_rss_bytes(),
+            gain,
+        });
+        self.loss_sum = 0.0;
+        self.psnr_sum = 0.0;
+        self.count = 0;
+        self.interval_start = Instant::now();
+        self.seconds_before = seconds;
+        let mut text = String::new();
+        for line in &self.lines {
+            let json = serde_json::to_string(line)
+                .map_err(|e| TrainError::file(path, format!("cannot encode JSON: {e}")))?;
+            text.push_str(&json);
+            text.push('\n');
+        }
+        write_text(path, &text)
+    }
+}

@@ -1,0 +1,113 @@
+//! The training plot of `evogs plot RUN`: loss, training PSNR and Gaussian count against the
+//! iteration, three panels from `train_log.jsonl` ([`crate::train_log`]), drawn with `plotters`
+//! (bitmap backend). Text uses the system's sans-serif font; where none can be found the panels
+//! are drawn again without text (curves and axes only), as the ablation plot does.
+
+use image::RgbImage;
+use plotters::prelude::*;
+
+use crate::train_log::LogLine;
+
+const WIDTH: u32 = 900;
+const HEIGHT: u32 = 900;
+
+/// The plot as an RGB image; the error is plotters' message.
+pub fn plot(lines: &[LogLine]) -> Result<RgbImage, String> {
+    let mut buf = vec![255u8; (WIDTH * HEIGHT * 3) as usize];
+    if draw(lines, &mut buf, true).is_err() {
+        buf.fill(255);
+        draw(lines, &mut buf, false)?;
+    }
+    RgbImage::from_raw(WIDTH, HEIGHT, buf).ok_or_else(|| "plot buffer of the wrong size".into())
+}
+
+/// A finite range around `values` with a margin (a unit range when there are none).
+fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    let margin = ((hi - lo) * 0.05).max(1e-6 * hi.abs().max(1.0));
+    (lo - margin, hi + margin)
+}
+
+/// A panel: its axis name, the value it reads from a line, its colour.
+type Series = (&'static str, fn(&LogLine) -> f64, RGBColor);
+
+fn draw(lines: &[LogLine], buf: &mut [u8], text: bool) -> Result<(), String> {
+    let err = |e: &dyn std::fmt::Display| e.to_string();
+    let root = BitMapBackend::with_buffer(buf, (WIDTH, HEIGHT)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let panels = root.split_evenly((3, 1));
+    let (x0, x1) = range(lines.iter().map(|l| l.iteration as f64));
+    let series: [Series; 3] = [
+        ("loss", |l| l.loss, RED),
+        ("training PSNR (dB)", |l| l.psnr, BLUE),
+        ("Gaussians", |l| l.gaussians as f64, BLACK),
+    ];
+    for (area, (name, value, colour)) in panels.iter().zip(series) {
+        let (y0, y1) = range(lines.iter().map(value));
+        let mut builder = ChartBuilder::on(area);
+        builder.margin(15);
+        if text {
+            builder.x_label_area_size(35).y_label_area_size(70);
+        } else {
+            builder.x_label_area_size(5).y_label_area_size(5);
+        }
+        let mut chart = builder
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| err(&e))?;
+        let mut mesh = chart.configure_mesh();
+        if text {
+            mesh.x_desc("iteration").y_desc(name);
+        } else {
+            mesh.disable_x_mesh()
+                .disable_y_mesh()
+                .x_labels(0)
+                .y_labels(0);
+        }
+        mesh.draw().map_err(|e| err(&e))?;
+        let points: Vec<(f64, f64)> = lines
+            .iter()
+            .map(|l| (l.iteration as f64, value(l)))
+            .filter(|(_, y)| y.is_finite())
+            .collect();
+        chart
+            .draw_series(LineSeries::new(
+                points.iter().copied(),
+                colour.stroke_width(2),
+            ))
+            .map_err(|e| err(&e))?;
+        chart
+            .draw_series(points.iter().map(|&p| Circle::new(p, 3, colour.filled())))
+            .map_err(|e| err(&e))?;
+    }
+    root.present().map_err(|e| err(&e))?;
+    Ok(())
+}
+
+/// Draws the run's `train_log.jsonl` into `out` (PNG, written atomically); returns the number
+/// of lines plotted. Errors name the file.
+pub fn plot_run(run: &std::path::Path, out: &std::path::Path) -> Result<usize, crate::TrainError> {
+    use crate::TrainError;
+    let log = crate::RunPaths::new(run).train_log();
+    let lines = crate::train_log::read_log(&log)?;
+    if lines.is_empty() {
+        return Err(TrainError::file(&log, "no lines to plot"));
+    }
+    let image =
+        plot(&lines).map_err(|problem| TrainError::file(out, format!("plotting: {problem}")))?;
+    evogs_io::atomic::write_atomically(out, |w| {
+        image
+            .write_to(w, image::ImageFormat::Png)
+            .map_err(|cause| evogs_io::IoError::Image {
+                path: out.to_path_buf(),
+                cause,
+            })
+    })?;
+    Ok(lines.len())
+}
