@@ -116,8 +116,8 @@ pub struct TrainArgs {
     #[arg(long, value_name = "S")]
     pub grid_lr_scale: Option<f32>,
 
-    /// EvoGS: Ψ's own learning rate (constant, Adam) [default: 1e-3, chosen on training views
-    /// only; recorded in config.json].
+    /// EvoGS: Ψ's own learning rate (constant, Adam) [default: 1e-3, provisional; recorded in
+    /// config.json].
     #[arg(long, value_name = "LR")]
     pub psi_lr: Option<f32>,
 
@@ -125,6 +125,12 @@ pub struct TrainArgs {
     /// per decade of speed / extent with their mean θ (a diagnostic of the uncertainty trigger).
     #[arg(long)]
     pub motion_report: bool,
+
+    /// Print, at the end, EvoGS's gain K over the last quarter of the iterations: mean, std and
+    /// percentiles over all, moving and still Gaussians and per frame (also recorded as `gain`
+    /// in train_metrics.json by every run).
+    #[arg(long)]
+    pub gain_report: bool,
 
     /// Settings preset: paper (D-3DGS reference, width 256, 40K iterations), cpu (400×400 on
     /// 2 cores, width 64, 3K iterations), tiny (CI, width 32, 300 iterations), dnerf (the D-NeRF

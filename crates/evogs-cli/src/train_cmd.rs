@@ -140,5 +140,13 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
         }
     })?;
     bar.finish_and_clear();
+    if args.gain_report {
+        match &summary.gain {
+            Some(g) => print!("{}", g.table()),
+            None => println!(
+                "gain K: no gain-stage steps in the last quarter (EvoGS with evolution only)"
+            ),
+        }
+    }
     Ok(summary)
 }

@@ -99,6 +99,12 @@ pub trait Backbone: Send {
         None
     }
 
+    /// The last training step of the evolution (its gains, statistics and frame), for the gain
+    /// report (none for D-3DGS).
+    fn latest_step(&self) -> Option<&evo_state::Step> {
+        None
+    }
+
     /// The latest training step's deformation for deformation-aware densification (none for
     /// D-3DGS).
     fn latest_deformation(&self) -> Option<densify::Deformation<'_>> {

@@ -469,6 +469,10 @@ impl Backbone for EvoBackbone {
         self.training.as_ref().and_then(|t| t.step.stats())
     }
 
+    fn latest_step(&self) -> Option<&evo_state::Step> {
+        self.training.as_ref().map(|t| &t.step)
+    }
+
     fn latest_deformation(&self) -> Option<Deformation<'_>> {
         self.training.as_ref().map(|t| Deformation {
             corrected: t.step.corrected(),

@@ -14,7 +14,8 @@
 //! - [`trainer`]: the training loop; [`run`]: run directories, `train` and resume;
 //! - [`checkpoint`]: exact checkpoints; [`eval`], [`render`]: evaluation, rendering, export;
 //! - [`video`]: the frames of a video (path, times) and side-by-side comparisons;
-//! - [`motion_report`]: a diagnostic of EvoGS's motion statistics (speeds and θ by decade).
+//! - [`motion_report`]: a diagnostic of EvoGS's motion statistics (speeds and θ by decade);
+//!   [`gain_report`]: K's distribution (overall, moving vs still, per frame).
 //!
 //! The recipe follows Deformable-3D-Gaussians (`ingra14m/Deformable-3D-Gaussians`: `train.py`,
 //! `arguments/__init__.py`, `scene/deform_model.py`, `utils/time_utils.py`) and 3DGS's
@@ -43,6 +44,7 @@ pub mod error;
 pub mod eval;
 pub mod evo_backbone;
 pub mod evo_settings;
+pub mod gain_report;
 pub mod hex_backbone;
 pub mod init;
 pub mod motion_report;

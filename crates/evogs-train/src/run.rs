@@ -121,6 +121,11 @@ pub struct TrainSummary {
     pub net_width: usize,
     /// Seconds per phase in the last process.
     pub phases: PhaseTimes,
+    /// K's distribution over the gain-stage training steps of the last quarter of the run's
+    /// iterations run by the last process (EvoGS with evolution on; `null` otherwise and in
+    /// files written before it was recorded). DESIGN §4.9.
+    #[serde(default)]
+    pub gain: Option<crate::gain_report::GainSummary>,
 }
 
 pub(crate) fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), TrainError> {
@@ -249,8 +254,15 @@ pub fn train(
     let start_iteration = trainer.iteration;
     let started = Instant::now();
     let mut last = None;
+    let mut gain = trainer.new_gain_report();
+    let last_quarter_from = trainer.config.iterations - trainer.config.iterations / 4;
     while trainer.iteration < end {
         let report = trainer.step()?;
+        if report.iteration > last_quarter_from
+            && let Some(step) = trainer.evolution_step()
+        {
+            gain.add(step);
+        }
         progress(&report, &mut trainer);
         log.record(
             &paths.train_log(),
@@ -300,6 +312,7 @@ pub fn train(
         gaussians: trainer.state.len(),
         net_width: trainer.config.net.width,
         phases: trainer.times,
+        gain: (gain.samples() > 0).then(|| gain.summary()),
     };
     write_json(&paths.train_metrics(), &summary)?;
     Ok(summary)

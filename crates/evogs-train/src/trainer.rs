@@ -35,6 +35,7 @@ use crate::data::SplitViews;
 use crate::deformed::{DeformedGeometry, deformation_gradient};
 use crate::error::TrainError;
 use crate::evo_settings::DensifyPolicy;
+use crate::gain_report::GainReport;
 use crate::init::random_gaussians;
 use crate::motion_report::{MotionReport, pixels_per_unit};
 use crate::state::SceneState;
@@ -356,6 +357,17 @@ impl Trainer {
             pixels_per_unit(&self.train.cameras(), centre),
             tau,
         )
+    }
+
+    /// An empty [`GainReport`] for this run: still below the motion floor in scene units per
+    /// frame spacing (EvoGS's `motion_floor · extent`; evo-state's default for the baseline).
+    pub fn new_gain_report(&self) -> GainReport {
+        GainReport::new(self.config.evogs.motion_floor * self.extent)
+    }
+
+    /// The last training step of the evolution (EvoGS only), for [`GainReport::add`].
+    pub fn evolution_step(&self) -> Option<&evo_state::Step> {
+        self.backbone.latest_step()
     }
 
     /// Motion statistics of the last training step (EvoGS with three history frames only).

@@ -30,8 +30,15 @@ fn evogs_training_lowers_the_loss_and_keeps_the_state_aligned() {
     let mut losses = Vec::new();
     let mut densified = 0;
     let mut sizes = std::collections::BTreeSet::new();
+    let mut gain = trainer.new_gain_report();
+    let mut gain_steps = 0;
     while trainer.iteration < c.iterations {
         let r = trainer.step().unwrap();
+        if r.iteration > 150
+            && let Some(step) = trainer.evolution_step()
+        {
+            gain_steps += usize::from(gain.add(step));
+        }
         assert!(
             r.loss.is_finite() && r.psnr.is_finite(),
             "iteration {}",
@@ -69,6 +76,23 @@ fn evogs_training_lowers_the_loss_and_keeps_the_state_aligned() {
         assert!(d.means.as_flattened().iter().all(|v| v.is_finite()));
     }
     assert_eq!(trainer.backbone.state_bytes(), before);
+    // K's distribution over the gain-stage steps of the last 50 iterations: moving and still
+    // Gaussians split the samples, so do the frames, K lies in (0, 1), the percentiles are in
+    // order, and the learned gain is not one constant.
+    assert!(
+        gain_steps > 0,
+        "no gain-stage step in the last 50 iterations"
+    );
+    let s = gain.summary();
+    let all = s.all.as_ref().unwrap();
+    let count =
+        |g: &Option<evogs_train::gain_report::GainStats>| g.as_ref().map_or(0, |g| g.samples);
+    assert_eq!(count(&s.moving) + count(&s.still), all.samples);
+    assert_eq!(s.per_frame.iter().map(count).sum::<u64>(), all.samples);
+    assert!(all.mean > 0.0 && all.mean < 1.0, "{all:?}");
+    assert!(all.percentiles.windows(2).all(|w| w[0] <= w[1]), "{all:?}");
+    assert!(all.std > 0.0, "learned K is one constant: {all:?}");
+    assert!(s.table().contains("moving") || s.table().contains("still"));
 }
 
 #[test]
