@@ -2,9 +2,31 @@
 
 use std::path::PathBuf;
 
-use clap::{Args, Parser, Subcommand};
+use clap::builder::PossibleValue;
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use evogs_io::TimeFrom;
 use evogs_train::camera_path::CameraSpec;
 use splat_raster::BackendChoice;
+
+/// A time rule as a command-line value; names and help come from the library.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TimeFromArg(pub TimeFrom);
+
+const TIME_FROM_ARGS: [TimeFromArg; 3] = [
+    TimeFromArg(TimeFrom::Order),
+    TimeFromArg(TimeFrom::Name),
+    TimeFromArg(TimeFrom::None),
+];
+
+impl ValueEnum for TimeFromArg {
+    fn value_variants<'a>() -> &'a [Self] {
+        &TIME_FROM_ARGS
+    }
+
+    fn to_possible_value(&self) -> Option<PossibleValue> {
+        Some(PossibleValue::new(self.0.name()).help(self.0.help()))
+    }
+}
 
 /// Dynamic 3D Gaussian Splatting with EvoGS: train on D-NeRF scenes, evaluate, render, export.
 #[derive(Debug, Parser)]
@@ -20,7 +42,8 @@ pub struct Cli {
 #[allow(clippy::large_enum_variant)]
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Train a dynamic scene on a D-NeRF dataset into a run directory.
+    /// Train a dynamic scene on a dataset (D-NeRF, nerfies, Neu3D, COLMAP, nerfstudio) into a run
+    /// directory.
     Train(TrainArgs),
     /// Evaluate a run on a split: PSNR, SSIM, LPIPS, flicker, jitter (JSON and markdown).
     Eval(EvalArgs),
@@ -42,6 +65,8 @@ pub enum Command {
     Bench(crate::bench_cmd::BenchArgs),
     /// Plot a run's training log (loss, PSNR, Gaussians against the iteration) as a PNG.
     Plot(PlotArgs),
+    /// Turn a video (or an image folder) into a dataset: ffmpeg frames, COLMAP poses on the CPU.
+    Prepare(crate::prepare_cmd::PrepareArgs),
 }
 
 /// Arguments of `evogs plot`.
@@ -59,9 +84,15 @@ pub struct PlotArgs {
 /// Arguments of `evogs train`.
 #[derive(Debug, Args)]
 pub struct TrainArgs {
-    /// D-NeRF dataset directory (transforms_{train,val,test}.json and images).
+    /// Dataset directory: D-NeRF, nerfies, Neu3D, COLMAP (`evogs prepare` writes one) or
+    /// nerfstudio; the layout is detected.
     #[arg(long, value_name = "DIR", required_unless_present = "resume")]
     pub data: Option<PathBuf>,
+
+    /// Times of frames whose dataset stores none (COLMAP, nerfstudio without `time`); see the
+    /// README's "Your own video" for the accepted names [default: order].
+    #[arg(long, value_name = "RULE")]
+    pub time_from: Option<TimeFromArg>,
 
     /// Run directory to write (config, checkpoint, PLY, weights, metrics).
     #[arg(long, value_name = "RUN")]
@@ -153,7 +184,7 @@ pub struct TrainArgs {
     /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
     #[arg(
         long,
-        conflicts_with_all = ["data", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "max_gaussians"]
+        conflicts_with_all = ["data", "time_from", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "max_gaussians"]
     )]
     pub resume: bool,
 
@@ -187,6 +218,10 @@ pub struct EvalArgs {
     /// Split to evaluate.
     #[arg(long, default_value = "test", value_name = "test|val|train")]
     pub split: String,
+
+    /// Times of frames whose dataset stores none, instead of the rule the run trained with.
+    #[arg(long, value_name = "RULE")]
+    pub time_from: Option<TimeFromArg>,
 
     /// Rasterizer backend: cpu, wgpu (any adapter; an error without one) or auto (wgpu on a
     /// hardware GPU, cpu otherwise).

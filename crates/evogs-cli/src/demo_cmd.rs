@@ -93,7 +93,7 @@ pub fn run_demo(args: &DemoArgs) -> Result<(u64, Vec<DemoRow>)> {
     let data = args.out.join("scene");
     let scene = embedded_scene().context("building the embedded scene")?;
     write_dnerf(&scene, &data)?;
-    let test = load_split(&data, Split::Test, [0.0; 3], 1.0)?;
+    let test = load_split(&data, Split::Test, Default::default(), [0.0; 3], 1.0)?;
     let first = test
         .views
         .first()

@@ -16,6 +16,9 @@ pub fn run_eval(args: &EvalArgs) -> Result<EvalReport> {
         .parse()
         .map_err(|e: String| anyhow!("--split: {e}"))?;
     let mut run = LoadedRun::open(&args.run)?;
+    if let Some(t) = args.time_from {
+        run.run.train.time_from = t.0;
+    }
     println!("{}", run.use_backend(args.backend)?);
     let backbones: &[Backbone] = if args.lpips_vgg {
         &Backbone::ALL

@@ -5,8 +5,9 @@
 //! ([`export_cmd`]), `demo` ([`demo_cmd`]: baseline vs EvoGS on the embedded synthetic scene), `ablate`
 //! ([`ablate_cmd`]: the paper's ablation ladder), `bench` ([`bench_cmd`]: the D-NeRF benchmark), and `render` ([`render`]: a 3DGS PLY from a nerfies camera, the built-in
 //! procedural scene of [`demo_scene`], or a trained run at a time or a time sweep via
-//! [`render_run`]), `synth` ([`synth_cmd`]: procedural scenes in the D-NeRF layout), and `video` ([`video_cmd`]: a
-//! run along a camera path into an mp4, a GIF or PNG frames).
+//! [`render_run`]), `synth` ([`synth_cmd`]: procedural scenes in the D-NeRF layout), `video` ([`video_cmd`]: a
+//! run along a camera path into an mp4, a GIF or PNG frames), and `prepare` ([`prepare_cmd`]: a video or image
+//! folder to a COLMAP dataset, via `evogs-prepare`).
 //!
 //! What it is not: a trainer or a scene generator; training, evaluation, export and synthetic
 //! scenes live in `evogs-train`, file formats in `evogs-io`, rendering in `splat-raster`. Errors are `anyhow`
@@ -19,6 +20,7 @@ pub mod demo_cmd;
 pub mod demo_scene;
 pub mod eval_cmd;
 pub mod export_cmd;
+pub mod prepare_cmd;
 pub mod render;
 pub mod render_run;
 pub mod synth_cmd;

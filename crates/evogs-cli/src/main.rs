@@ -131,6 +131,8 @@ fn main() -> ExitCode {
                 .map(|n| println!("plotted {n} log lines; wrote {}", out.display()))
                 .map_err(anyhow::Error::from)
         }
+        Command::Prepare(args) => evogs_cli::prepare_cmd::run_prepare(args)
+            .map(|summary| println!("{}", evogs_cli::prepare_cmd::report_line(args, &summary))),
         Command::Synth(args) => evogs_cli::synth_cmd::run_synth(args)
             .map(|summary| println!("{}", evogs_cli::synth_cmd::report_line(args, &summary))),
     };

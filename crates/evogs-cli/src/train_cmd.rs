@@ -60,6 +60,9 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
         e.psi_lr = Some(v);
     }
     config.densify.max_gaussians = args.max_gaussians;
+    if let Some(t) = args.time_from {
+        config.time_from = t.0;
+    }
     config.seed = args.seed;
     config.backend = args.backend.unwrap_or_default();
     config.validate()?;
@@ -80,7 +83,7 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
     if !args.resume {
         // Say which layout was detected (reading the cameras again inside `train` is cheap: no
         // images are loaded here).
-        let dataset = evogs_train::data::open_dataset(&request.data)?;
+        let dataset = evogs_train::data::open_dataset(&request.data, request.config.time_from)?;
         println!("dataset: {}", dataset.summary());
         if let Some(warning) = dataset.camera_warning() {
             eprintln!("warning: {warning}");

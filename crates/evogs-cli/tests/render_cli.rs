@@ -163,6 +163,7 @@ fn warns_about_non_finite_rows_and_distortion() {
         distortion: Distortion {
             radial: [0.1, 0.0, 0.0],
             tangential: [0.0; 2],
+            ..Distortion::default()
         },
         ..CameraInfo::pinhole(camera())
     };

@@ -6,10 +6,13 @@ use splat_core::Camera;
 /// Lens distortion coefficients (nerfies / OpenCV convention).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Distortion {
-    /// Radial `k1, k2, k3`.
+    /// Radial `k1, k2, k3` of the OpenCV (Brown) model.
     pub radial: [f32; 3],
     /// Tangential `p1, p2`.
     pub tangential: [f32; 2],
+    /// `k1..k4` of OpenCV's equidistant fisheye model (nerfstudio's `OPENCV_FISHEYE`, COLMAP's
+    /// `OPENCV_FISHEYE`); zero for the other models.
+    pub fisheye: [f32; 4],
 }
 
 impl Distortion {
@@ -18,6 +21,7 @@ impl Distortion {
         self.radial
             .iter()
             .chain(&self.tangential)
+            .chain(&self.fisheye)
             .all(|&k| k == 0.0)
     }
 }
@@ -58,10 +62,14 @@ impl CameraInfo {
         if self.skew != 0.0 {
             parts.push(format!("skew {}", self.skew));
         }
-        if !self.distortion.is_zero() {
+        let d = &self.distortion;
+        if d.fisheye.iter().any(|&k| k != 0.0) {
+            parts.push(format!("fisheye distortion {:?}", d.fisheye));
+        }
+        if d.radial.iter().chain(&d.tangential).any(|&k| k != 0.0) {
             parts.push(format!(
                 "radial distortion {:?}, tangential distortion {:?}",
-                self.distortion.radial, self.distortion.tangential
+                d.radial, d.tangential
             ));
         }
         Some(format!(
@@ -96,7 +104,7 @@ mod tests {
         let distorted = CameraInfo {
             distortion: Distortion {
                 radial: [0.0, 0.2, 0.0],
-                tangential: [0.0; 2],
+                ..Distortion::default()
             },
             ..pinhole
         };

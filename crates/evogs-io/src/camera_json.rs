@@ -195,6 +195,12 @@ pub fn write_nerfies_camera(path: &Path, info: &CameraInfo) -> Result<(), IoErro
                 .into(),
         });
     }
+    if info.distortion.fisheye.iter().any(|&k| k != 0.0) {
+        return Err(IoError::InvalidData {
+            path: path.to_path_buf(),
+            problem: "the nerfies camera format has no fisheye distortion".into(),
+        });
+    }
     let text = nerfies_camera_json(info);
     write_atomically(path, |w| {
         w.write_all(text.as_bytes())

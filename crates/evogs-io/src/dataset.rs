@@ -9,8 +9,9 @@ use glam::Vec3;
 
 use crate::camera_info::{CameraInfo, warning_for_all};
 use crate::dnerf::{Split, read_dnerf_split};
+use crate::frame_time::TimeFrom;
 pub use crate::neu3d::TimeDenominator;
-use crate::{IoError, colmap, nerfies, neu3d};
+use crate::{IoError, colmap, nerfies, nerfstudio, neu3d};
 
 /// The dataset layouts this crate reads.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -23,6 +24,8 @@ pub enum Format {
     Nerfies,
     /// Neu3D / DyNeRF (`poses_bounds.npy`, `camNN/images/NNNN.png`).
     Neu3d,
+    /// nerfstudio (`transforms.json`, as `ns-process-data` and brush write it).
+    Nerfstudio,
 }
 
 impl Format {
@@ -33,6 +36,7 @@ impl Format {
             Self::Dnerf => "dnerf",
             Self::Nerfies => "nerfies",
             Self::Neu3d => "neu3d",
+            Self::Nerfstudio => "nerfstudio",
         }
     }
 }
@@ -81,7 +85,7 @@ pub struct Dataset {
     pub train: Vec<Frame>,
     /// Test frames (may be empty).
     pub test: Vec<Frame>,
-    /// Validation frames (D-NeRF only; empty otherwise).
+    /// Validation frames (D-NeRF, and nerfstudio's `val_filenames`; empty otherwise).
     pub val: Vec<Frame>,
     /// The initial point cloud, when the format has one.
     pub points: Option<PointCloud>,
@@ -157,6 +161,9 @@ pub struct LoadOptions {
     pub neu3d_max_frames: usize,
     /// Neu3D: `frame / count` (4DGaussians, the default) or `frame / (count − 1)` (D-3DGS).
     pub neu3d_time: TimeDenominator,
+    /// COLMAP, and nerfstudio frames without a `time`: where times come from (default: the
+    /// order of the image names, as 4DGaussians; see [`TimeFrom`]).
+    pub time_from: TimeFrom,
 }
 
 impl Default for LoadOptions {
@@ -168,12 +175,14 @@ impl Default for LoadOptions {
             neu3d_test_cameras: vec![0],
             neu3d_max_frames: 300,
             neu3d_time: TimeDenominator::Count,
+            time_from: TimeFrom::Order,
         }
     }
 }
 
 /// Tells a dataset directory's layout, checking in order: `sparse/` → COLMAP,
-/// `transforms_train.json` → D-NeRF, `dataset.json` → nerfies, `poses_bounds.npy` → Neu3D.
+/// `transforms_train.json` → D-NeRF, `transforms.json` → nerfstudio, `dataset.json` → nerfies,
+/// `poses_bounds.npy` → Neu3D.
 pub fn detect_format(dir: &Path) -> Result<Format, IoError> {
     if !dir.is_dir() {
         return Err(IoError::field(dir, "(directory)", "is not a directory"));
@@ -181,6 +190,7 @@ pub fn detect_format(dir: &Path) -> Result<Format, IoError> {
     let rules = [
         ("sparse", Format::Colmap),
         ("transforms_train.json", Format::Dnerf),
+        ("transforms.json", Format::Nerfstudio),
         ("dataset.json", Format::Nerfies),
         ("poses_bounds.npy", Format::Neu3d),
     ];
@@ -193,7 +203,7 @@ pub fn detect_format(dir: &Path) -> Result<Format, IoError> {
                 dir,
                 "(layout)",
                 "no dataset found: expected sparse/ (COLMAP), transforms_train.json (D-NeRF), \
-                 dataset.json (nerfies) or poses_bounds.npy (Neu3D)",
+                 transforms.json (nerfstudio), dataset.json (nerfies) or poses_bounds.npy (Neu3D)",
             )
         })
 }
@@ -202,7 +212,9 @@ pub fn detect_format(dir: &Path) -> Result<Format, IoError> {
 /// [`Dataset::format`] says which it chose.
 pub fn load_dataset(dir: &Path, options: &LoadOptions) -> Result<Dataset, IoError> {
     match detect_format(dir)? {
-        Format::Colmap => colmap::read_colmap_dataset(dir, options.colmap_llff_hold),
+        Format::Colmap => {
+            colmap::read_colmap_dataset(dir, options.colmap_llff_hold, options.time_from)
+        }
         Format::Dnerf => read_dnerf_dataset(dir),
         Format::Nerfies => nerfies::read_nerfies_dataset(dir, options),
         Format::Neu3d => neu3d::read_neu3d_dataset(
@@ -211,6 +223,7 @@ pub fn load_dataset(dir: &Path, options: &LoadOptions) -> Result<Dataset, IoErro
             options.neu3d_max_frames,
             options.neu3d_time,
         ),
+        Format::Nerfstudio => nerfstudio::read_nerfstudio_dataset(dir, options.time_from),
     }
 }
 

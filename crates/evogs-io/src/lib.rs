@@ -3,8 +3,9 @@
 //! What it is: readers and writers for 3DGS PLY files ([`ply`]), nerfies camera JSON and D-NeRF
 //! `transforms_*.json` cameras ([`camera_json`], [`dnerf`]), PNG/JPEG images as f32 RGB
 //! ([`image_io`]), and datasets: D-NeRF, nerfies (HyperNeRF, NeRF-DS, [`nerfies`]), Neu3D
-//! ([`neu3d`]) and COLMAP ([`colmap`]) read into one [`Dataset`] type by [`load_dataset`], which
-//! detects the layout ([`detect_format`]), with `.npy` arrays read by [`npy`]; conventions as
+//! ([`neu3d`]), COLMAP ([`colmap`]) and nerfstudio ([`nerfstudio`]) read into one [`Dataset`]
+//! type by [`load_dataset`], which detects the layout ([`detect_format`]), with `.npy` arrays
+//! read by [`npy`] and times for frames that store none by [`frame_time`]; conventions as
 //! pinned in SPEC §1–2 and, where it is silent, Deformable-3D-Gaussians'. Every error
 //! names the file and the field or problem; every write is atomic (temporary file, then rename).
 //!
@@ -19,9 +20,11 @@ pub mod colmap;
 pub mod dataset;
 pub mod dnerf;
 pub mod error;
+pub mod frame_time;
 pub mod image_io;
 mod json_fields;
 pub mod nerfies;
+pub mod nerfstudio;
 pub mod neu3d;
 pub mod npy;
 pub mod ply;
@@ -38,6 +41,7 @@ pub use dataset::{
 };
 pub use dnerf::{DnerfFrame, Split, read_dnerf_split, read_transforms};
 pub use error::IoError;
+pub use frame_time::TimeFrom;
 pub use image_io::{ImageRgb, load_image, load_view, resize_image, save_png};
 pub use ply::{LoadedPly, read_ply, read_ply_bytes, write_ply, write_ply_to};
 pub use splat::{read_splat, write_splat};

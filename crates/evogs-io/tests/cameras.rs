@@ -87,6 +87,7 @@ fn written_json_is_stable() {
         distortion: Distortion {
             radial: [0.1, 0.0, 0.0],
             tangential: [0.0, 0.0],
+            ..Distortion::default()
         },
     };
     insta::assert_snapshot!("nerfies_written", evogs_io::nerfies_camera_json(&info));
@@ -123,7 +124,11 @@ fn camera_strategy() -> impl Strategy<Value = CameraInfo> {
                         Vec3::from_array(c),
                     ),
                     skew,
-                    distortion: Distortion { radial, tangential },
+                    distortion: Distortion {
+                        radial,
+                        tangential,
+                        ..Distortion::default()
+                    },
                 }
             },
         )

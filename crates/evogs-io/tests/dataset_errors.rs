@@ -9,7 +9,7 @@ use evogs_io::colmap::{
     parse_points3d_bin,
 };
 use evogs_io::npy::{encode_npy, parse_npy};
-use evogs_io::{IoError, LoadOptions, detect_format, load_dataset};
+use evogs_io::{IoError, LoadOptions, TimeFrom, detect_format, load_dataset};
 use proptest::prelude::*;
 
 fn write(path: &Path, bytes: impl AsRef<[u8]>) {
@@ -199,6 +199,139 @@ fn colmap_dataset_errors_name_file_and_field() {
     let m = message(load_dataset(dir.path(), &LoadOptions::default()));
     assert_names(&m, "images.bin", "image 1.name");
     assert!(m.contains("im0.jpg") && m.contains("does not exist"), "{m}");
+    // Times from names need a number in every name: the first without one is named.
+    let mut images = sample_images();
+    images[2].name = "sunset.jpg".into();
+    write(&sparse.join("images.bin"), encode_images_bin(&images, 0));
+    let by_name = LoadOptions {
+        time_from: TimeFrom::Name,
+        ..LoadOptions::default()
+    };
+    let m = message(load_dataset(dir.path(), &by_name));
+    assert_names(&m, "images.bin", "image 3.name");
+    assert!(m.contains("`sunset.jpg` has no frame number"), "{m}");
+}
+
+#[test]
+fn nerfstudio_errors_name_file_and_field() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["a.png", "b.png"] {
+        write(
+            &dir.path().join(name),
+            b"not read: only its existence is checked",
+        );
+    }
+    let frame = |name: &str| {
+        serde_json::json!({"file_path": name, "fl_x": 50.0, "transform_matrix":
+            [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 3], [0, 0, 0, 1]]})
+    };
+    let good = serde_json::json!({"w": 8, "h": 6, "fl_y": 50.0, "cx": 4.0, "cy": 3.0,
+        "frames": [frame("a.png"), frame("b.png")]});
+    let path = dir.path().join("transforms.json");
+    let check = |edit: &dyn Fn(&mut serde_json::Value),
+                 options: &LoadOptions,
+                 field: &str,
+                 problem: &str| {
+        let mut json = good.clone();
+        edit(&mut json);
+        write(&path, json.to_string());
+        let m = message(load_dataset(dir.path(), options));
+        assert_names(&m, "transforms.json", field);
+        assert!(m.contains(problem), "expected `{problem}` in: {m}");
+    };
+    let plain = LoadOptions::default();
+    write(&path, good.to_string());
+    load_dataset(dir.path(), &plain).unwrap();
+    check(
+        &|j| {
+            j["frames"][1].as_object_mut().unwrap().remove("fl_x");
+        },
+        &plain,
+        "frames[1].fl_x",
+        "missing",
+    );
+    check(
+        &|j| {
+            j.as_object_mut().unwrap().remove("cy");
+        },
+        &plain,
+        "frames[0].cy",
+        "missing",
+    );
+    check(
+        &|j| j["frames"][0]["file_path"] = "c.png".into(),
+        &plain,
+        "frames[0].file_path",
+        "does not exist",
+    );
+    check(
+        &|j| j["camera_model"] = "EQUIRECTANGULAR".into(),
+        &plain,
+        "camera_model",
+        "not supported",
+    );
+    // k4 alone does not make distortion shared (nerfstudio's rule): per frame it is read.
+    check(
+        &|j| j["frames"][0]["k4"] = 0.1.into(),
+        &plain,
+        "frames[0].k4",
+        "OPENCV_FISHEYE",
+    );
+    check(
+        &|j| {
+            j["k1"] = 0.1.into();
+            j["k4"] = 0.1.into();
+        },
+        &plain,
+        "k4",
+        "OPENCV_FISHEYE",
+    );
+    check(
+        &|j| j["frames"][0]["time"] = 0.5.into(),
+        &plain,
+        "frames",
+        "1 of 2 frames",
+    );
+    check(
+        &|j| j["frames"][0]["time"] = 2.0.into(),
+        &plain,
+        "frames[0].time",
+        "outside",
+    );
+    check(
+        &|j| j["test_filenames"] = serde_json::json!(["b.png"]),
+        &plain,
+        "train_filenames",
+        "missing",
+    );
+    check(
+        &|j| j["train_filenames"] = serde_json::json!(["a.png", "d.png"]),
+        &plain,
+        "train_filenames[1]",
+        "`d.png` is not a frame",
+    );
+    check(
+        &|j| j["ply_file_path"] = "pc.ply".into(),
+        &plain,
+        "ply_file_path",
+        "does not exist",
+    );
+    check(
+        &|j| j["frames"][1]["transform_matrix"][0][0] = 2.into(),
+        &plain,
+        "frames[1].transform_matrix",
+        "not a rotation",
+    );
+    let by_name = LoadOptions {
+        time_from: TimeFrom::Name,
+        ..LoadOptions::default()
+    };
+    check(
+        &|_| {},
+        &by_name,
+        "frames[0].file_path",
+        "`a.png` has no frame number",
+    );
 }
 
 #[test]

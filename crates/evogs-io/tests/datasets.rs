@@ -12,7 +12,7 @@ use evogs_io::colmap::{
 use evogs_io::npy::encode_npy;
 use evogs_io::{
     CameraInfo, Dataset, Format, Frame, ImageRgb, LoadOptions, NerfiesSplit, TimeDenominator,
-    detect_format, load_dataset, load_image, save_png, write_nerfies_camera,
+    TimeFrom, detect_format, load_dataset, load_image, save_png, write_nerfies_camera,
 };
 use glam::{DMat3, DQuat, Vec3};
 use splat_core::Camera;
@@ -84,14 +84,7 @@ fn write_dnerf(dir: &Path) {
     for (split, ids) in [("train", vec![1, 2]), ("test", vec![0]), ("val", vec![])] {
         let mut frames = Vec::new();
         for &c in &ids {
-            let cam: &Camera = &cams[c];
-            let r = cam.rotation;
-            let centre = cam.center();
-            // c2w in OpenGL axes: columns x, −y, −z of the camera, then the centre.
-            let m: Vec<[f32; 4]> = (0..3)
-                .map(|i| [r.row(0)[i], -r.row(1)[i], -r.row(2)[i], centre[i]])
-                .chain([[0.0, 0.0, 0.0, 1.0]])
-                .collect();
+            let m = opengl_c2w(&cams[c]);
             for k in 0..TIMES {
                 let name = format!("{split}/c{c}_t{k}");
                 save(&dir.join(format!("{name}.png")), &image_for(c, k, W, H));
@@ -108,6 +101,61 @@ fn write_dnerf(dir: &Path) {
             json.to_string(),
         );
     }
+}
+
+/// The c2w matrix of a camera in OpenGL axes: columns x, −y, −z of the camera, then the centre.
+fn opengl_c2w(cam: &Camera) -> Vec<[f32; 4]> {
+    let r = cam.rotation;
+    let centre = cam.center();
+    (0..3)
+        .map(|i| [r.row(0)[i], -r.row(1)[i], -r.row(2)[i], centre[i]])
+        .chain([[0.0, 0.0, 0.0, 1.0]])
+        .collect()
+}
+
+/// nerfstudio: shared `w`, `h`, `cx`; per-frame `fl_x`, `fl_y`, `cy`; `time` = k / (TIMES − 1)
+/// when `with_time`; camera 0 listed in `test_filenames` when `with_lists`; the points as an
+/// ASCII `sparse_pc.ply`.
+fn write_nerfstudio(dir: &Path, with_time: bool, with_lists: bool) {
+    let cams = cameras();
+    let mut frames = Vec::new();
+    let (mut train, mut test) = (Vec::new(), Vec::new());
+    for (c, cam) in cams.iter().enumerate() {
+        for k in 0..TIMES {
+            let name = format!("images/frame_{k:03}_c{c}.png");
+            save(&dir.join(&name), &image_for(c, k, W, H));
+            let mut frame = serde_json::json!({
+                "file_path": name,
+                "transform_matrix": opengl_c2w(cam),
+                "fl_x": cam.fx, "fl_y": cam.fy, "cy": cam.cy,
+            });
+            if with_time {
+                frame["time"] = serde_json::json!(k as f64 / (TIMES - 1) as f64);
+            }
+            frames.push(frame);
+            if c == 0 { &mut test } else { &mut train }.push(name);
+        }
+    }
+    let mut ply = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\n\
+         property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n\
+         end_header\n",
+        points().len()
+    );
+    for (p, rgb) in points() {
+        ply += &format!("{} {} {} {} {} {}\n", p.x, p.y, p.z, rgb[0], rgb[1], rgb[2]);
+    }
+    write(&dir.join("sparse_pc.ply"), ply);
+    let mut json = serde_json::json!({
+        "camera_model": "OPENCV", "w": W, "h": H, "cx": cams[0].cx,
+        "frames": frames, "ply_file_path": "sparse_pc.ply",
+        "applied_transform": [[0, 1, 0, 0], [1, 0, 0, 0], [0, 0, -1, 0]],
+    });
+    if with_lists {
+        json["train_filenames"] = serde_json::json!(train);
+        json["test_filenames"] = serde_json::json!(test);
+    }
+    write(&dir.join("transforms.json"), json.to_string());
 }
 
 /// Nerfies: `NeRF*` name (train_ids/val_ids at 1x), camera 0 in val_ids, time_id = k.
@@ -373,6 +421,76 @@ fn dnerf_layout_reads_the_scene() {
 }
 
 #[test]
+fn nerfstudio_layout_reads_the_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    write_nerfstudio(dir.path(), true, true);
+    assert_eq!(detect_format(dir.path()).unwrap(), Format::Nerfstudio);
+    let d = load(dir.path(), &LoadOptions::default());
+    assert_eq!(d.format, Format::Nerfstudio);
+    let time = |k: usize| k as f32 / (TIMES - 1) as f32;
+    assert_eq!(
+        check_frames(&d.train, &cameras(), time),
+        all_pairs(&[1, 2], TIMES)
+    );
+    assert_eq!(
+        check_frames(&d.test, &cameras(), time),
+        all_pairs(&[0], TIMES)
+    );
+    assert!(d.val.is_empty() && d.normalisation.is_none());
+    check_points(&d, 1e-6);
+    // No time key: times from the names' frame numbers (`frame_<k>_c<c>`); no split lists:
+    // nerfstudio's 90% rule over the six sorted frames (ceil(5.4) = 6: all train).
+    let dir = tempfile::tempdir().unwrap();
+    write_nerfstudio(dir.path(), false, false);
+    let by_name = LoadOptions {
+        time_from: TimeFrom::Name,
+        ..LoadOptions::default()
+    };
+    let d = load(dir.path(), &by_name);
+    assert_eq!(
+        check_frames(&d.train, &cameras(), time),
+        all_pairs(&[0, 1, 2], TIMES)
+    );
+    assert!(d.test.is_empty());
+    // By order: the sorted paths frame_000_c0, frame_000_c1, … get 0, 0.2, … 1.
+    let d = load(dir.path(), &LoadOptions::default());
+    let times: Vec<f32> = d.train.iter().map(|f| f.time).collect();
+    assert_eq!(times, vec![0.0, 0.2, 0.4, 0.6, 0.8, 1.0]);
+}
+
+#[test]
+fn nerfstudio_points_from_colmap_follow_applied_transform() {
+    let dir = tempfile::tempdir().unwrap();
+    write_nerfstudio(dir.path(), true, true);
+    // No ply_file_path: the points of colmap/sparse/0, mapped COLMAP → stored by
+    // applied_transform (here x ↔ y, z → −z), as ns-process-data would have written them.
+    let path = dir.path().join("transforms.json");
+    let mut json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    json.as_object_mut().unwrap().remove("ply_file_path");
+    write(&path, json.to_string());
+    let (cams, images, _) = colmap_model();
+    let stored_to_colmap = |p: Vec3| Vec3::new(p.y, p.x, -p.z);
+    let pts: Vec<ColmapPoint> = points()
+        .iter()
+        .map(|(p, rgb)| ColmapPoint {
+            xyz: stored_to_colmap(*p).to_array().map(f64::from),
+            rgb: *rgb,
+        })
+        .collect();
+    let sparse = dir.path().join("colmap/sparse/0");
+    write(&sparse.join("cameras.bin"), encode_cameras_bin(&cams));
+    write(&sparse.join("images.bin"), encode_images_bin(&images, 0));
+    write(&sparse.join("points3D.bin"), encode_points3d_bin(&pts));
+    let d = load(dir.path(), &LoadOptions::default());
+    check_points(&d, 1e-6);
+    // Without applied_transform nerfstudio assumes the same legacy matrix.
+    json.as_object_mut().unwrap().remove("applied_transform");
+    write(&path, json.to_string());
+    check_points(&load(dir.path(), &LoadOptions::default()), 1e-6);
+}
+
+#[test]
 fn nerfies_layout_reads_the_scene() {
     let root = tempfile::tempdir().unwrap();
     let dir = root.path().join("NeRF-synthetic");
@@ -527,9 +645,10 @@ fn colmap_binary_and_text_read_the_scene() {
         let dir = tempfile::tempdir().unwrap();
         write_colmap(dir.path(), binary);
         assert_eq!(detect_format(dir.path()).unwrap(), Format::Colmap);
-        // llff_hold 2: sorted names c0, c1, c2 → c0 and c2 are test frames.
+        // llff_hold 2: sorted names c0, c1, c2 → c0 and c2 are test frames. A static scene.
         let options = LoadOptions {
             colmap_llff_hold: 2,
+            time_from: TimeFrom::None,
             ..LoadOptions::default()
         };
         let d = load(dir.path(), &options);
@@ -544,16 +663,79 @@ fn colmap_binary_and_text_read_the_scene() {
         for (got, (_, rgb)) in colours.iter().zip(points()) {
             assert_eq!(*got, Vec3::from_array(rgb.map(|v| v as f32 / 255.0)));
         }
-        // Default hold 8: only the first image is a test frame.
+        // Default hold 8: only the first image is a test frame; default times by name order.
         let d = load(dir.path(), &LoadOptions::default());
         assert_eq!((d.train.len(), d.test.len()), (2, 1));
+        let times: Vec<f32> = d.all_frames().map(|f| f.time).collect();
+        assert_eq!(times, vec![0.5, 1.0, 0.0]);
     }
+}
+
+/// A multi-camera COLMAP capture: every camera at every time, images named
+/// `cam<c>/frame_<k>.png` (times from the frame number) or `<k>_<c>.png`-free `c<c>_t<k>.png`.
+fn write_colmap_sequence(dir: &Path, name_of: impl Fn(usize, usize) -> String) {
+    let (cams, views, pts) = colmap_model();
+    let mut images = Vec::new();
+    for (c, view) in views.iter().enumerate() {
+        for k in 0..TIMES {
+            let name = name_of(c, k);
+            save(&dir.join("images").join(&name), &image_for(c, k, W, H));
+            images.push(ColmapImage {
+                id: (100 * c + k) as u32 + 1,
+                name,
+                ..view.clone()
+            });
+        }
+    }
+    let sparse = dir.join("sparse/0");
+    write(&sparse.join("cameras.bin"), encode_cameras_bin(&cams));
+    write(&sparse.join("images.bin"), encode_images_bin(&images, 2));
+    write(&sparse.join("points3D.bin"), encode_points3d_bin(&pts));
+}
+
+#[test]
+fn colmap_times_from_frame_numbers_and_from_order() {
+    let dir = tempfile::tempdir().unwrap();
+    // Frame numbers 10 and 11: times 0 and 1 for every camera.
+    write_colmap_sequence(dir.path(), |c, k| format!("cam{c}/frame_{:04}.png", 10 + k));
+    let by_name = LoadOptions {
+        colmap_llff_hold: 0,
+        time_from: TimeFrom::Name,
+        ..LoadOptions::default()
+    };
+    let d = load(dir.path(), &by_name);
+    let time = |k: usize| k as f32 / (TIMES - 1) as f32;
+    assert_eq!(
+        check_frames(&d.train, &cameras(), time),
+        all_pairs(&[0, 1, 2], TIMES)
+    );
+    // By order the six sorted names get six different times: camera-major, not what a
+    // multi-camera capture means.
+    let by_order = LoadOptions {
+        time_from: TimeFrom::Order,
+        ..by_name.clone()
+    };
+    let d = load(dir.path(), &by_order);
+    let times: Vec<f32> = d.train.iter().map(|f| f.time).collect();
+    assert_eq!(times, vec![0.0, 0.2, 0.4, 0.6, 0.8, 1.0]);
+    // A single-camera sequence: order and name agree.
+    let dir = tempfile::tempdir().unwrap();
+    write_colmap_sequence(dir.path(), |c, k| format!("{:03}.png", c * TIMES + k));
+    let times = |options: &LoadOptions| -> Vec<f32> {
+        load(dir.path(), options)
+            .train
+            .iter()
+            .map(|f| f.time)
+            .collect()
+    };
+    assert_eq!(times(&by_name), times(&by_order));
+    assert_eq!(times(&by_name), vec![0.0, 0.2, 0.4, 0.6, 0.8, 1.0]);
 }
 
 #[test]
 fn every_format_gives_the_same_cameras_for_the_same_image() {
     let root = tempfile::tempdir().unwrap();
-    let dirs: Vec<PathBuf> = ["dnerf", "NeRF-scene", "neu3d", "colmap"]
+    let dirs: Vec<PathBuf> = ["dnerf", "NeRF-scene", "neu3d", "colmap", "nerfstudio"]
         .iter()
         .map(|n| root.path().join(n))
         .collect();
@@ -561,6 +743,7 @@ fn every_format_gives_the_same_cameras_for_the_same_image() {
     write_nerfies(&dirs[1], Vec3::new(0.5, 0.5, 0.5), 2.0, 1);
     write_neu3d(&dirs[2], 1);
     write_colmap(&dirs[3], true);
+    write_nerfstudio(&dirs[4], true, false);
     let mut by_image: BTreeMap<(usize, usize), Vec<(Format, Camera)>> = BTreeMap::new();
     for dir in &dirs {
         let d = load(dir, &LoadOptions::default());
@@ -574,7 +757,7 @@ fn every_format_gives_the_same_cameras_for_the_same_image() {
     }
     assert_eq!(by_image.len(), 3 * TIMES);
     for (key, list) in &by_image {
-        let formats = if key.1 == 0 { 4 } else { 3 };
+        let formats = if key.1 == 0 { 5 } else { 4 };
         assert_eq!(list.len(), formats, "{key:?}");
         for (format, cam) in &list[1..] {
             assert_same_camera(cam, &list[0].1, &format!("{key:?} {format}"));
@@ -591,6 +774,7 @@ fn summaries_snapshot() {
         ("NeRF-x", &|d: &Path| write_nerfies(d, Vec3::ZERO, 1.0, 1)),
         ("neu3d", &|d: &Path| write_neu3d(d, 1)),
         ("colmap", &|d: &Path| write_colmap(d, false)),
+        ("nerfstudio", &|d: &Path| write_nerfstudio(d, true, false)),
     ] {
         let dir = root.path().join(name);
         writer(&dir);
@@ -608,6 +792,23 @@ fn summaries_snapshot() {
     }
     write(&dir.join("sparse/0/cameras.bin"), encode_cameras_bin(&cams));
     let d = load(&dir, &LoadOptions::default());
+    lines.push(d.summary());
+    lines.push(format!("  warning: {:?}", d.camera_warning()));
+    // A nerfstudio OPENCV_FISHEYE camera: k1..k4 kept as fisheye coefficients and reported.
+    let dir = root.path().join("nerfstudio-fisheye");
+    write_nerfstudio(&dir, true, false);
+    let path = dir.join("transforms.json");
+    let mut json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    json["camera_model"] = "OPENCV_FISHEYE".into();
+    json["k1"] = 0.25.into();
+    json["k4"] = (-0.03125).into();
+    write(&path, json.to_string());
+    let d = load(&dir, &LoadOptions::default());
+    assert!(
+        d.all_frames()
+            .all(|f| f.camera.distortion.fisheye == [0.25, 0.0, 0.0, -0.03125])
+    );
     lines.push(d.summary());
     lines.push(format!("  warning: {:?}", d.camera_warning()));
     insta::assert_snapshot!(lines.join("\n"));

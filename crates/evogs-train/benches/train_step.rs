@@ -16,7 +16,14 @@ fn trainer(method: Method, components: Components, data: &std::path::Path) -> Tr
     c.warm_up = 50;
     c.densify.from = 999_999;
     c.densify.until = 1_000_000;
-    let views = load_split(data, Split::Train, c.background.rgb(), c.downscale).unwrap();
+    let views = load_split(
+        data,
+        Split::Train,
+        c.time_from,
+        c.background.rgb(),
+        c.downscale,
+    )
+    .unwrap();
     let mut t = Trainer::new(c, views).unwrap();
     while t.iteration < 200 {
         t.step().unwrap();

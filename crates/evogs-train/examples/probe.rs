@@ -64,8 +64,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let config: TrainConfig = serde_json::from_value(value)?;
     eprintln!("{}", serde_json::to_string(&config)?);
     let bg = config.background.rgb();
-    let train_views = load_split(&data, Split::Train, bg, config.downscale)?;
-    let report_views = load_split(&data, report, bg, config.downscale)?;
+    let train_views = load_split(&data, Split::Train, config.time_from, bg, config.downscale)?;
+    let report_views = load_split(&data, report, config.time_from, bg, config.downscale)?;
     let opts = RenderOptions {
         background: bg,
         sh_degree: None,

@@ -318,7 +318,7 @@ pub fn run_ablation(
     if request.rows.is_empty() {
         return Err(TrainError::config("rows", "no rows to run"));
     }
-    let dataset = crate::data::open_dataset(&request.data)?;
+    let dataset = crate::data::open_dataset(&request.data, request.config.time_from)?;
     let with_val = !dataset.split(Split::Val).is_empty();
     std::fs::create_dir_all(&request.out).map_err(|e| TrainError::io(&request.out, e))?;
     let total = request.rows.len();

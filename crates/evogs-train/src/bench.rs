@@ -362,6 +362,7 @@ fn bench_one(
     let curve_views = load_split(
         &scene.data,
         headline,
+        config.time_from,
         config.background.rgb(),
         config.downscale,
     )?;
@@ -628,6 +629,7 @@ pub fn write_picture(out: &Path, scene: &BenchScene, runs: &[BenchRun]) -> Resul
     let views = load_split(
         &scene.data,
         headline_split(&scene.name),
+        c.time_from,
         c.background.rgb(),
         c.downscale,
     )?;

@@ -329,7 +329,7 @@ impl fmt::Display for CameraSpec {
 /// Errors name the dataset file when the split is empty.
 pub fn split_cameras(run: &LoadedRun, split: Split) -> Result<Vec<(Camera, f32)>, TrainError> {
     let root = &run.run.data;
-    let dataset = open_dataset(root)?;
+    let dataset = open_dataset(root, run.run.train.time_from)?;
     let frames = dataset.split(split);
     if frames.is_empty() {
         return Err(split_error(

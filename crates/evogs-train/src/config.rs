@@ -365,6 +365,16 @@ pub struct TrainConfig {
     /// A resumed run keeps it unless the resume asks for another.
     #[serde(default)]
     pub backend: splat_raster::BackendChoice,
+    /// Where frame times come from for datasets that store none (COLMAP, nerfstudio frames
+    /// without `time`): `order` by default; runs written before it existed read as `none`, the
+    /// time 0 they trained with.
+    #[serde(default = "time_from_of_older_runs")]
+    pub time_from: evogs_io::TimeFrom,
+}
+
+/// `time_from` of a `config.json` written before the field existed: COLMAP frames had time 0.
+fn time_from_of_older_runs() -> evogs_io::TimeFrom {
+    evogs_io::TimeFrom::None
 }
 
 impl TrainConfig {
@@ -398,6 +408,7 @@ impl TrainConfig {
             log_every: default_log_every(),
             evogs: crate::evo_settings::EvoSettings::default(),
             backend: splat_raster::BackendChoice::Cpu,
+            time_from: evogs_io::TimeFrom::Order,
         };
         match preset {
             Preset::Paper => paper,

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use evogs_io::{Dataset, Format, ImageRgb, LoadOptions, Split, load_view};
+use evogs_io::{Dataset, Format, ImageRgb, LoadOptions, Split, TimeFrom, load_view};
 use splat_raster::Camera;
 
 use crate::error::TrainError;
@@ -48,18 +48,30 @@ impl SplitViews {
 
 /// Reads a dataset directory's cameras, times and point cloud (not its images), detecting the
 /// layout (`evogs_io::detect_format`); `Dataset::summary` says which layout was chosen.
-pub fn open_dataset(root: &Path) -> Result<Dataset, TrainError> {
-    Ok(evogs_io::load_dataset(root, &LoadOptions::default())?)
+/// `time_from` gives times to frames whose layout stores none (COLMAP, nerfstudio).
+pub fn open_dataset(root: &Path, time_from: TimeFrom) -> Result<Dataset, TrainError> {
+    let options = LoadOptions {
+        time_from,
+        ..LoadOptions::default()
+    };
+    Ok(evogs_io::load_dataset(root, &options)?)
 }
 
 /// Loads a split of the dataset directory `root` (any layout, see [`open_dataset`]).
 pub fn load_split(
     root: &Path,
     split: Split,
+    time_from: TimeFrom,
     background: [f32; 3],
     factor: f32,
 ) -> Result<SplitViews, TrainError> {
-    load_dataset_split(&open_dataset(root)?, root, split, background, factor)
+    load_dataset_split(
+        &open_dataset(root, time_from)?,
+        root,
+        split,
+        background,
+        factor,
+    )
 }
 
 /// Loads a split of an opened dataset: images composited over `background` and resized by

@@ -150,7 +150,13 @@ pub fn evaluate(
     lpips: &EvalLpips,
 ) -> Result<EvalReport, TrainError> {
     let cfg = run.run.train.clone();
-    let views = load_split(&run.run.data, split, cfg.background.rgb(), cfg.downscale)?;
+    let views = load_split(
+        &run.run.data,
+        split,
+        cfg.time_from,
+        cfg.background.rgb(),
+        cfg.downscale,
+    )?;
     let opts = RenderOptions {
         background: cfg.background.rgb(),
         sh_degree: None,

@@ -189,6 +189,7 @@ pub fn train(
         let train = load_split(
             &run.data,
             Split::Train,
+            run.train.time_from,
             run.train.background.rgb(),
             run.train.downscale,
         )?;
@@ -224,7 +225,7 @@ pub fn train(
             },
         )?;
         let c = &request.config;
-        let dataset = open_dataset(&data)?;
+        let dataset = open_dataset(&data, c.time_from)?;
         let train = load_dataset_split(
             &dataset,
             &data,

@@ -25,7 +25,14 @@ fn evogs_training_lowers_the_loss_and_keeps_the_state_aligned() {
     let data = dir.path().join("scene");
     common::write_scene(&data);
     let c = config(200);
-    let views = load_split(&data, Split::Train, c.background.rgb(), c.downscale).unwrap();
+    let views = load_split(
+        &data,
+        Split::Train,
+        c.time_from,
+        c.background.rgb(),
+        c.downscale,
+    )
+    .unwrap();
     let mut trainer = Trainer::new(c.clone(), views).unwrap();
     let mut losses = Vec::new();
     let mut densified = 0;
@@ -180,7 +187,14 @@ fn every_switch_combination_trains_finitely_and_stays_aligned() {
     let data = dir.path().join("scene");
     common::write_scene(&data);
     let base = config(80);
-    let views = load_split(&data, Split::Train, base.background.rgb(), base.downscale).unwrap();
+    let views = load_split(
+        &data,
+        Split::Train,
+        base.time_from,
+        base.background.rgb(),
+        base.downscale,
+    )
+    .unwrap();
     type Edit = fn(&mut TrainConfig);
     let cases: [(&str, Edit); 6] = [
         ("requery", |c| c.evogs.history = HistorySetting::Requery),

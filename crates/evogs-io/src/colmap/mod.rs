@@ -14,7 +14,10 @@
 //! - COLMAP's `qvec` (w, x, y, z) and `tvec` are world-to-camera in OpenCV axes, and its pixel
 //!   centres are at +0.5 like SPEC §1, so they convert directly.
 //! - Frames are sorted by image name; with `llff_hold > 0` every `llff_hold`-th (from the first)
-//!   is a test frame (D-3DGS `--eval`, hold 8). Static scene: time 0 for every frame.
+//!   is a test frame (D-3DGS `--eval`, hold 8).
+//! - Times by [`TimeFrom`] over all registered images before the split: the rank of the name
+//!   (default, as 4DGaussians), a number in the name (as D-3DGS; multi-camera captures by a
+//!   `frame` number, see [`frame_time`](crate::frame_time)), or 0 (a static scene).
 //! - The sparse points (colours /255) are the initial point cloud; no normalisation.
 
 mod binary;
@@ -39,6 +42,7 @@ pub use text::{
 
 use crate::IoError;
 use crate::dataset::{Dataset, Format, Frame, PointCloud};
+use crate::frame_time::{TimeFrom, times_from_names};
 
 /// The folder of a dataset directory that holds the sparse model: `sparse/0/` when it exists,
 /// else `sparse/`.
@@ -95,10 +99,22 @@ pub fn read_colmap_model(sparse: &Path) -> Result<ColmapModel, IoError> {
 }
 
 /// Reads a COLMAP dataset directory (see the module docs).
-pub fn read_colmap_dataset(dir: &Path, llff_hold: usize) -> Result<Dataset, IoError> {
+pub fn read_colmap_dataset(
+    dir: &Path,
+    llff_hold: usize,
+    time_from: TimeFrom,
+) -> Result<Dataset, IoError> {
     let model = read_colmap_model(&sparse_dir(dir))?;
     let mut images: Vec<&ColmapImage> = model.images.iter().collect();
     images.sort_by(|a, b| a.name.cmp(&b.name));
+    let names: Vec<&str> = images.iter().map(|image| image.name.as_str()).collect();
+    let times = times_from_names(&names, time_from).map_err(|(index, problem)| {
+        IoError::field(
+            &model.images_path,
+            format!("image {}.name", images[index].id),
+            problem,
+        )
+    })?;
     let mut dataset = Dataset {
         format: Format::Colmap,
         train: Vec::new(),
@@ -123,7 +139,7 @@ pub fn read_colmap_dataset(dir: &Path, llff_hold: usize) -> Result<Dataset, IoEr
         .iter()
         .map(|image| model.camera_info(image))
         .collect::<Result<Vec<_>, _>>()?;
-    for (index, (image, camera)) in images.into_iter().zip(cameras).enumerate() {
+    for (index, ((image, camera), time)) in images.into_iter().zip(cameras).zip(times).enumerate() {
         let image_path = dir.join("images").join(&image.name);
         if !image_path.is_file() {
             return Err(IoError::field(
@@ -134,7 +150,7 @@ pub fn read_colmap_dataset(dir: &Path, llff_hold: usize) -> Result<Dataset, IoEr
         }
         let frame = Frame {
             image_path,
-            time: 0.0,
+            time,
             camera,
         };
         if llff_hold > 0 && index % llff_hold == 0 {

@@ -145,7 +145,7 @@ impl ColmapCamera {
                 [p[0], p[0], p[1], p[2]],
                 Distortion {
                     radial: [p[3] as f32, 0.0, 0.0],
-                    tangential: [0.0; 2],
+                    ..Distortion::default()
                 },
             ),
             CameraModel::Opencv => (
@@ -153,6 +153,7 @@ impl ColmapCamera {
                 Distortion {
                     radial: [p[4] as f32, p[5] as f32, 0.0],
                     tangential: [p[6] as f32, p[7] as f32],
+                    ..Distortion::default()
                 },
             ),
         }

@@ -30,7 +30,7 @@ pub struct LoadedPly {
 }
 
 /// Why reading stopped, before the file's path is attached.
-enum Fail {
+pub(super) enum Fail {
     Io(std::io::Error),
     Ply(PlyProblem),
 }
@@ -48,7 +48,7 @@ impl From<PlyProblem> for Fail {
 }
 
 impl Fail {
-    fn at(self, path: &Path) -> IoError {
+    pub(super) fn at(self, path: &Path) -> IoError {
         match self {
             Self::Io(cause) => IoError::io(path, cause),
             Self::Ply(problem) => IoError::Ply {
@@ -117,14 +117,30 @@ struct Column {
     name: String,
 }
 
-/// The decoding plan for the vertex element.
-struct Plan {
-    layout: RecordLayout,
+/// The decoding plan for the vertex element: which properties go to which record slot.
+pub(super) struct Plan {
+    record_len: usize,
     columns: Vec<Column>,
     ignored: Vec<String>,
 }
 
-fn plan_vertex(vertex: &Element, encoding: Encoding) -> Result<Plan, PlyProblem> {
+impl Plan {
+    /// The type of the property decoded into `slot`, if any.
+    pub(super) fn type_of_slot(&self, slot: usize) -> Option<ScalarType> {
+        self.columns.iter().find(|c| c.slot == slot).map(|c| c.ty)
+    }
+}
+
+/// Where decoded vertex records go.
+pub(super) trait Rows {
+    /// Room for `count` records (called once the count has been checked against the file size).
+    fn reserve(&mut self, count: usize);
+    /// One record, `Plan::record_len` values.
+    fn push(&mut self, record: &[f32]);
+}
+
+/// The 3DGS plan for a vertex element, and the SH degree its `f_rest_*` count gives.
+fn plan_vertex(vertex: &Element, encoding: Encoding) -> Result<(Plan, u32), PlyProblem> {
     let rest = vertex
         .properties
         .iter()
@@ -132,6 +148,27 @@ fn plan_vertex(vertex: &Element, encoding: Encoding) -> Result<Plan, PlyProblem>
         .count();
     let degree = degree_from_rest_count(rest).ok_or(PlyProblem::BadShCount { count: rest })?;
     let layout = RecordLayout { degree };
+    let plan = plan_columns(
+        vertex,
+        encoding,
+        layout.len(),
+        |name| layout.slot_of(name),
+        |name| matches!(name, "nx" | "ny" | "nz"),
+        &layout.required_names(),
+    )?;
+    Ok((plan, degree))
+}
+
+/// The plan for a vertex element: `slot_of` maps a property name to its record slot (`None`:
+/// ignored and listed, unless `unlisted` says it is expected); every `required` name must exist.
+pub(super) fn plan_columns(
+    vertex: &Element,
+    encoding: Encoding,
+    record_len: usize,
+    slot_of: impl Fn(&str) -> Option<usize>,
+    unlisted: impl Fn(&str) -> bool,
+    required: &[String],
+) -> Result<Plan, PlyProblem> {
     let mut columns = Vec::new();
     let mut ignored = Vec::new();
     let mut offset = 0usize;
@@ -145,45 +182,85 @@ fn plan_vertex(vertex: &Element, encoding: Encoding) -> Result<Plan, PlyProblem>
             _ => offset,
         };
         offset += ty.size();
-        match layout.slot_of(&property.name) {
+        match slot_of(&property.name) {
             Some(slot) => columns.push(Column {
                 position,
                 ty,
                 slot,
                 name: property.name.clone(),
             }),
-            None if matches!(property.name.as_str(), "nx" | "ny" | "nz") => {}
+            None if unlisted(&property.name) => {}
             None => ignored.push(property.name.clone()),
         }
     }
-    for name in layout.required_names() {
-        if !columns.iter().any(|c| c.name == name) {
-            return Err(PlyProblem::MissingProperty(name));
+    for name in required {
+        if !columns.iter().any(|c| &c.name == name) {
+            return Err(PlyProblem::MissingProperty(name.clone()));
         }
     }
     Ok(Plan {
-        layout,
+        record_len,
         columns,
         ignored,
     })
 }
 
-fn read_from<R: BufRead>(reader: &mut R, total_len: u64) -> Result<LoadedPly, Fail> {
-    let (lines, header_len) = read_header_lines(reader)?;
-    let header = parse_header_lines(&lines)?;
-    let vertex_index = header
-        .elements
-        .iter()
-        .position(|e| e.name == "vertex")
-        .ok_or(PlyProblem::NoVertexElement)?;
-    let vertex = &header.elements[vertex_index];
-    let plan = plan_vertex(vertex, header.encoding)?;
-    let available = total_len.saturating_sub(header_len as u64);
-    let mut sink = RowSink::new(&plan.layout);
-    match header.encoding {
-        Encoding::Ascii => read_ascii(reader, &header, vertex_index, &plan, available, &mut sink)?,
-        _ => read_binary(reader, &header, vertex_index, &plan, available, &mut sink)?,
+/// A file's header, read up to `end_header`, with the index of its vertex element and the
+/// bytes that follow the header.
+pub(super) struct Prelude {
+    header: Header,
+    vertex_index: usize,
+    available: u64,
+}
+
+impl Prelude {
+    /// Reads the header of a file of `total_len` bytes.
+    pub(super) fn read<R: BufRead>(reader: &mut R, total_len: u64) -> Result<Self, Fail> {
+        let (lines, header_len) = read_header_lines(reader)?;
+        let header = parse_header_lines(&lines)?;
+        let vertex_index = header
+            .elements
+            .iter()
+            .position(|e| e.name == "vertex")
+            .ok_or(PlyProblem::NoVertexElement)?;
+        Ok(Self {
+            header,
+            vertex_index,
+            available: total_len.saturating_sub(header_len as u64),
+        })
     }
+
+    /// The vertex element.
+    pub(super) fn vertex(&self) -> &Element {
+        &self.header.elements[self.vertex_index]
+    }
+
+    /// The file's encoding.
+    pub(super) fn encoding(&self) -> Encoding {
+        self.header.encoding
+    }
+
+    /// Decodes every vertex row by `plan` into `sink`.
+    pub(super) fn read_rows<R: BufRead, S: Rows>(
+        &self,
+        reader: &mut R,
+        plan: &Plan,
+        sink: &mut S,
+    ) -> Result<(), Fail> {
+        let (header, index, available) = (&self.header, self.vertex_index, self.available);
+        match header.encoding {
+            Encoding::Ascii => read_ascii(reader, header, index, plan, available, sink),
+            _ => read_binary(reader, header, index, plan, available, sink),
+        }
+    }
+}
+
+fn read_from<R: BufRead>(reader: &mut R, total_len: u64) -> Result<LoadedPly, Fail> {
+    let prelude = Prelude::read(reader, total_len)?;
+    let (plan, degree) = plan_vertex(prelude.vertex(), prelude.encoding())?;
+    let mut sink = RowSink::new(degree);
+    prelude.read_rows(reader, &plan, &mut sink)?;
+    let header = &prelude.header;
     Ok(LoadedPly {
         gaussians: sink.gaussians,
         nonfinite_rows: sink.nonfinite_rows,
@@ -200,13 +277,15 @@ struct RowSink {
 
 impl RowSink {
     /// Empty; capacity is reserved later, once the count has been checked against the file size.
-    fn new(layout: &RecordLayout) -> Self {
+    fn new(degree: u32) -> Self {
         Self {
-            gaussians: Gaussians::with_degree(layout.degree),
+            gaussians: Gaussians::with_degree(degree),
             nonfinite_rows: 0,
         }
     }
+}
 
+impl Rows for RowSink {
     fn reserve(&mut self, count: usize) {
         let g = &mut self.gaussians;
         let stride = g.sh_stride();
@@ -269,13 +348,13 @@ fn truncated(element: &Element, needed: u128, available: u64) -> PlyProblem {
     }
 }
 
-fn read_binary<R: BufRead>(
+fn read_binary<R: BufRead, S: Rows>(
     reader: &mut R,
     header: &Header,
     vertex_index: usize,
     plan: &Plan,
     mut available: u64,
-    sink: &mut RowSink,
+    sink: &mut S,
 ) -> Result<(), Fail> {
     let big_endian = header.encoding == Encoding::BinaryBigEndian;
     for element in &header.elements[..vertex_index] {
@@ -304,7 +383,7 @@ fn read_binary<R: BufRead>(
     }
     let count = vertex.count as usize;
     sink.reserve(count);
-    let mut rec = vec![0f32; plan.layout.len()];
+    let mut rec = vec![0f32; plan.record_len];
     let rows_per_chunk = ((1usize << 20) / row_size).max(1);
     let mut buf = vec![0u8; rows_per_chunk.min(count.max(1)) * row_size];
     let mut done = 0usize;
@@ -356,13 +435,13 @@ fn parse_token(token: &str, ty: ScalarType) -> Option<f32> {
     }
 }
 
-fn read_ascii<R: BufRead>(
+fn read_ascii<R: BufRead, S: Rows>(
     reader: &mut R,
     header: &Header,
     vertex_index: usize,
     plan: &Plan,
     available: u64,
-    sink: &mut RowSink,
+    sink: &mut S,
 ) -> Result<(), Fail> {
     let vertex = &header.elements[vertex_index];
     let props = vertex.properties.len().max(1);
@@ -388,7 +467,7 @@ fn read_ascii<R: BufRead>(
         }
     }
     sink.reserve(vertex.count as usize);
-    let mut rec = vec![0f32; plan.layout.len()];
+    let mut rec = vec![0f32; plan.record_len];
     let mut tokens: Vec<&str> = Vec::with_capacity(props);
     for row in 0..vertex.count {
         let Some(line) = lines.next() else {
