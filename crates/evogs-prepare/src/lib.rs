@@ -423,10 +423,11 @@ pub fn prepare(
             &subject,
             format!(
                 "COLMAP registered {registered} of {} frames; at least {needed} are needed \
-                 (--min-registered {}). Frames need texture that stays still, overlap and \
-                 some sideways camera motion",
+                 (--min-registered {}); frames need still texture, overlap and some sideways \
+                 camera motion (mapper: {})",
                 frames.len(),
-                request.min_registered
+                request.min_registered,
+                tools::last_message(&log(Stage::Mapping))
             ),
         ));
     }

@@ -64,7 +64,8 @@ pub fn matching(
 }
 
 /// `colmap mapper` into `sparse/` (models `sparse/0`, `sparse/1`, …); returns the model with
-/// the most registered images and its folder, or `None` when COLMAP made none.
+/// the most registered images and its folder, or `None` when COLMAP made none (a mapper that
+/// fails without a model is such a case: the caller reports the registration).
 pub fn map(
     database: &Path,
     images: &Path,
@@ -82,7 +83,7 @@ pub fn map(
         "--output_path".into(),
         arg(sparse),
     ];
-    run_logged(&COLMAP, &args, log, subject, "colmap mapper")?;
+    let ran = run_logged(&COLMAP, &args, log, subject, "colmap mapper");
     let mut best: Option<(ColmapModel, PathBuf)> = None;
     let mut dirs: Vec<PathBuf> = std::fs::read_dir(sparse)
         .map_err(|e| PrepareError::io(sparse, e))?
@@ -99,7 +100,10 @@ pub fn map(
             best = Some((model, dir));
         }
     }
-    Ok(best)
+    match (ran, best) {
+        (Err(e), Some(_)) => Err(e),
+        (_, best) => Ok(best),
+    }
 }
 
 /// True when a camera of the model has a non-zero distortion coefficient.

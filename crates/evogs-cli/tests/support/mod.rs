@@ -24,3 +24,4 @@ pub fn s(p: &Path) -> &str {
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
+pub mod capture;
