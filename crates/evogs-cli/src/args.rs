@@ -90,7 +90,7 @@ pub struct TrainArgs {
     pub data: Option<PathBuf>,
 
     /// Times of frames whose dataset stores none (COLMAP, nerfstudio without `time`); see the
-    /// README's "Your own video" for the accepted names [default: order].
+    /// README's Datasets section for the names `name` accepts [default: order].
     #[arg(long, value_name = "RULE")]
     pub time_from: Option<TimeFromArg>,
 
