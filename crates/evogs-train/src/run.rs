@@ -7,7 +7,10 @@
 //! - `canonical.ply`: the canonical Gaussians in the 3DGS PLY layout;
 //! - `deform.safetensors`: the backbone's weights (EvoGS: Φ as `phi.*` and Ψ as `psi`);
 //! - `evo_state.safetensors` (EvoGS only): the evolution state (buffer, valid frames, memory, Ψ),
-//!   evo-state's own format, written together with every checkpoint;
+//!   evo-state's own format, written together with every checkpoint. The pair is committed so
+//!   that a kill at any moment leaves a matching pair ([`save_resumable`]): the state is first
+//!   written as `evo_state.<iteration>.safetensors`, then the checkpoint is renamed into place,
+//!   then the state; a resume finishes or discards what a kill interrupted;
 //! - `train_log.jsonl`: one line per `log_every` iterations (loss, PSNR, Gaussians, it/s, peak
 //!   memory, K for EvoGS; [`crate::train_log`]);
 //! - `train_metrics.json`: iterations done, time, iterations/s, last loss and PSNR, Gaussians,
@@ -66,6 +69,13 @@ impl RunPaths {
     /// `evo_state.safetensors` (EvoGS runs): the evolution state, written with every checkpoint.
     pub fn evo_state(&self) -> PathBuf {
         self.root.join("evo_state.safetensors")
+    }
+    /// `evo_state.<iteration>.safetensors`: the evolution state of the checkpoint at `iteration`
+    /// while that checkpoint is being written ([`save_resumable`]); renamed to
+    /// [`RunPaths::evo_state`] once the checkpoint is in place.
+    pub fn pending_evo_state(&self, iteration: u64) -> PathBuf {
+        self.root
+            .join(format!("{PENDING_EVO_STATE_PREFIX}{iteration}.safetensors"))
     }
     /// `train_log.jsonl` ([`crate::train_log`]).
     pub fn train_log(&self) -> PathBuf {
@@ -170,6 +180,54 @@ pub struct TrainRequest {
     pub resume_backend: Option<splat_raster::BackendChoice>,
 }
 
+/// File-name prefix of [`RunPaths::pending_evo_state`].
+const PENDING_EVO_STATE_PREFIX: &str = "evo_state.";
+
+/// Writes the checkpoint and (EvoGS) the evolution state of `trainer` as one resumable pair:
+/// the state goes to [`RunPaths::pending_evo_state`] first, then the checkpoint replaces the
+/// previous one, then the state replaces the previous state. A kill before the checkpoint's
+/// rename leaves the previous pair (and a pending file [`settle_evo_state`] removes); a kill
+/// after it leaves the new checkpoint with its state still pending (which
+/// [`settle_evo_state`] renames). Either way the resumed run continues bit for bit.
+fn save_resumable(paths: &RunPaths, trainer: &Trainer) -> Result<(), TrainError> {
+    let pending = paths.pending_evo_state(trainer.iteration);
+    let has_state = trainer.backbone.save_state(&pending)?;
+    save_checkpoint(
+        &paths.checkpoint(),
+        &trainer.state,
+        trainer.backbone.as_ref(),
+        trainer.iteration,
+        trainer.config.seed,
+    )?;
+    if has_state {
+        std::fs::rename(&pending, paths.evo_state()).map_err(|e| TrainError::io(&pending, e))?;
+    }
+    Ok(())
+}
+
+/// Before a resume from the checkpoint at `iteration`: commits that checkpoint's evolution state
+/// if a kill left it pending, and removes pending states of checkpoints that never landed.
+fn settle_evo_state(paths: &RunPaths, iteration: u64) -> Result<(), TrainError> {
+    let own = paths.pending_evo_state(iteration);
+    if own.is_file() {
+        std::fs::rename(&own, paths.evo_state()).map_err(|e| TrainError::io(&own, e))?;
+    }
+    let entries = std::fs::read_dir(&paths.root).map_err(|e| TrainError::io(&paths.root, e))?;
+    for entry in entries {
+        let path = entry.map_err(|e| TrainError::io(&paths.root, e))?.path();
+        let stale = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .and_then(|n| n.strip_prefix(PENDING_EVO_STATE_PREFIX))
+            .and_then(|n| n.strip_suffix(".safetensors"))
+            .is_some_and(|i| !i.is_empty() && i.bytes().all(|b| b.is_ascii_digit()));
+        if stale {
+            std::fs::remove_file(&path).map_err(|e| TrainError::io(&path, e))?;
+        }
+    }
+    Ok(())
+}
+
 /// Trains (or resumes) a run, calling `progress` after every iteration, and writes the run
 /// directory. Returns the summary that `train_metrics.json` holds.
 ///
@@ -205,6 +263,7 @@ pub fn train(
             ));
         }
         let meta = load_checkpoint(&ckpt, &mut state, backbone.as_mut())?;
+        settle_evo_state(&paths, meta.iteration)?;
         backbone.load_state(&paths.evo_state())?;
         let trainer =
             Trainer::from_parts(run.train.clone(), train, state, backbone, meta.iteration)?;
@@ -279,26 +338,12 @@ pub fn train(
             .is_multiple_of(trainer.config.checkpoint_every)
             && report.iteration < end
         {
-            save_checkpoint(
-                &paths.checkpoint(),
-                &trainer.state,
-                trainer.backbone.as_ref(),
-                trainer.iteration,
-                trainer.config.seed,
-            )?;
-            trainer.backbone.save_state(&paths.evo_state())?;
+            save_resumable(&paths, &trainer)?;
         }
         last = Some(report);
     }
     let seconds = started.elapsed().as_secs_f64();
-    save_checkpoint(
-        &paths.checkpoint(),
-        &trainer.state,
-        trainer.backbone.as_ref(),
-        trainer.iteration,
-        trainer.config.seed,
-    )?;
-    trainer.backbone.save_state(&paths.evo_state())?;
+    save_resumable(&paths, &trainer)?;
     evogs_io::write_ply(&paths.canonical(), trainer.state.gaussians.view())?;
     trainer.backbone.save(&paths.weights())?;
     let done = trainer.iteration - start_iteration;

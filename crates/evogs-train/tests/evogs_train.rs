@@ -180,6 +180,60 @@ fn evogs_run_directory_resumes_bit_for_bit_and_reloads() {
     assert!(e.contains("evo_state.safetensors"), "{e}");
 }
 
+/// A kill between writing the checkpoint and committing its evolution state (the checkpoint at
+/// iteration 30 in place, its state still pending, the previous state beside it) and a kill
+/// before a checkpoint landed (a pending state of a later iteration) both resume bit for bit.
+#[test]
+fn a_kill_between_checkpoint_and_evolution_state_resumes_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("scene");
+    common::write_scene(&data);
+    let mut c = config(45);
+    c.checkpoint_every = 7;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let request = |out: &str, resume: bool, stop_after: Option<u64>| TrainRequest {
+        data: data.clone(),
+        out: dir.path().join(out),
+        config: c.clone(),
+        resume,
+        stop_after,
+        resume_backend: None,
+    };
+    let b = RunPaths::new(dir.path().join("killed"));
+    let older = dir.path().join("older.safetensors");
+    pool.install(|| {
+        train(&request("straight", false, None), &mut |_, _| {}).unwrap();
+        train(&request("killed", false, Some(21)), &mut |_, _| {}).unwrap();
+        std::fs::copy(b.evo_state(), &older).unwrap();
+        train(&request("killed", true, Some(30)), &mut |_, _| {}).unwrap();
+        // No pending state is left once a checkpoint is written.
+        assert!(!b.pending_evo_state(30).exists());
+        assert_ne!(
+            EvoState::load(&b.evo_state()).unwrap(),
+            EvoState::load(&older).unwrap(),
+            "the states at iterations 21 and 30 must differ for this test to mean anything"
+        );
+        std::fs::rename(b.evo_state(), b.pending_evo_state(30)).unwrap();
+        std::fs::copy(&older, b.evo_state()).unwrap();
+        std::fs::copy(&older, b.pending_evo_state(35)).unwrap();
+        let rest = train(&request("killed", true, None), &mut |_, _| {}).unwrap();
+        assert_eq!(rest.iteration, 45);
+    });
+    let a = RunPaths::new(dir.path().join("straight"));
+    assert_eq!(
+        EvoState::load(&a.evo_state()).unwrap(),
+        EvoState::load(&b.evo_state()).unwrap()
+    );
+    assert_eq!(
+        std::fs::read(a.weights()).unwrap(),
+        std::fs::read(b.weights()).unwrap()
+    );
+    assert!(!b.pending_evo_state(30).exists() && !b.pending_evo_state(35).exists());
+}
+
 #[test]
 fn every_switch_combination_trains_finitely_and_stays_aligned() {
     use evogs_train::{Bits, DensifyPolicy, GainSetting, HistorySetting};
