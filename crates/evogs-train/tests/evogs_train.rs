@@ -102,33 +102,56 @@ fn evogs_training_lowers_the_loss_and_keeps_the_state_aligned() {
     assert!(s.table().contains("moving") || s.table().contains("still"));
 }
 
+/// A scene in a temporary directory and EvoGS settings checkpointing every 7 iterations, trained
+/// on one thread so that runs compare bit for bit.
+struct ResumeScene {
+    dir: tempfile::TempDir,
+    config: TrainConfig,
+    pool: rayon::ThreadPool,
+}
+
+impl ResumeScene {
+    fn new(iterations: u64) -> Self {
+        let dir = tempfile::tempdir().unwrap();
+        common::write_scene(&dir.path().join("scene"));
+        let mut config = config(iterations);
+        config.checkpoint_every = 7;
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        Self { dir, config, pool }
+    }
+
+    /// Trains (or resumes) the run `out`, stopping after `stop_after` iterations if given.
+    fn train(&self, out: &str, resume: bool, stop_after: Option<u64>) -> u64 {
+        let request = TrainRequest {
+            data: self.dir.path().join("scene"),
+            out: self.dir.path().join(out),
+            config: self.config.clone(),
+            resume,
+            stop_after,
+            resume_backend: None,
+        };
+        let summary = self
+            .pool
+            .install(|| train(&request, &mut |_, _| {}))
+            .unwrap();
+        summary.iteration
+    }
+
+    fn run(&self, out: &str) -> RunPaths {
+        RunPaths::new(self.dir.path().join(out))
+    }
+}
+
 #[test]
 fn evogs_run_directory_resumes_bit_for_bit_and_reloads() {
-    let dir = tempfile::tempdir().unwrap();
-    let data = dir.path().join("scene");
-    common::write_scene(&data);
-    let mut c = config(60);
-    c.checkpoint_every = 7;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
-    let request = |out: &str, resume: bool, stop_after: Option<u64>| TrainRequest {
-        data: data.clone(),
-        out: dir.path().join(out),
-        config: c.clone(),
-        resume,
-        stop_after,
-        resume_backend: None,
-    };
-    pool.install(|| {
-        train(&request("straight", false, None), &mut |_, _| {}).unwrap();
-        train(&request("resumed", false, Some(30)), &mut |_, _| {}).unwrap();
-        let rest = train(&request("resumed", true, None), &mut |_, _| {}).unwrap();
-        assert_eq!(rest.iteration, 60);
-    });
-    let a = RunPaths::new(dir.path().join("straight"));
-    let b = RunPaths::new(dir.path().join("resumed"));
+    let scene = ResumeScene::new(60);
+    scene.train("straight", false, None);
+    scene.train("resumed", false, Some(30));
+    assert_eq!(scene.train("resumed", true, None), 60);
+    let (a, b) = (scene.run("straight"), scene.run("resumed"));
     let ea = EvoState::load(&a.evo_state()).unwrap();
     let eb = EvoState::load(&b.evo_state()).unwrap();
     assert_eq!(ea, eb);
@@ -162,7 +185,7 @@ fn evogs_run_directory_resumes_bit_for_bit_and_reloads() {
         assert_eq!(a.pixels, b.pixels, "t = {t}");
         assert!(a.pixels.as_flattened().iter().all(|v| v.is_finite()));
     }
-    let saved = dir.path().join("after_render.safetensors");
+    let saved = scene.dir.path().join("after_render.safetensors");
     assert!(run.backbone.save_state(&saved).unwrap());
     assert_eq!(
         EvoState::load(&saved).unwrap(),
@@ -185,44 +208,25 @@ fn evogs_run_directory_resumes_bit_for_bit_and_reloads() {
 /// before a checkpoint landed (a pending state of a later iteration) both resume bit for bit.
 #[test]
 fn a_kill_between_checkpoint_and_evolution_state_resumes_bit_for_bit() {
-    let dir = tempfile::tempdir().unwrap();
-    let data = dir.path().join("scene");
-    common::write_scene(&data);
-    let mut c = config(45);
-    c.checkpoint_every = 7;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
-    let request = |out: &str, resume: bool, stop_after: Option<u64>| TrainRequest {
-        data: data.clone(),
-        out: dir.path().join(out),
-        config: c.clone(),
-        resume,
-        stop_after,
-        resume_backend: None,
-    };
-    let b = RunPaths::new(dir.path().join("killed"));
-    let older = dir.path().join("older.safetensors");
-    pool.install(|| {
-        train(&request("straight", false, None), &mut |_, _| {}).unwrap();
-        train(&request("killed", false, Some(21)), &mut |_, _| {}).unwrap();
-        std::fs::copy(b.evo_state(), &older).unwrap();
-        train(&request("killed", true, Some(30)), &mut |_, _| {}).unwrap();
-        // No pending state is left once a checkpoint is written.
-        assert!(!b.pending_evo_state(30).exists());
-        assert_ne!(
-            EvoState::load(&b.evo_state()).unwrap(),
-            EvoState::load(&older).unwrap(),
-            "the states at iterations 21 and 30 must differ for this test to mean anything"
-        );
-        std::fs::rename(b.evo_state(), b.pending_evo_state(30)).unwrap();
-        std::fs::copy(&older, b.evo_state()).unwrap();
-        std::fs::copy(&older, b.pending_evo_state(35)).unwrap();
-        let rest = train(&request("killed", true, None), &mut |_, _| {}).unwrap();
-        assert_eq!(rest.iteration, 45);
-    });
-    let a = RunPaths::new(dir.path().join("straight"));
+    let scene = ResumeScene::new(45);
+    let b = scene.run("killed");
+    let older = scene.dir.path().join("older.safetensors");
+    scene.train("straight", false, None);
+    scene.train("killed", false, Some(21));
+    std::fs::copy(b.evo_state(), &older).unwrap();
+    scene.train("killed", true, Some(30));
+    // No pending state is left once a checkpoint is written.
+    assert!(!b.pending_evo_state(30).exists());
+    assert_ne!(
+        EvoState::load(&b.evo_state()).unwrap(),
+        EvoState::load(&older).unwrap(),
+        "the states at iterations 21 and 30 must differ for this test to mean anything"
+    );
+    std::fs::rename(b.evo_state(), b.pending_evo_state(30)).unwrap();
+    std::fs::copy(&older, b.evo_state()).unwrap();
+    std::fs::copy(&older, b.pending_evo_state(35)).unwrap();
+    assert_eq!(scene.train("killed", true, None), 45);
+    let a = scene.run("straight");
     assert_eq!(
         EvoState::load(&a.evo_state()).unwrap(),
         EvoState::load(&b.evo_state()).unwrap()
