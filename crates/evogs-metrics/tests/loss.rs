@@ -3,28 +3,8 @@
 use evogs_metrics::{ImageSize, photometric_loss, ssim};
 use proptest::prelude::*;
 
-/// A ground truth and a rendering that differs from it by at least 0.02 in every channel (so the
-/// L1 kink is far from the finite-difference stencil).
-fn image_pair(max_side: usize) -> impl Strategy<Value = (ImageSize, Vec<[f64; 3]>, Vec<[f64; 3]>)> {
-    (1..=max_side, 1..=max_side).prop_flat_map(|(w, h)| {
-        let n = w * h;
-        (
-            Just(ImageSize::new(w, h)),
-            prop::collection::vec(prop::array::uniform3(0.0f64..1.0), n),
-            prop::collection::vec(prop::array::uniform3((0.02f64..0.3, any::<bool>())), n),
-        )
-            .prop_map(|(size, gt, offsets)| {
-                let rendered = gt
-                    .iter()
-                    .zip(&offsets)
-                    .map(|(g, o)| {
-                        std::array::from_fn(|c| g[c] + if o[c].1 { o[c].0 } else { -o[c].0 })
-                    })
-                    .collect();
-                (size, rendered, gt)
-            })
-    })
-}
+mod common;
+use common::image_pair;
 
 fn loss_at(size: ImageSize, rendered: &[[f64; 3]], gt: &[[f64; 3]]) -> f64 {
     photometric_loss(size, rendered, gt).unwrap().loss
@@ -32,40 +12,12 @@ fn loss_at(size: ImageSize, rendered: &[[f64; 3]], gt: &[[f64; 3]]) -> f64 {
 
 fn check_against_finite_differences(size: ImageSize, rendered: &[[f64; 3]], gt: &[[f64; 3]]) {
     let analytic = photometric_loss(size, rendered, gt).unwrap().d_rendered;
-    let h = 1e-6;
-    let mut x = rendered.to_vec();
-    for i in 0..x.len() {
-        for c in 0..3 {
-            let keep = x[i][c];
-            x[i][c] = keep + h;
-            let up = loss_at(size, &x, gt);
-            x[i][c] = keep - h;
-            let down = loss_at(size, &x, gt);
-            x[i][c] = keep;
-            let numeric = (up - down) / (2.0 * h);
-            let a = analytic[i][c];
-            assert!(
-                (a - numeric).abs() <= 1e-7 + 1e-5 * numeric.abs(),
-                "{}x{} pixel {i} channel {c}: analytic {a:e} vs numeric {numeric:e}",
-                size.width,
-                size.height
-            );
-        }
-    }
+    common::assert_gradient_matches(size, rendered, &analytic, |x| loss_at(size, x, gt));
 }
 
 #[test]
 fn gradient_matches_finite_differences_on_an_image_larger_than_the_window() {
-    // 14x12 has interior pixels (full window) and every kind of border pixel.
-    let size = ImageSize::new(14, 12);
-    let gt: Vec<[f64; 3]> = (0..size.pixels())
-        .map(|i| std::array::from_fn(|c| ((i * 13 + c * 7) % 17) as f64 / 17.0))
-        .collect();
-    let rendered: Vec<[f64; 3]> = gt
-        .iter()
-        .enumerate()
-        .map(|(i, g)| std::array::from_fn(|c| g[c] + if (i + c) % 3 == 0 { 0.15 } else { -0.05 }))
-        .collect();
+    let (size, rendered, gt) = common::pair_larger_than_the_window();
     check_against_finite_differences(size, &rendered, &gt);
 }
 
