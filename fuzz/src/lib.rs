@@ -1,0 +1,374 @@
+//! Helpers shared by the fuzz targets: a per-process scratch directory (the path-based readers
+//! are fed through a file there), the fixed scenes some readers need beside the fuzzed file, and
+//! the splitting of one input into several files.
+//!
+//! Not a test library: the targets only check that a reader returns (`Ok` or a one-line error)
+//! without panicking, hanging or allocating beyond libFuzzer's `-malloc_limit_mb`, and that what
+//! it returns is self-consistent.
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use evo_state::{EvoConfig, EvoState, Frames, Storage};
+use evogs_io::colmap::{
+    CameraModel, ColmapCamera, ColmapImage, ColmapPoint, encode_cameras_bin, encode_cameras_txt,
+    encode_images_bin, encode_images_txt, encode_points3d_bin, encode_points3d_txt,
+};
+use evogs_io::{CameraInfo, nerfies_camera_json, write_nerfies_camera};
+use splat_core::Camera;
+
+/// The repository's test fixtures (the D-NeRF lego frames).
+pub const DNERF_FIXTURE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../crates/evogs-io/tests/data/dnerf-lego"
+);
+
+/// This process's scratch directory (in `/dev/shm` when it exists: writes there cost no disk).
+pub fn scratch() -> &'static Path {
+    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let shm = Path::new("/dev/shm");
+        let builder = tempfile::Builder::new()
+            .prefix("evogs-fuzz-")
+            .tempdir_in(shm);
+        builder
+            .or_else(|_| tempfile::tempdir())
+            .expect("scratch directory")
+    })
+    .path()
+}
+
+/// Writes `bytes` to `scratch()/relative` and returns the path.
+pub fn put(relative: &str, bytes: &[u8]) -> PathBuf {
+    let path = scratch().join(relative);
+    if let Some(parent) = path.parent() {
+        std::fs::create_dir_all(parent).expect("scratch folder");
+    }
+    std::fs::write(&path, bytes).expect("scratch write");
+    path
+}
+
+/// Splits `data` at NUL bytes into exactly `n` parts (missing parts are empty, the last part
+/// keeps any further NULs).
+pub fn parts(data: &[u8], n: usize) -> Vec<&[u8]> {
+    let mut out: Vec<&[u8]> = data.splitn(n, |&b| b == 0).collect();
+    out.resize(n, &[]);
+    out
+}
+
+/// A small pinhole camera (8×6 pixels).
+pub fn small_camera() -> Camera {
+    use glam::vec3;
+    Camera::look_at(
+        8,
+        6,
+        0.9,
+        vec3(0.0, 0.0, 4.0),
+        vec3(0.0, 0.0, 0.0),
+        vec3(0.0, 1.0, 0.0),
+    )
+}
+
+/// A nerfies scene directory `scratch()/<name>` holding everything but the three JSON files the
+/// fuzzer writes: cameras `a` and `b` (8×6) and their 2x-downscaled 4×3 images.
+pub fn nerfies_scene(name: &str) -> PathBuf {
+    let dir = scratch().join(name);
+    if !dir.join("rgb/2x/b.png").exists() {
+        for id in ["a", "b"] {
+            let camera = dir.join("camera").join(format!("{id}.json"));
+            std::fs::create_dir_all(camera.parent().unwrap()).unwrap();
+            write_nerfies_camera(&camera, &CameraInfo::pinhole(small_camera())).unwrap();
+            let image = dir.join("rgb/2x").join(format!("{id}.png"));
+            std::fs::create_dir_all(image.parent().unwrap()).unwrap();
+            evogs_io::save_png(&image, &evogs_io::ImageRgb::filled(4, 3, [0.2, 0.5, 0.7])).unwrap();
+        }
+    }
+    dir
+}
+
+/// A D-NeRF scene directory `scratch()/<name>` whose `train`, `val` and `test` folders link to
+/// the repository's lego fixture, so that the fuzzed `transforms.json` can name real images.
+pub fn dnerf_scene(name: &str) -> PathBuf {
+    let dir = scratch().join(name);
+    if !dir.join("test").exists() {
+        std::fs::create_dir_all(&dir).unwrap();
+        for split in ["train", "val", "test"] {
+            std::os::unix::fs::symlink(Path::new(DNERF_FIXTURE).join(split), dir.join(split))
+                .unwrap();
+        }
+    }
+    dir
+}
+
+/// A nerfstudio scene directory `scratch()/<name>` holding everything but `transforms.json`:
+/// images `images/a.png` and `images/b.png` (8×6) and an ASCII point cloud `sparse_pc.ply`.
+pub fn nerfstudio_scene(name: &str) -> PathBuf {
+    let dir = scratch().join(name);
+    if !dir.join("sparse_pc.ply").exists() {
+        std::fs::create_dir_all(dir.join("images")).unwrap();
+        for id in ["a", "b"] {
+            let image = dir.join("images").join(format!("{id}.png"));
+            evogs_io::save_png(&image, &evogs_io::ImageRgb::filled(8, 6, [0.2, 0.5, 0.7])).unwrap();
+        }
+        std::fs::write(dir.join("sparse_pc.ply"), NERFSTUDIO_PLY).unwrap();
+    }
+    dir
+}
+
+/// The point cloud of [`nerfstudio_scene`].
+const NERFSTUDIO_PLY: &str = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n\
+property float y\nproperty float z\nproperty uchar red\nproperty uchar green\n\
+property uchar blue\nend_header\n0.1 0.2 0.3 10 20 30\n-0.5 0.25 1 200 100 0\n";
+
+/// The configuration of the checkpoint target and its seed: the `tiny` preset with a network
+/// of two layers of width 8 (a seed of a few KiB: libFuzzer mutates small inputs faster).
+#[cfg(feature = "checkpoint")]
+pub fn tiny_config() -> evogs_train::TrainConfig {
+    let mut config = evogs_train::TrainConfig::preset(evogs_train::Preset::Tiny);
+    config.net.width = 8;
+    config.net.depth = 2;
+    config.net.skip_after = None;
+    config
+}
+
+/// A fresh state and backbone of [`tiny_config`] (one Gaussian), to load a checkpoint into.
+#[cfg(feature = "checkpoint")]
+pub fn tiny_state() -> (
+    evogs_train::state::SceneState,
+    Box<dyn evogs_train::Backbone>,
+) {
+    let config = tiny_config();
+    let backbone = evogs_train::trainer::make_backbone(&config).expect("tiny backbone");
+    let init = evogs_train::init::random_gaussians(1, 1.0, config.sh_degree, 0);
+    let state = evogs_train::state::SceneState::new(init, backbone.as_ref(), &config.lr)
+        .expect("tiny state");
+    (state, backbone)
+}
+
+/// Called by every target's `init`: when `EVOGS_FUZZ_SEEDS` names a folder, writes the seed
+/// corpora of every target into `<folder>/<target>/` (libFuzzer reads its corpus after `init`).
+pub fn seeds_from_env() {
+    static DONE: OnceLock<()> = OnceLock::new();
+    DONE.get_or_init(|| {
+        if let Some(dir) = std::env::var_os("EVOGS_FUZZ_SEEDS") {
+            write_all_seeds(Path::new(&dir));
+        }
+    });
+}
+
+/// Writes `bytes` as seed `name` of `target` under `dir`.
+fn seed(dir: &Path, target: &str, name: &str, bytes: impl AsRef<[u8]>) {
+    let folder = dir.join(target);
+    std::fs::create_dir_all(&folder).unwrap();
+    std::fs::write(folder.join(name), bytes).unwrap();
+}
+
+fn joined(parts: &[&str]) -> Vec<u8> {
+    parts.join("\0").into_bytes()
+}
+
+/// Writes the seed corpora of every target into `dir/<target>/`: valid files written by the
+/// project's own writers (they reach deep into each reader) and, for `dnerf_transforms`, the
+/// repository's `transforms_*.json` fixtures.
+pub fn write_all_seeds(dir: &Path) {
+    for split in ["train", "val", "test"] {
+        let name = format!("transforms_{split}.json");
+        let bytes = std::fs::read(Path::new(DNERF_FIXTURE).join(&name)).unwrap();
+        seed(dir, "dnerf_transforms", &name, bytes);
+    }
+    // PLY: binary (SH degrees 0 and 1) and ASCII.
+    for degree in [0, 1] {
+        let g = small_gaussians(3, degree);
+        let mut bytes = Vec::new();
+        evogs_io::write_ply_to(&mut bytes, g.view(), Path::new("seed.ply")).unwrap();
+        seed(dir, "ply", &format!("binary_sh{degree}.ply"), &bytes);
+    }
+    let names = evogs_io::ply::property_names(0);
+    let mut ascii = String::from("ply\nformat ascii 1.0\nelement vertex 2\n");
+    for n in &names {
+        ascii += &format!("property float {n}\n");
+    }
+    ascii += "end_header\n";
+    for row in 0..2 {
+        let values: Vec<String> = (0..names.len())
+            .map(|k| format!("{}", (row * 7 + k) as f32 * 0.1))
+            .collect();
+        ascii += &values.join(" ");
+        ascii += "\n";
+    }
+    seed(dir, "ply", "ascii_sh0.ply", ascii);
+
+    // Nerfies camera and dataset JSON.
+    let camera = CameraInfo::pinhole(small_camera());
+    seed(
+        dir,
+        "nerfies_camera",
+        "camera.json",
+        nerfies_camera_json(&camera),
+    );
+    seed(
+        dir,
+        "nerfies_dataset",
+        "scene",
+        joined(&[
+            r#"{"count": 2, "num_exemplars": 2, "ids": ["a", "b"], "train_ids": ["a"], "val_ids": ["b"]}"#,
+            r#"{"a": {"time_id": 0, "camera_id": 0, "warp_id": 0}, "b": {"time_id": 1, "camera_id": 0, "warp_id": 1}}"#,
+            r#"{"scale": 0.5, "center": [0.1, 0.2, 0.3], "near": 0.1, "far": 9.0}"#,
+        ]),
+    );
+
+    // COLMAP binary and text (first byte: 0 cameras, 1 images, 2 points).
+    let cameras = vec![
+        ColmapCamera {
+            id: 1,
+            model: CameraModel::Pinhole,
+            width: 8,
+            height: 6,
+            params: vec![7.0, 7.5, 4.0, 3.0],
+        },
+        ColmapCamera {
+            id: 2,
+            model: CameraModel::Opencv,
+            width: 8,
+            height: 6,
+            params: vec![7.0, 7.5, 4.0, 3.0, 0.01, -0.01, 0.001, 0.002],
+        },
+    ];
+    let images = vec![ColmapImage {
+        id: 1,
+        qvec: [1.0, 0.0, 0.0, 0.0],
+        tvec: [0.1, 0.2, 3.0],
+        camera_id: 1,
+        name: "a.png".into(),
+    }];
+    let points = vec![ColmapPoint {
+        xyz: [0.1, -0.2, 0.3],
+        rgb: [10, 200, 30],
+    }];
+    let with = |k: u8, bytes: Vec<u8>| [vec![k], bytes].concat();
+    seed(
+        dir,
+        "colmap_bin",
+        "cameras",
+        with(0, encode_cameras_bin(&cameras)),
+    );
+    seed(
+        dir,
+        "colmap_bin",
+        "images",
+        with(1, encode_images_bin(&images, 2)),
+    );
+    seed(
+        dir,
+        "colmap_bin",
+        "points",
+        with(2, encode_points3d_bin(&points)),
+    );
+    seed(
+        dir,
+        "colmap_txt",
+        "cameras",
+        with(0, encode_cameras_txt(&cameras).into_bytes()),
+    );
+    seed(
+        dir,
+        "colmap_txt",
+        "images",
+        with(1, encode_images_txt(&images).into_bytes()),
+    );
+    seed(
+        dir,
+        "colmap_txt",
+        "points",
+        with(2, encode_points3d_txt(&points).into_bytes()),
+    );
+
+    // nerfstudio transforms.json (first byte: 0 times from order).
+    let c2w = |x: f64| format!("[[1, 0, 0, {x}], [0, 1, 0, 0], [0, 0, 1, 3], [0, 0, 0, 1]]");
+    let with_time = format!(
+        r#"{{"camera_model": "OPENCV", "w": 8, "h": 6, "fl_x": 7.0, "fl_y": 7.5, "cx": 4.0, "cy": 3.0, "k1": 0.01, "ply_file_path": "sparse_pc.ply", "applied_transform": [[0, 1, 0, 0], [1, 0, 0, 0], [0, 0, -1, 0]], "train_filenames": ["images/a.png"], "test_filenames": ["images/b.png"], "frames": [{{"file_path": "images/a.png", "time": 0.0, "transform_matrix": {}}}, {{"file_path": "images/b.png", "time": 1.0, "transform_matrix": {}}}]}}"#,
+        c2w(0.0),
+        c2w(0.5)
+    );
+    seed(
+        dir,
+        "nerfstudio",
+        "with_time",
+        [b"\0".as_slice(), with_time.as_bytes()].concat(),
+    );
+    let per_frame = format!(
+        r#"{{"w": 8, "h": 6, "cx": 4.0, "frames": [{{"file_path": "images/b.png", "fl_x": 7.0, "fl_y": 7.0, "cy": 3.0, "distortion_params": [0.1, 0, 0, 0, 0.01, 0], "transform_matrix": {}}}, {{"file_path": "images/a.png", "fl_x": 6.0, "fl_y": 6.5, "cy": 3.0, "transform_matrix": {}}}]}}"#,
+        c2w(0.0),
+        c2w(-0.5)
+    );
+    seed(
+        dir,
+        "nerfstudio",
+        "per_frame",
+        [b"\x01".as_slice(), per_frame.as_bytes()].concat(),
+    );
+
+    // npy: f64 and f32 (the writer's two dtypes).
+    let data = [0.5, -1.0, 2.0, 3.5, 4.0, -5.25];
+    seed(
+        dir,
+        "npy",
+        "f64.npy",
+        evogs_io::npy::encode_npy(&[2, 3], &data, false),
+    );
+    seed(
+        dir,
+        "npy",
+        "f32.npy",
+        evogs_io::npy::encode_npy(&[3, 2], &data, true),
+    );
+
+    // Evo state: f32 and f16 buffers, with frames filled.
+    for storage in [Storage::F32, Storage::F16] {
+        let config = EvoConfig {
+            storage,
+            ..EvoConfig::default()
+        };
+        let frames = Frames::new(vec![0.0, 0.5, 1.0]).unwrap();
+        let mut state = EvoState::new(config, frames, 2, 7).unwrap();
+        let z = vec![0.25; 2 * state.dim()];
+        for t in [0.0, 0.5] {
+            let step = state.forward(t, &z).unwrap();
+            state.commit(&step).unwrap();
+        }
+        let path = dir
+            .join("evo_state")
+            .join(format!("{storage:?}.safetensors"));
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        state.save(&path).unwrap();
+    }
+
+    #[cfg(feature = "checkpoint")]
+    {
+        // Checkpoint of the tiny preset with three Gaussians.
+        let config = tiny_config();
+        let backbone = evogs_train::trainer::make_backbone(&config).unwrap();
+        let init = evogs_train::init::random_gaussians(3, 1.0, config.sh_degree, 0);
+        let state =
+            evogs_train::state::SceneState::new(init, backbone.as_ref(), &config.lr).unwrap();
+        let path = dir.join("checkpoint").join("tiny.safetensors");
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        evogs_train::checkpoint::save_checkpoint(&path, &state, backbone.as_ref(), 5, 0).unwrap();
+    }
+}
+
+/// `n` Gaussians of SH degree `degree` with distinct, unremarkable values.
+pub fn small_gaussians(n: usize, degree: u32) -> splat_core::Gaussians {
+    let mut g = splat_core::Gaussians::with_degree(degree);
+    for i in 0..n {
+        let x = i as f32 * 0.25;
+        g.means.push([x, -x, 0.5 * x]);
+        g.log_scales.push([-2.0 - x; 3]);
+        g.rotations.push([1.0, 0.1 * x, 0.0, 0.0]);
+        g.opacity_logits.push(x - 0.5);
+    }
+    g.sh = (0..n * g.sh_stride())
+        .map(|e| (e % 7) as f32 * 0.1 - 0.3)
+        .collect();
+    g
+}
