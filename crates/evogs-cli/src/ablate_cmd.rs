@@ -1,5 +1,5 @@
 //! `evogs ablate`: the paper's ablation ladder at equal iterations on one dataset. Thin: the
-//! ladder, the runner and the outputs are `evogs_train::ablate`; this module reads the flags and
+//! ladder, the runner and the outputs are `evogs_experiments::ablate`; this module reads the flags and
 //! shows progress (one line per row started and finished, and a bar on a terminal).
 
 use std::io::IsTerminal;
@@ -7,8 +7,8 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
+use evogs_experiments::ablate::{AblationRequest, AblationResult, Progress, run_ablation, select};
 use evogs_metrics::lpips::Backbone;
-use evogs_train::ablate::{AblationRequest, AblationResult, Progress, run_ablation, select};
 use evogs_train::eval::EvalLpips;
 use evogs_train::{Preset, TrainConfig};
 use indicatif::{ProgressBar, ProgressStyle};

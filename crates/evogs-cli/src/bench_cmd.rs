@@ -1,14 +1,14 @@
 //! `evogs bench`: the D-NeRF benchmark (scenes × methods, one table with the published figures,
 //! a PSNR-against-time plot, a picture per scene). Thin: the runner and the outputs are
-//! `evogs_train::bench`; this module reads the flags and prints one line per run started,
+//! `evogs_experiments::bench`; this module reads the flags and prints one line per run started,
 //! curve point and run finished.
 
 use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
+use evogs_experiments::bench::{BenchProgress, BenchRequest, BenchRun, BenchScene, run_bench};
 use evogs_metrics::lpips::Backbone;
-use evogs_train::bench::{BenchProgress, BenchRequest, BenchRun, BenchScene, run_bench};
 use evogs_train::eval::EvalLpips;
 use evogs_train::{Method, Preset, TrainConfig};
 

@@ -3,9 +3,6 @@
 //! What it is: the composition of the workspace's crates into a trainer (scene state kept aligned
 //! through densify's row plans, deformation backbones, losses, schedules, checkpoints).
 //!
-//! - [`ablate`], [`ablate_plot`]: the paper's ablation ladder, its runner, table and plot;
-//! - [`bench`], [`bench_plot`]: the D-NeRF benchmark (scenes × methods, table with the published
-//!   figures, PSNR-against-time plot, pictures);
 //! - [`config`]: the D-3DGS recipe and the presets (`paper`, `cpu`, `tiny`);
 //! - [`backbone`]: the deformation-backbone trait and the D-3DGS backbone;
 //! - [`camera_path`]: video camera paths (orbit, spiral, keyframes) and dataset cameras;
@@ -27,14 +24,11 @@
 //! [`evo_settings::TRAINER_MOTION_FLOOR`] for the measurement and the reasoning.
 //!
 //! What it is not: a rasterizer, a network library, a file-format reader, a metrics library, a scene
-//! generator or a command line. Those are `splat-raster`, `tiny-nn`, `evogs-io`, `evogs-metrics`,
-//! `evogs-synth` and `evogs-cli`.
+//! generator, an experiment (ablation ladder, benchmark) or a command line. Those are
+//! `splat-raster`, `tiny-nn`, `evogs-io`, `evogs-metrics`, `evogs-synth`, `evogs-experiments` and
+//! `evogs-cli`.
 
-pub mod ablate;
-pub mod ablate_plot;
 pub mod backbone;
-pub mod bench;
-pub mod bench_plot;
 pub mod camera_path;
 pub mod checkpoint;
 pub mod config;

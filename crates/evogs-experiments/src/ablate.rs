@@ -9,11 +9,12 @@ use std::path::{Path, PathBuf};
 use evogs_io::Split;
 use serde::Serialize;
 
-use crate::config::{Method, TrainConfig};
-use crate::error::TrainError;
-use crate::eval::{EvalLpips, evaluate};
-use crate::evo_settings::{Bits, DensifyPolicy, EvoSettings, GainSetting, HistorySetting};
-use crate::run::{LoadedRun, TrainRequest, train};
+use crate::error::ExperimentError;
+use crate::write::{write_bytes, write_json, write_png};
+use evogs_train::config::{Method, TrainConfig};
+use evogs_train::eval::{EvalLpips, evaluate};
+use evogs_train::evo_settings::{Bits, DensifyPolicy, EvoSettings, GainSetting, HistorySetting};
+use evogs_train::run::{LoadedRun, TrainRequest, train};
 
 /// One row of the ladder: a name and the switches it sets.
 #[derive(Clone, Debug, PartialEq)]
@@ -147,12 +148,12 @@ pub fn ladder() -> Vec<LadderRow> {
 
 /// The ladder's rows named in `names` (in the ladder's order; each name once); all rows when
 /// `names` is empty.
-pub fn select(names: &[String]) -> Result<Vec<LadderRow>, TrainError> {
+pub fn select(names: &[String]) -> Result<Vec<LadderRow>, ExperimentError> {
     let all = ladder();
     for (i, name) in names.iter().enumerate() {
         if !all.iter().any(|r| r.name == name) {
             let known: Vec<&str> = all.iter().map(|r| r.name).collect();
-            return Err(TrainError::config(
+            return Err(ExperimentError::config(
                 "rows",
                 format!(
                     "unknown row `{name}`; expected some of {}",
@@ -161,7 +162,7 @@ pub fn select(names: &[String]) -> Result<Vec<LadderRow>, TrainError> {
             ));
         }
         if names[..i].contains(name) {
-            return Err(TrainError::config(
+            return Err(ExperimentError::config(
                 "rows",
                 format!("`{name}` is listed twice"),
             ));
@@ -212,7 +213,7 @@ pub fn train_and_evaluate(
     config: TrainConfig,
     with_val: bool,
     lpips: &EvalLpips,
-) -> Result<Scores, TrainError> {
+) -> Result<Scores, ExperimentError> {
     let backend = config.backend;
     let summary = train(
         &TrainRequest {
@@ -314,13 +315,13 @@ pub fn run_ablation(
     request: &AblationRequest,
     lpips: &EvalLpips,
     progress: &mut dyn FnMut(Progress<'_>),
-) -> Result<Vec<AblationResult>, TrainError> {
+) -> Result<Vec<AblationResult>, ExperimentError> {
     if request.rows.is_empty() {
-        return Err(TrainError::config("rows", "no rows to run"));
+        return Err(ExperimentError::config("rows", "no rows to run"));
     }
-    let dataset = crate::data::open_dataset(&request.data, request.config.time_from)?;
+    let dataset = evogs_train::data::open_dataset(&request.data, request.config.time_from)?;
     let with_val = !dataset.split(Split::Val).is_empty();
-    std::fs::create_dir_all(&request.out).map_err(|e| TrainError::io(&request.out, e))?;
+    std::fs::create_dir_all(&request.out).map_err(|e| ExperimentError::dir(&request.out, e))?;
     let total = request.rows.len();
     let mut results = Vec::with_capacity(total);
     for (index, row) in request.rows.iter().enumerate() {
@@ -402,42 +403,20 @@ pub fn write_outputs(
     out: &Path,
     config: &TrainConfig,
     results: &[AblationResult],
-) -> Result<(), TrainError> {
-    use std::io::Write;
-    let md = out.join("ablation.md");
-    let text = table(config, results);
-    evogs_io::atomic::write_atomically(&md, |w| {
-        w.write_all(text.as_bytes())
-            .map_err(|cause| evogs_io::IoError::Io {
-                path: md.clone(),
-                cause,
-            })
-    })?;
-    let json_path = out.join("ablation.json");
-    let json = serde_json::to_string_pretty(&serde_json::json!({
-        "iterations": config.iterations,
-        "seed": config.seed,
-        "rows": results,
-    }))
-    .map_err(|e| TrainError::file(&json_path, e.to_string()))?;
-    evogs_io::atomic::write_atomically(&json_path, |w| {
-        w.write_all(json.as_bytes())
-            .map_err(|cause| evogs_io::IoError::Io {
-                path: json_path.clone(),
-                cause,
-            })
-    })?;
+) -> Result<(), ExperimentError> {
+    write_bytes(&out.join("ablation.md"), table(config, results).as_bytes())?;
+    write_json(
+        &out.join("ablation.json"),
+        &serde_json::json!({
+            "iterations": config.iterations,
+            "seed": config.seed,
+            "rows": results,
+        }),
+    )?;
     let png = out.join("ablation.png");
     let image = crate::ablate_plot::plot(results)
-        .map_err(|problem| TrainError::file(&png, format!("plotting: {problem}")))?;
-    evogs_io::atomic::write_atomically(&png, |w| {
-        image
-            .write_to(w, image::ImageFormat::Png)
-            .map_err(|cause| evogs_io::IoError::Image {
-                path: png.clone(),
-                cause,
-            })
-    })?;
+        .map_err(|problem| ExperimentError::output(&png, format!("plotting: {problem}")))?;
+    write_png(&png, &image)?;
     Ok(())
 }
 
@@ -607,7 +586,7 @@ mod tests {
             serde_json::from_value(serde_json::to_value(&off).unwrap()).unwrap();
         assert!(!round.evolution);
         // The switch reaches evo-state, which then keeps no buffer.
-        let config = crate::evo_backbone::evo_config(&off, 1.0);
+        let config = evogs_train::evo_backbone::evo_config(&off, 1.0);
         assert!(!config.evolution);
     }
 

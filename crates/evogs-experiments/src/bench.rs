@@ -24,12 +24,13 @@ use std::time::Instant;
 use evogs_io::{ImageRgb, Split};
 use serde::Serialize;
 
-use crate::config::{Method, TrainConfig};
-use crate::data::{SplitViews, load_split};
-use crate::error::TrainError;
-use crate::eval::{EvalLpips, evaluate};
-use crate::run::{LoadedRun, TrainRequest, train};
+use crate::error::ExperimentError;
+use crate::write::{write_bytes, write_json, write_png};
 use evogs_metrics::{ImageSize, psnr};
+use evogs_train::config::{Method, TrainConfig};
+use evogs_train::data::{SplitViews, load_split};
+use evogs_train::eval::{EvalLpips, evaluate};
+use evogs_train::run::{LoadedRun, TrainRequest, train};
 
 /// One scene: a name (table rows, file names) and its dataset directory.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -334,7 +335,10 @@ pub fn reset_peak_rss() -> bool {
 }
 
 /// Mean PSNR of the trainer's renders of `views` (colours clamped to [0, 1], as evaluation).
-fn mean_psnr(trainer: &mut crate::Trainer, views: &SplitViews) -> Result<f64, TrainError> {
+fn mean_psnr(
+    trainer: &mut evogs_train::Trainer,
+    views: &SplitViews,
+) -> Result<f64, ExperimentError> {
     let mut sum = 0.0;
     for v in &views.views {
         let colour: Vec<[f32; 3]> = trainer
@@ -356,7 +360,7 @@ fn bench_one(
     out: &Path,
     lpips: &EvalLpips,
     progress: &mut dyn FnMut(BenchProgress<'_>),
-) -> Result<BenchRun, TrainError> {
+) -> Result<BenchRun, ExperimentError> {
     let method = config.method;
     let headline = headline_split(&scene.name);
     let curve_views = load_split(
@@ -467,18 +471,18 @@ pub fn run_bench(
     request: &BenchRequest,
     lpips: &EvalLpips,
     progress: &mut dyn FnMut(BenchProgress<'_>),
-) -> Result<Vec<BenchRun>, TrainError> {
+) -> Result<Vec<BenchRun>, ExperimentError> {
     if request.scenes.is_empty() || request.methods.is_empty() {
-        return Err(TrainError::config(
+        return Err(ExperimentError::config(
             "bench",
             "nothing to run: give at least one scene and one method",
         ));
     }
     if request.eval_every == 0 {
-        return Err(TrainError::config("eval_every", "must be at least 1"));
+        return Err(ExperimentError::config("eval_every", "must be at least 1"));
     }
     request.config.validate()?;
-    std::fs::create_dir_all(&request.out).map_err(|e| TrainError::io(&request.out, e))?;
+    std::fs::create_dir_all(&request.out).map_err(|e| ExperimentError::dir(&request.out, e))?;
     let mut runs = Vec::new();
     for scene in &request.scenes {
         for &method in &request.methods {
@@ -554,47 +558,24 @@ pub fn table(config: &TrainConfig, runs: &[BenchRun]) -> String {
     s
 }
 
-fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), TrainError> {
-    use std::io::Write;
-    evogs_io::atomic::write_atomically(path, |w| {
-        w.write_all(bytes).map_err(|cause| evogs_io::IoError::Io {
-            path: path.to_path_buf(),
-            cause,
-        })
-    })?;
-    Ok(())
-}
-
-fn write_png(path: &Path, image: &image::RgbImage) -> Result<(), TrainError> {
-    evogs_io::atomic::write_atomically(path, |w| {
-        image
-            .write_to(w, image::ImageFormat::Png)
-            .map_err(|cause| evogs_io::IoError::Image {
-                path: path.to_path_buf(),
-                cause,
-            })
-    })?;
-    Ok(())
-}
-
 /// Writes `bench.md`, `bench.json` and `bench.png` into `out`, each atomically.
 pub fn write_outputs(
     out: &Path,
     config: &TrainConfig,
     runs: &[BenchRun],
-) -> Result<(), TrainError> {
+) -> Result<(), ExperimentError> {
     write_bytes(&out.join("bench.md"), table(config, runs).as_bytes())?;
-    let json_path = out.join("bench.json");
-    let json = serde_json::to_string_pretty(&serde_json::json!({
-        "config": config,
-        "runs": runs,
-        "published": PUBLISHED,
-    }))
-    .map_err(|e| TrainError::file(&json_path, e.to_string()))?;
-    write_bytes(&json_path, json.as_bytes())?;
+    write_json(
+        &out.join("bench.json"),
+        &serde_json::json!({
+            "config": config,
+            "runs": runs,
+            "published": PUBLISHED,
+        }),
+    )?;
     let png = out.join("bench.png");
     let image = crate::bench_plot::plot(runs)
-        .map_err(|problem| TrainError::file(&png, format!("plotting: {problem}")))?;
+        .map_err(|problem| ExperimentError::output(&png, format!("plotting: {problem}")))?;
     write_png(&png, &image)
 }
 
@@ -614,7 +595,11 @@ fn cell(image: &ImageRgb) -> image::RgbImage {
 
 /// Writes `<scene>.png`: one row per time (the earliest, middle and latest view of the scene's
 /// headline split), columns ground truth then each method of `runs` for this scene.
-pub fn write_picture(out: &Path, scene: &BenchScene, runs: &[BenchRun]) -> Result<(), TrainError> {
+pub fn write_picture(
+    out: &Path,
+    scene: &BenchScene,
+    runs: &[BenchRun],
+) -> Result<(), ExperimentError> {
     let runs: Vec<&BenchRun> = runs.iter().filter(|r| r.scene == scene.name).collect();
     if runs.is_empty() {
         return Ok(());
@@ -644,7 +629,7 @@ pub fn write_picture(out: &Path, scene: &BenchScene, runs: &[BenchRun]) -> Resul
         let v = &views.views[k];
         let mut cells = vec![cell(&v.image)];
         for run in &mut loaded {
-            let image = crate::render::render_at(run, &v.camera, v.time)?;
+            let image = evogs_train::render::render_at(run, &v.camera, v.time)?;
             cells.push(cell(&image));
         }
         rows.push(cells);

@@ -1,0 +1,20 @@
+//! `evogs-experiments`: the experiment layer built on the training core.
+//!
+//! - [`ablate`], [`ablate_plot`]: the paper's ablation ladder at equal iterations on one dataset
+//!   (rows, runner, `ablation.md`/`.json`/`.png`), and [`ablate::train_and_evaluate`], the
+//!   one-method piece `evogs demo` shares;
+//! - [`bench`], [`bench_plot`]: the D-NeRF benchmark (scenes × methods, table with the published
+//!   figures, PSNR-against-time plot, pictures);
+//! - [`error`]: [`ExperimentError`], the crate's one error type.
+//!
+//! What it is not: the trainer, the evaluator or a metric. Those are `evogs-train` and
+//! `evogs-metrics`; this crate only composes them into experiments.
+
+pub mod ablate;
+pub mod ablate_plot;
+pub mod bench;
+pub mod bench_plot;
+pub mod error;
+mod write;
+
+pub use error::ExperimentError;
