@@ -164,8 +164,14 @@ impl EvoState {
             .parent()
             .filter(|p| !p.as_os_str().is_empty())
             .unwrap_or(Path::new("."));
-        let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(io)?;
-        tmp.write_all(&bytes).map_err(io)?;
+        // The prefix of evogs-io's atomic writes, so that a run directory's clean-up after a
+        // kill finds this file too.
+        let mut tmp = tempfile::Builder::new()
+            .prefix(".evogs-tmp-")
+            .tempfile_in(dir)
+            .map_err(io)?;
+        // Through the plain file: the temporary file's own writer adds its random name to errors.
+        tmp.as_file_mut().write_all(&bytes).map_err(io)?;
         tmp.as_file().sync_all().map_err(io)?;
         tmp.persist(path).map_err(|e| io(e.error))?;
         Ok(())

@@ -184,7 +184,7 @@ pub struct TrainArgs {
     /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
     #[arg(
         long,
-        conflicts_with_all = ["data", "time_from", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "max_gaussians"]
+        conflicts_with_all = ["data", "time_from", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "max_gaussians", "checkpoint_every"]
     )]
     pub resume: bool,
 
@@ -202,6 +202,11 @@ pub struct TrainArgs {
     /// densified first) [default: no limit].
     #[arg(long, value_name = "N")]
     pub max_gaussians: Option<usize>,
+
+    /// Write the checkpoint (what --resume continues from) every N iterations [default: the
+    /// preset's, scaled with --iterations].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub checkpoint_every: Option<u64>,
 
     /// Stop after this many iterations in total (the run stays resumable).
     #[arg(long, value_name = "N", hide = true)]

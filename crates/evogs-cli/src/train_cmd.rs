@@ -60,6 +60,9 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
         e.psi_lr = Some(v);
     }
     config.densify.max_gaussians = args.max_gaussians;
+    if let Some(n) = args.checkpoint_every {
+        config.checkpoint_every = n;
+    }
     if let Some(t) = args.time_from {
         config.time_from = t.0;
     }

@@ -7,6 +7,29 @@ use std::path::{Path, PathBuf};
 
 use crate::IoError;
 
+/// File-name prefix of the temporary files: a kill during a write leaves one behind, which
+/// [`remove_interrupted`] clears.
+pub const TEMP_PREFIX: &str = ".evogs-tmp-";
+
+/// Removes the temporary files that killed writes left in `dir` (its files named
+/// [`TEMP_PREFIX`]`*`, not its subfolders'); returns how many. Call it only while no other
+/// process writes into `dir`.
+pub fn remove_interrupted(dir: &Path) -> Result<usize, IoError> {
+    let mut removed = 0;
+    for entry in std::fs::read_dir(dir).map_err(|e| IoError::io(dir, e))? {
+        let path = entry.map_err(|e| IoError::io(dir, e))?.path();
+        let temp = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .is_some_and(|n| n.starts_with(TEMP_PREFIX));
+        if temp && path.is_file() {
+            std::fs::remove_file(&path).map_err(|e| IoError::io(&path, e))?;
+            removed += 1;
+        }
+    }
+    Ok(removed)
+}
+
 /// Writes `path` atomically: `fill` writes the whole content into a buffered temporary file in the
 /// same directory, which is flushed, synced and renamed over `path` only if `fill` succeeded.
 pub fn write_atomically<F>(path: &Path, fill: F) -> Result<(), IoError>
@@ -49,7 +72,7 @@ impl AtomicFile {
     /// Creates the temporary file in `path`'s directory (an error naming `path` when it cannot).
     pub fn create(path: &Path) -> Result<Self, IoError> {
         let temp = tempfile::Builder::new()
-            .prefix(".evogs-tmp-")
+            .prefix(TEMP_PREFIX)
             .tempfile_in(parent_dir(path))
             .map_err(|e| IoError::io(path, e))?;
         let (file, temp_path) = temp.into_parts();

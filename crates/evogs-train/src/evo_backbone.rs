@@ -489,9 +489,11 @@ impl Backbone for EvoBackbone {
     }
 
     fn save_state(&self, path: &Path) -> Result<bool, TrainError> {
-        self.evo
-            .save(path)
-            .map_err(|e| TrainError::file(path, e.to_string()))?;
+        self.evo.save(path).map_err(|e| match e {
+            // The message names the file once.
+            EvoError::Io { path, source } => TrainError::io(path, source),
+            e => TrainError::file(path, e.to_string()),
+        })?;
         Ok(true)
     }
 

@@ -17,7 +17,8 @@
 //!   per-phase times ([`TrainSummary`]);
 //! - `eval_<split>.json`, `eval_<split>.md`, `renders/<split>/*.png`: written by evaluation.
 //!
-//! Every file is written to a temporary file and renamed into place.
+//! Every file is written to a temporary file and renamed into place; the temporary files a kill
+//! leaves behind are removed when the run starts or resumes.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -206,8 +207,10 @@ fn save_resumable(paths: &RunPaths, trainer: &Trainer) -> Result<(), TrainError>
 }
 
 /// Before a resume from the checkpoint at `iteration`: commits that checkpoint's evolution state
-/// if a kill left it pending, and removes pending states of checkpoints that never landed.
+/// if a kill left it pending, and removes pending states of checkpoints that never landed and
+/// the temporary files of interrupted writes.
 fn settle_evo_state(paths: &RunPaths, iteration: u64) -> Result<(), TrainError> {
+    evogs_io::atomic::remove_interrupted(&paths.root)?;
     let own = paths.pending_evo_state(iteration);
     if own.is_file() {
         std::fs::rename(&own, paths.evo_state()).map_err(|e| TrainError::io(&own, e))?;
@@ -275,6 +278,8 @@ pub fn train(
     } else {
         request.config.validate()?;
         std::fs::create_dir_all(&request.out).map_err(|e| TrainError::io(&request.out, e))?;
+        // A run started again in the same directory: what a killed write left goes.
+        evogs_io::atomic::remove_interrupted(&request.out)?;
         let data = std::path::absolute(&request.data).unwrap_or_else(|_| request.data.clone());
         write_json(
             &paths.config(),

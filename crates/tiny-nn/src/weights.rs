@@ -65,8 +65,14 @@ pub fn save(path: &Path, module: &impl Parameters) -> Result<(), NnError> {
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(io_err)?;
-    tmp.write_all(&data).map_err(io_err)?;
+    // The prefix of evogs-io's atomic writes, so that a run directory's clean-up after a kill
+    // finds this file too.
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".evogs-tmp-")
+        .tempfile_in(dir)
+        .map_err(io_err)?;
+    // Through the plain file: the temporary file's own writer adds its random name to errors.
+    tmp.as_file_mut().write_all(&data).map_err(io_err)?;
     tmp.as_file().sync_all().map_err(io_err)?;
     tmp.persist(path).map_err(|e| io_err(e.error))?;
     Ok(())

@@ -1,0 +1,297 @@
+//! Nothing lost under faults, through the `evogs` binary on a small synthetic scene:
+//! - SIGKILL at random moments (seeded), with a checkpoint written at every iteration so that
+//!   kills land while one is being written, resumed after every kill: the run ends bit for bit
+//!   where an uninterrupted run ends, every checkpoint and evolution state found on disk after a
+//!   kill is readable, and a checkpoint never goes back to an earlier iteration;
+//! - a full disk (a file-size limit, `ulimit -f`, with SIGXFSZ ignored so that writes fail with
+//!   EFBIG as they fail with ENOSPC): a one-line error naming the file, the previous checkpoint
+//!   intact, and a resume once space is back ends bit for bit like the uninterrupted run.
+
+mod support;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::Instant;
+
+use evogs_train::checkpoint::load_checkpoint;
+use evogs_train::run::{RunFile, RunPaths};
+use evogs_train::state::SceneState;
+use evogs_train::trainer::make_backbone;
+use rand::{RngExt, SeedableRng};
+use support::{evogs, s, stderr};
+
+/// The files of a finished run that must match the uninterrupted run's byte for byte.
+const FINAL_FILES: [&str; 4] = [
+    "checkpoint.safetensors",
+    "evo_state.safetensors",
+    "canonical.ply",
+    "deform.safetensors",
+];
+
+/// A small dynamic scene (rigid motion, 8 training frames of 24×24) in `dir/scene`.
+fn scene(dir: &Path) -> PathBuf {
+    let data = dir.join("scene");
+    let o = evogs(&[
+        "synth",
+        "--preset",
+        "rigid",
+        "--out",
+        s(&data),
+        "--size",
+        "24",
+        "--frames",
+        "8",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    data
+}
+
+/// `evogs train` of an EvoGS run of the tiny preset (warm-up, network, evolution and
+/// densification all happen within `iterations`), or its resume.
+fn train_args(data: &Path, out: &Path, iterations: u64, checkpoint_every: u64) -> Vec<String> {
+    [
+        "train",
+        "--out",
+        s(out),
+        "--data",
+        s(data),
+        "--preset",
+        "tiny",
+        "--method",
+        "evogs",
+        "--iterations",
+        &iterations.to_string(),
+        "--checkpoint-every",
+        &checkpoint_every.to_string(),
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
+fn resume_args(out: &Path) -> Vec<String> {
+    ["train", "--out", s(out), "--resume"]
+        .map(String::from)
+        .to_vec()
+}
+
+fn command(args: &[String]) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_evogs"));
+    c.args(args).stdout(Stdio::null()).stderr(Stdio::piped());
+    c
+}
+
+/// Runs `args` to the end; panics when it fails.
+fn finish(args: &[String]) {
+    let o = command(args).output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+/// A tensor of a safetensors file: name, dtype, shape, bytes.
+type Tensor = (String, String, Vec<usize>, Vec<u8>);
+
+/// The tensors of a safetensors file (name, dtype, shape, bytes) and its metadata, sorted: what
+/// the file holds, whatever order its writer's hash map put the metadata in (evo-state's state
+/// has many metadata keys, so two equal states can differ in their header's byte order).
+fn safetensors_content(bytes: &[u8]) -> (Vec<Tensor>, Vec<(String, String)>) {
+    let (_, metadata) = safetensors::SafeTensors::read_metadata(bytes).unwrap();
+    let mut meta: Vec<(String, String)> = metadata
+        .metadata()
+        .clone()
+        .unwrap_or_default()
+        .into_iter()
+        .collect();
+    meta.sort();
+    let file = safetensors::SafeTensors::deserialize(bytes).unwrap();
+    let mut tensors: Vec<_> = file
+        .tensors()
+        .into_iter()
+        .map(|(name, t)| {
+            (
+                name,
+                format!("{:?}", t.dtype()),
+                t.shape().to_vec(),
+                t.data().to_vec(),
+            )
+        })
+        .collect();
+    tensors.sort();
+    (tensors, meta)
+}
+
+/// The finished run `run` has the same final files as `straight`, bit for bit (safetensors
+/// files: every tensor's bytes and the metadata), and nothing an interrupted write left behind.
+fn assert_same_end(straight: &Path, run: &Path) {
+    for name in FINAL_FILES {
+        let a = std::fs::read(straight.join(name)).unwrap();
+        let b = std::fs::read(run.join(name)).unwrap();
+        if name.ends_with(".safetensors") {
+            assert!(
+                safetensors_content(&a) == safetensors_content(&b),
+                "{name} differs from the uninterrupted run's"
+            );
+        } else {
+            assert!(a == b, "{name} differs from the uninterrupted run's");
+        }
+    }
+    let leftovers: Vec<String> = std::fs::read_dir(run)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| interrupted_write(n))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
+
+/// A temporary file of an atomic write, or an evolution state still pending.
+fn interrupted_write(name: &str) -> bool {
+    name.starts_with(evogs_io::atomic::TEMP_PREFIX)
+        || (name.starts_with("evo_state.") && name != "evo_state.safetensors")
+}
+
+/// Loads the checkpoint of `run` and every evolution state file in it (committed or pending);
+/// returns the checkpoint's iteration, `None` when the run has no checkpoint yet. Panics when a
+/// file is unreadable.
+fn read_back(run: &Path) -> Option<u64> {
+    let paths = RunPaths::new(run);
+    if !paths.config().is_file() || !paths.checkpoint().is_file() {
+        return None;
+    }
+    let file: RunFile =
+        serde_json::from_str(&std::fs::read_to_string(paths.config()).unwrap()).unwrap();
+    let config = file.train;
+    let mut backbone = make_backbone(&config).unwrap();
+    let init = evogs_train::init::random_gaussians(1, 1.0, config.sh_degree, 0);
+    let mut state = SceneState::new(init, backbone.as_ref(), &config.lr).unwrap();
+    let meta = load_checkpoint(&paths.checkpoint(), &mut state, backbone.as_mut())
+        .unwrap_or_else(|e| panic!("unreadable checkpoint: {e}"));
+    for entry in std::fs::read_dir(run).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        if name.starts_with("evo_state.") && name.ends_with(".safetensors") {
+            backbone
+                .load_state(&path)
+                .unwrap_or_else(|e| panic!("unreadable evolution state: {e}"));
+        }
+    }
+    Some(meta.iteration)
+}
+
+#[test]
+fn sigkill_at_random_moments_then_resume_ends_bit_for_bit_like_an_uninterrupted_run() {
+    /// Kills to survive before the run may finish, and of them how many at least must have
+    /// landed while a checkpoint was being written (a temporary or pending file left behind).
+    const KILLS: usize = 8;
+    const KILLS_MID_WRITE: usize = 2;
+    const ITERATIONS: u64 = 60;
+    let dir = tempfile::tempdir().unwrap();
+    let data = scene(dir.path());
+    let straight = dir.path().join("straight");
+    let started = Instant::now();
+    finish(&train_args(&data, &straight, ITERATIONS, 1));
+    let whole = started.elapsed();
+
+    let run = dir.path().join("killed");
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(21);
+    let (mut kills, mut mid_write, mut last_checkpoint) = (0, 0, 0);
+    let mut attempts = 0;
+    while kills < KILLS || mid_write < KILLS_MID_WRITE {
+        attempts += 1;
+        assert!(
+            attempts <= 80,
+            "only {kills} kills, {mid_write} while writing, in {attempts} attempts"
+        );
+        // Resume when there is a checkpoint, else start (again): what a user does.
+        let args = if RunPaths::new(&run).checkpoint().is_file() {
+            resume_args(&run)
+        } else {
+            train_args(&data, &run, ITERATIONS, 1)
+        };
+        let mut child = command(&args).spawn().unwrap();
+        // A moment within what is left of the run, its start-up included.
+        let left = 1.0 - last_checkpoint as f64 / ITERATIONS as f64;
+        let fraction = rng.random_range(0.0..1.0) * (0.15 + 0.85 * left);
+        std::thread::sleep(whole.mul_f64(fraction));
+        if child.try_wait().unwrap().is_some() {
+            // It finished first: train again from nothing to keep killing.
+            let o = child.wait_with_output().unwrap();
+            assert!(o.status.success(), "{}", stderr(&o));
+            std::fs::remove_dir_all(&run).unwrap();
+            last_checkpoint = 0;
+            continue;
+        }
+        child.kill().unwrap();
+        child.wait().unwrap();
+        kills += 1;
+        mid_write += usize::from(
+            std::fs::read_dir(&run)
+                .unwrap()
+                .any(|e| interrupted_write(&e.unwrap().file_name().to_string_lossy())),
+        );
+        if let Some(iteration) = read_back(&run) {
+            assert!(
+                iteration >= last_checkpoint,
+                "the checkpoint went back from iteration {last_checkpoint} to {iteration}"
+            );
+            last_checkpoint = iteration;
+        }
+    }
+    finish(&resume_args(&run));
+    eprintln!(
+        "{kills} kills survived ({mid_write} while a checkpoint was being written) in \
+         {attempts} attempts"
+    );
+    assert_same_end(&straight, &run);
+}
+
+/// Runs `args` with files limited to `kib` KiB (`ulimit -f`; SIGXFSZ ignored, so a write past
+/// the limit fails with EFBIG instead of killing the process).
+fn with_file_limit(kib: u64, args: &[String]) -> Output {
+    Command::new("bash")
+        .arg("-c")
+        .arg(r#"trap "" XFSZ; ulimit -f "$1"; shift; exec "$@""#)
+        .arg("bash")
+        .arg(kib.to_string())
+        .arg(env!("CARGO_BIN_EXE_evogs"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn a_full_disk_names_the_file_keeps_the_previous_checkpoint_and_resumes_once_space_is_back() {
+    const ITERATIONS: u64 = 40;
+    let dir = tempfile::tempdir().unwrap();
+    let data = scene(dir.path());
+    let straight = dir.path().join("straight");
+    finish(&train_args(&data, &straight, ITERATIONS, 10));
+
+    let run = dir.path().join("full");
+    let mut first = train_args(&data, &run, ITERATIONS, 10);
+    first.extend(["--stop-after".into(), "20".into()]);
+    finish(&first);
+    let paths = RunPaths::new(&run);
+    let checkpoint = std::fs::read(paths.checkpoint()).unwrap();
+    let state = std::fs::read(paths.evo_state()).unwrap();
+    // Room for the small files (config, log), not for a checkpoint.
+    let limit_kib = (checkpoint.len() as u64 / 1024) / 2;
+    assert!(limit_kib > 8, "the checkpoint is too small for this test");
+    let o = with_file_limit(limit_kib, &resume_args(&run));
+    let all = stderr(&o);
+    assert!(!o.status.success(), "training went through a full disk");
+    // Besides the progress lines, one error line.
+    let errors: Vec<&str> = all.lines().filter(|l| l.contains("error")).collect();
+    assert_eq!(errors.len(), 1, "{all}");
+    let err = errors[0];
+    assert!(err.starts_with("evogs: error: "), "{all}");
+    assert!(
+        err.contains("checkpoint.safetensors") || err.contains("evo_state."),
+        "the error names no file: {err}"
+    );
+    assert!(err.contains("too large"), "{err}");
+    // The previous checkpoint and its evolution state are intact.
+    assert_eq!(std::fs::read(paths.checkpoint()).unwrap(), checkpoint);
+    assert_eq!(std::fs::read(paths.evo_state()).unwrap(), state);
+    assert_eq!(read_back(&run), Some(20));
+    // Space is back: the run resumes and ends as if nothing happened.
+    finish(&resume_args(&run));
+    assert_same_end(&straight, &run);
+}
