@@ -1,8 +1,9 @@
 //! `evogs-io`: the file formats of evogs.
 //!
-//! What it is: readers and writers for 3DGS PLY files ([`ply`]), nerfies camera JSON and D-NeRF
-//! `transforms_*.json` cameras ([`camera_json`], [`dnerf`]), PNG/JPEG images as f32 RGB
-//! ([`image_io`]), and datasets: D-NeRF, nerfies (HyperNeRF, NeRF-DS, [`nerfies`]), Neu3D
+//! What it is: readers and writers for 3DGS PLY files ([`ply`]), the web viewers' `.splat`
+//! ([`splat`]) and PlayCanvas/SuperSplat's compressed PLY ([`compressed_ply`]), nerfies camera
+//! JSON and D-NeRF `transforms_*.json` cameras ([`camera_json`], [`dnerf`]), PNG/JPEG images as
+//! f32 RGB ([`image_io`]), and datasets: D-NeRF, nerfies (HyperNeRF, NeRF-DS, [`nerfies`]), Neu3D
 //! ([`neu3d`]), COLMAP ([`colmap`]) and nerfstudio ([`nerfstudio`]) read into one [`Dataset`]
 //! type by [`load_dataset`], which detects the layout ([`detect_format`]), with `.npy` arrays
 //! read by [`npy`] and times for frames that store none by [`frame_time`]; conventions as
@@ -17,6 +18,7 @@ pub mod atomic;
 pub mod camera_info;
 pub mod camera_json;
 pub mod colmap;
+pub mod compressed_ply;
 pub mod dataset;
 pub mod dnerf;
 pub mod error;
@@ -35,6 +37,7 @@ pub use camera_info::{CameraInfo, Distortion, warning_for_all};
 pub use camera_json::{
     TimedCamera, nerfies_camera_json, read_camera_path, read_nerfies_camera, write_nerfies_camera,
 };
+pub use compressed_ply::{read_compressed_ply, write_compressed_ply};
 pub use dataset::{
     Dataset, Format, Frame, LoadOptions, NerfiesSplit, Normalisation, PointCloud, TimeDenominator,
     detect_format, load_dataset,

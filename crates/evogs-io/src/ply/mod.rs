@@ -13,6 +13,7 @@ mod problem;
 mod read;
 mod write;
 
+pub(crate) use header::{Element, PropertyKind, parse_header_lines};
 pub use header::{Encoding, ScalarType};
 pub use layout::property_names;
 pub use points::read_point_cloud;
