@@ -53,7 +53,8 @@ pub enum Command {
     Video(crate::video_cmd::VideoArgs),
     /// Generate a procedural dynamic scene (D-NeRF layout) with its ground truth.
     Synth(crate::synth_cmd::SynthArgs),
-    /// Export a run's deformed Gaussians at a time, or a sequence, as 3DGS PLY or .splat.
+    /// Export a run's deformed Gaussians at a time, or a sequence, as 3DGS PLY, compressed PLY or
+    /// .splat.
     Export(ExportArgs),
     /// Train the baseline and EvoGS on the built-in synthetic scene and compare them (no files
     /// needed).
@@ -264,14 +265,16 @@ pub struct ExportArgs {
     pub time: Option<f32>,
 
     /// A sequence of N frames at times evenly spaced over [0, 1] into the folder --out
-    /// (frame_0000.ply, ... and sequence.json: format, count, files, times, Gaussians, the
+    /// (frame_0000.ply or .compressed.ply or .splat, ... and sequence.json: format, count, files, times, Gaussians, the
     /// canonical bounds).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
     pub frames: Option<u32>,
 
-    /// File format: ply (INRIA 3DGS, every SH band, f32) or splat (32 bytes a Gaussian: DC colour
-    /// only, 8-bit colour, opacity and rotation; sorted by volume x opacity, largest first).
-    #[arg(long, default_value = "ply", value_name = "ply|splat")]
+    /// File format: ply (INRIA 3DGS, every SH band, f32), compressed-ply (PlayCanvas/SuperSplat's
+    /// .compressed.ply: about 16 bytes a Gaussian plus 1 per higher SH coefficient, quantised in
+    /// chunks of 256 in Morton order) or splat (32 bytes a Gaussian: DC colour only, 8-bit colour,
+    /// opacity and rotation; sorted by volume x opacity, largest first).
+    #[arg(long, default_value = "ply", value_name = "ply|compressed-ply|splat")]
     pub format: evogs_train::render::ExportFormat,
 
     /// Output file (with --time) or folder (with --frames), each file written atomically.

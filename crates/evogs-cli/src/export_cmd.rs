@@ -1,5 +1,5 @@
 //! `evogs export`: a run's deformed Gaussians at a time (one file) or a sequence of times (a
-//! folder with `sequence.json`), as 3DGS PLY or `.splat`.
+//! folder with `sequence.json`), as 3DGS PLY, compressed PLY or `.splat`.
 
 use anyhow::Result;
 use evogs_train::LoadedRun;

@@ -1,5 +1,6 @@
 //! Atomic file output: write to a temporary file in the target's directory, then rename it into
-//! place, so a reader never sees a half-written file and a failed write leaves the old one intact.
+//! place, so a reader never sees a half-written file and a failed write leaves the old one intact;
+//! and [`StagedFiles`], a set of files that appears in a folder all together or not at all.
 
 use std::fs::File;
 use std::io::BufWriter;
@@ -123,6 +124,75 @@ impl AtomicFile {
     }
 }
 
+/// Files that appear in a folder together or not at all (an exported sequence): each is written
+/// into a hidden temporary folder inside `dir` ([`StagedFiles::stage`]) and [`StagedFiles::commit`]
+/// renames them into `dir` in the order staged (so a file staged last, such as an index, appears
+/// last). Dropped without a commit, the temporary folder and all in it are removed, and `dir` too
+/// when this created it and it is still empty.
+pub struct StagedFiles {
+    dir: PathBuf,
+    temp: Option<tempfile::TempDir>,
+    names: Vec<String>,
+    created_dir: bool,
+}
+
+impl StagedFiles {
+    /// Creates `dir` (and its parents) when missing and the temporary folder in it.
+    pub fn create(dir: &Path) -> Result<Self, IoError> {
+        let created_dir = !dir.exists();
+        std::fs::create_dir_all(dir).map_err(|e| IoError::io(dir, e))?;
+        let mut staged = Self {
+            dir: dir.to_path_buf(),
+            temp: None,
+            names: Vec::new(),
+            created_dir,
+        };
+        staged.temp = Some(
+            tempfile::Builder::new()
+                .prefix(".evogs-tmp-")
+                .tempdir_in(dir)
+                .map_err(|e| IoError::io(dir, e))?,
+        );
+        Ok(staged)
+    }
+
+    /// Where to write the file that is to become `dir/name` (a plain file name).
+    pub fn stage(&mut self, name: &str) -> PathBuf {
+        self.names.push(name.to_string());
+        self.temp_dir().join(name)
+    }
+
+    fn temp_dir(&self) -> &Path {
+        self.temp.as_ref().map_or(&self.dir, |t| t.path())
+    }
+
+    /// Renames every staged file into `dir`, in the order staged, and removes the temporary
+    /// folder.
+    pub fn commit(mut self) -> Result<(), IoError> {
+        for name in &self.names {
+            let target = self.dir.join(name);
+            std::fs::rename(self.temp_dir().join(name), &target)
+                .map_err(|e| IoError::io(&target, e))?;
+        }
+        if let Some(temp) = self.temp.take() {
+            let path = temp.path().to_path_buf();
+            temp.close().map_err(|e| IoError::io(path, e))?;
+        }
+        self.created_dir = false;
+        Ok(())
+    }
+}
+
+impl Drop for StagedFiles {
+    fn drop(&mut self) {
+        drop(self.temp.take());
+        if self.created_dir {
+            // Only succeeds when empty: what was there before, or was renamed in, stays.
+            let _ = std::fs::remove_dir(&self.dir);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -156,6 +226,42 @@ mod tests {
         })
         .unwrap();
         assert_eq!(std::fs::read(&target).unwrap(), b"new");
+    }
+
+    #[test]
+    fn staged_files_appear_together_or_not_at_all() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("seq/inner");
+        let names = |p: &Path| -> Vec<String> {
+            let mut n: Vec<String> = std::fs::read_dir(p)
+                .unwrap()
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect();
+            n.sort();
+            n
+        };
+        // Abandoned half way: nothing left, not even the folder it created.
+        {
+            let mut staged = StagedFiles::create(&out).unwrap();
+            let a = staged.stage("a.bin");
+            write_atomically(&a, |w| w.write_all(b"a").map_err(|e| IoError::io(&a, e))).unwrap();
+            assert!(!out.join("a.bin").exists());
+        }
+        assert!(!out.exists());
+        // Committed: both files, no temporary folder.
+        let mut staged = StagedFiles::create(&out).unwrap();
+        for name in ["a.bin", "index.json"] {
+            let p = staged.stage(name);
+            std::fs::write(&p, name).unwrap();
+        }
+        staged.commit().unwrap();
+        assert_eq!(names(&out), ["a.bin", "index.json"]);
+        // Abandoned in an existing folder: the folder and its files stay as they were.
+        let mut staged = StagedFiles::create(&out).unwrap();
+        std::fs::write(staged.stage("a.bin"), b"new").unwrap();
+        drop(staged);
+        assert_eq!(names(&out), ["a.bin", "index.json"]);
+        assert_eq!(std::fs::read(out.join("a.bin")).unwrap(), b"a.bin");
     }
 
     #[cfg(unix)]

@@ -113,16 +113,22 @@ pub fn export_frame(run: &mut LoadedRun, time: f32, out: &Path) -> Result<usize,
 pub enum ExportFormat {
     /// The INRIA 3DGS PLY (every SH band, f32; DESIGN §2.2).
     Ply,
+    /// PlayCanvas/SuperSplat's compressed PLY (`evogs_io::compressed_ply`: chunks of 256 in
+    /// Morton order, quantised to 8 to 11 bits a value, higher SH bands as one byte each).
+    #[serde(rename = "compressed-ply")]
+    CompressedPly,
     /// The 32-byte `.splat` of web viewers (`evogs_io::splat`: DC colour only, 8-bit colour and
     /// rotation).
     Splat,
 }
 
 impl ExportFormat {
-    /// The file extension.
+    /// The file extension (`compressed.ply` for the compressed PLY: SuperSplat tells the two PLY
+    /// layouts apart by it).
     pub fn extension(self) -> &'static str {
         match self {
             Self::Ply => "ply",
+            Self::CompressedPly => "compressed.ply",
             Self::Splat => "splat",
         }
     }
@@ -134,9 +140,10 @@ impl std::str::FromStr for ExportFormat {
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "ply" => Ok(Self::Ply),
+            "compressed-ply" => Ok(Self::CompressedPly),
             "splat" => Ok(Self::Splat),
             _ => Err(format!(
-                "unknown export format `{s}`; expected ply or splat"
+                "unknown export format `{s}`; expected ply, compressed-ply or splat"
             )),
         }
     }
@@ -156,6 +163,7 @@ pub fn export_frame_as(
             write_ply(out, g.view())?;
             Ok(g.len())
         }
+        ExportFormat::CompressedPly => Ok(evogs_io::write_compressed_ply(out, g.view())?),
         ExportFormat::Splat => Ok(evogs_io::write_splat(out, g.view())?),
     }
 }
@@ -178,7 +186,8 @@ pub struct Sequence {
 }
 
 /// Exports `count` (≥ 1) frames at times `k / (count − 1)` (0 for one frame) into `dir`:
-/// `frame_0000.<ext>`, … and `sequence.json` (written last), each file atomically.
+/// `frame_0000.<ext>`, … and `sequence.json`, all appearing together (`evogs_io::atomic::
+/// StagedFiles`, `sequence.json` last): an error half way leaves `dir` as it was.
 pub fn export_sequence(
     run: &mut LoadedRun,
     count: usize,
@@ -191,7 +200,7 @@ pub fn export_sequence(
             "0; a sequence needs at least 1",
         ));
     }
-    std::fs::create_dir_all(dir).map_err(|e| TrainError::io(dir, e))?;
+    let mut staged = evogs_io::atomic::StagedFiles::create(dir)?;
     let mut seq = Sequence {
         format,
         count,
@@ -207,12 +216,13 @@ pub fn export_sequence(
             0.0
         };
         let name = format!("frame_{k:04}.{}", format.extension());
-        let n = export_frame_as(run, t, format, &dir.join(&name))?;
+        let n = export_frame_as(run, t, format, &staged.stage(&name))?;
         seq.files.push(name);
         seq.times.push(t);
         seq.gaussians.push(n);
     }
-    crate::run::write_json(&dir.join("sequence.json"), &seq)?;
+    crate::run::write_json(&staged.stage("sequence.json"), &seq)?;
+    staged.commit()?;
     Ok(seq)
 }
 
