@@ -30,15 +30,16 @@ pub struct VideoArgs {
 
     /// Camera path: orbit or spiral (fitted to the training cameras: their mean up vector and
     /// the point nearest to their optical axes), dataset:SPLIT (that split's cameras in time
-    /// order, slerp between them), or a JSON list of nerfies cameras each with a "time".
+    /// order, slerp between them), dataset:SPLIT:INDEX (that one camera held still), or a JSON
+    /// list of nerfies cameras each with a "time".
     #[arg(
         long,
         default_value = "orbit",
-        value_name = "orbit|spiral|dataset:SPLIT|CAMS.json"
+        value_name = "orbit|spiral|dataset:SPLIT[:INDEX]|CAMS.json"
     )]
     pub path: PathSpec,
 
-    /// Frames [default: 60 for orbit and spiral, one per camera for the others].
+    /// Frames [default: 60 for orbit, spiral and a still camera, one per camera for the others].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
     pub frames: Option<u32>,
 
@@ -46,8 +47,8 @@ pub struct VideoArgs {
     #[arg(long, default_value_t = 30.0, value_name = "F")]
     pub fps: f32,
 
-    /// Time: sweep (moves with the camera: over [0, 1] on orbit and spiral, the cameras' own
-    /// times on the others), T (frozen, "bullet time"), or A:B (evenly from A to B).
+    /// Time: sweep (moves with the camera: over [0, 1] on orbit, spiral and a still camera, the
+    /// cameras' own times on the others), T (frozen, "bullet time"), or A:B (evenly from A to B).
     #[arg(
         long,
         default_value = "sweep",

@@ -4,11 +4,12 @@
 //! Paths ([`PathSpec`], geometry in [`crate::camera_path`]): `orbit` and `spiral` are fitted to
 //! the run's training cameras and use the first one's intrinsics; `dataset:SPLIT` replays that
 //! split's cameras in time order (slerp between them; as many frames as cameras by default, so
-//! each frame is a dataset camera at its time); a JSON file is a list of nerfies cameras with
+//! each frame is a dataset camera at its time); `dataset:SPLIT:INDEX` holds that one dataset
+//! camera still (D-3DGS's `render.py --mode time`); a JSON file is a list of nerfies cameras with
 //! times (`evogs_io::read_camera_path`), replayed the same way.
 //!
-//! Times: `sweep` moves time with the camera (orbit, spiral: evenly over the training range
-//! [0, 1]; replays: the interpolated keyframe times), `T` freezes it ("bullet time"), `A:B` runs
+//! Times: `sweep` moves time with the camera (orbit, spiral and a still camera: evenly over the
+//! training range [0, 1]; replays: the interpolated keyframe times), `T` freezes it ("bullet time"), `A:B` runs
 //! evenly from A to B (A ≤ B, both finite).
 //!
 //! What it is not: a renderer ([`crate::render::render_at`] renders each frame) or an encoder
@@ -21,7 +22,9 @@ use std::str::FromStr;
 use evogs_io::{ImageRgb, Split, read_camera_path};
 use splat_raster::Camera;
 
-use crate::camera_path::{Keyframes, SceneFit, orbit, spiral, split_cameras};
+use crate::camera_path::{
+    CameraSpec, Keyframes, SceneFit, dataset_camera, orbit, spiral, split_cameras,
+};
 use crate::error::TrainError;
 use crate::run::LoadedRun;
 
@@ -40,6 +43,13 @@ pub enum PathSpec {
     Spiral,
     /// A split's cameras in time order.
     Dataset(Split),
+    /// One camera of a split, held still.
+    Still {
+        /// The split.
+        split: Split,
+        /// The camera's index in file order.
+        index: usize,
+    },
     /// A JSON list of nerfies cameras with times.
     File(PathBuf),
 }
@@ -52,6 +62,10 @@ impl FromStr for PathSpec {
             "orbit" => Self::Orbit,
             "spiral" => Self::Spiral,
             _ => match text.strip_prefix("dataset:") {
+                Some(rest) if rest.contains(':') => match text.parse::<CameraSpec>()? {
+                    CameraSpec::Dataset { split, index } => Self::Still { split, index },
+                    CameraSpec::File(_) => unreachable!("starts with dataset:"),
+                },
                 Some(split) => Self::Dataset(split.parse().map_err(|e| format!("`{text}`: {e}"))?),
                 None => Self::File(PathBuf::from(text)),
             },
@@ -150,6 +164,11 @@ pub fn plan_frames(
                 .enumerate()
                 .map(|(k, c)| (c, fraction(k, n)))
                 .collect()
+        }
+        PathSpec::Still { split, index } => {
+            let (camera, _) = dataset_camera(run, *split, *index)?;
+            let n = frames.unwrap_or(DEFAULT_FRAMES);
+            (0..n).map(|k| (camera, fraction(k, n))).collect()
         }
         PathSpec::Dataset(split) => {
             let keys = Keyframes::new(split_cameras(run, *split)?)?;
@@ -251,8 +270,19 @@ mod tests {
             "p.json".parse::<PathSpec>().unwrap(),
             PathSpec::File("p.json".into())
         );
+        assert_eq!(
+            "dataset:test:4".parse::<PathSpec>().unwrap(),
+            PathSpec::Still {
+                split: Split::Test,
+                index: 4
+            }
+        );
         let e = "dataset:dev".parse::<PathSpec>().unwrap_err();
         assert!(e.contains("unknown split `dev`"), "{e}");
+        let e = "dataset:dev:1".parse::<PathSpec>().unwrap_err();
+        assert!(e.contains("unknown split `dev`"), "{e}");
+        let e = "dataset:test:x".parse::<PathSpec>().unwrap_err();
+        assert!(e.contains("not a whole number"), "{e}");
     }
 
     #[test]
