@@ -149,7 +149,7 @@ impl StagedFiles {
         };
         staged.temp = Some(
             tempfile::Builder::new()
-                .prefix(".evogs-tmp-")
+                .prefix(TEMP_PREFIX)
                 .tempdir_in(dir)
                 .map_err(|e| IoError::io(dir, e))?,
         );

@@ -307,3 +307,33 @@ fn malformed_files_give_one_line_errors_naming_file_and_field() {
     insta::assert_snapshot!("compressed_malformed_messages", report);
     assert!(report.contains("field `chunk[0].min_y`: NaN is not finite"));
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    /// Any bytes of a valid file replaced, or the file cut short: the reader returns Gaussians
+    /// with consistent lengths or an error, never panics.
+    #[test]
+    fn damaged_files_read_or_fail_without_panicking(
+        edits in prop::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..8),
+        cut in any::<prop::sample::Index>(),
+        truncate in any::<bool>(),
+    ) {
+        let (mut bytes, _) = valid_file();
+        for (at, byte) in edits {
+            let at = at.index(bytes.len());
+            bytes[at] = byte;
+        }
+        if truncate {
+            bytes.truncate(cut.index(bytes.len()));
+        }
+        if let Ok(g) = read_compressed_ply_bytes(&bytes, Path::new("fuzz.ply")) {
+            let n = g.means.len();
+            prop_assert_eq!(g.log_scales.len(), n);
+            prop_assert_eq!(g.rotations.len(), n);
+            prop_assert_eq!(g.opacity_logits.len(), n);
+            prop_assert_eq!(g.sh.len(), n * 3 * sh_coeff_count(g.sh_degree));
+            prop_assert!(g.means.iter().flatten().all(|v| v.is_finite()));
+        }
+    }
+}
