@@ -2,6 +2,7 @@
 //! bitmap backend). Text is drawn with the system's sans-serif font; where none can be found the
 //! plot is drawn again without text (points and axes only).
 
+use evogs_train::plotting::{draw_with_fallback, padded_range};
 use image::RgbImage;
 use plotters::prelude::*;
 
@@ -12,26 +13,12 @@ const HEIGHT: u32 = 600;
 
 /// The plot as an RGB image; the error is plotters' message.
 pub fn plot(results: &[AblationResult]) -> Result<RgbImage, String> {
-    let mut buf = vec![255u8; (WIDTH * HEIGHT * 3) as usize];
-    if draw(results, &mut buf, true).is_err() {
-        buf.fill(255);
-        draw(results, &mut buf, false)?;
-    }
-    RgbImage::from_raw(WIDTH, HEIGHT, buf).ok_or_else(|| "plot buffer of the wrong size".into())
+    draw_with_fallback((WIDTH, HEIGHT), |buf, text| draw(results, buf, text))
 }
 
-/// A finite range around `values` with a margin (a unit range when there are none).
+/// The axis range of `values`, 10 % margins (at least 5 % of the largest value).
 fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (lo, hi) = values
-        .filter(|v| v.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-            (lo.min(v), hi.max(v))
-        });
-    if !lo.is_finite() {
-        return (0.0, 1.0);
-    }
-    let margin = ((hi - lo) * 0.1).max(0.05 * hi.abs().max(1.0));
-    (lo - margin, hi + margin)
+    padded_range(values, 0.1, 0.05)
 }
 
 fn draw(results: &[AblationResult], buf: &mut [u8], text: bool) -> Result<(), String> {
@@ -99,11 +86,8 @@ mod tests {
     use super::*;
 
     #[test]
-    fn range_has_margins_and_survives_nan_and_single_values() {
-        let (lo, hi) = range([1.0, 3.0, f64::NAN].into_iter());
-        assert!(lo < 1.0 && hi > 3.0);
-        let (lo, hi) = range([20.0].into_iter());
-        assert!(lo < 20.0 && hi > 20.0);
-        assert_eq!(range(std::iter::empty()), (0.0, 1.0));
+    fn range_has_ten_percent_margins_and_a_floor_for_single_values() {
+        assert_eq!(range([0.0, 10.0, f64::NAN].into_iter()), (-1.0, 11.0));
+        assert_eq!(range([20.0].into_iter()), (19.0, 21.0));
     }
 }

@@ -3,6 +3,7 @@
 //! (`plotters`, bitmap backend). Text is drawn with the system's sans-serif font; where none can
 //! be found the plot is drawn again without text.
 
+use evogs_train::plotting::{draw_with_fallback, finite_bounds};
 use image::RgbImage;
 use plotters::prelude::*;
 
@@ -17,12 +18,9 @@ pub fn plot(runs: &[BenchRun]) -> Result<RgbImage, String> {
     let cols = scenes.len().clamp(1, 2) as u32;
     let rows = scenes.len().div_ceil(2).max(1) as u32;
     let (w, h) = (cols * PANEL_WIDTH, rows * PANEL_HEIGHT);
-    let mut buf = vec![255u8; (w * h * 3) as usize];
-    if draw(runs, &scenes, (w, h), (rows, cols), &mut buf, true).is_err() {
-        buf.fill(255);
-        draw(runs, &scenes, (w, h), (rows, cols), &mut buf, false)?;
-    }
-    RgbImage::from_raw(w, h, buf).ok_or_else(|| "plot buffer of the wrong size".into())
+    draw_with_fallback((w, h), |buf, text| {
+        draw(runs, &scenes, (w, h), (rows, cols), buf, text)
+    })
 }
 
 /// Scene names in the order they first appear.
@@ -46,13 +44,9 @@ fn ranges(points: &[(f64, f64)], published: Option<f64>) -> ((f64, f64), (f64, f
         .filter(finite)
         .fold(0.0f64, f64::max)
         .max(1e-3);
-    let ys = points.iter().map(|p| p.1).chain(published).filter(finite);
-    let (lo, hi) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-        (lo.min(v), hi.max(v))
-    });
-    if !lo.is_finite() {
+    let Some((lo, hi)) = finite_bounds(points.iter().map(|p| p.1).chain(published)) else {
         return ((0.0, x1 * 1.05), (0.0, 1.0));
-    }
+    };
     let margin = ((hi - lo) * 0.08).max(0.5);
     ((0.0, x1 * 1.05), (lo - margin, hi + margin))
 }

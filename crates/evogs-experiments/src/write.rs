@@ -19,14 +19,7 @@ pub(crate) fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), ExperimentErr
 
 /// Writes `image` to `path` as a PNG, atomically.
 pub(crate) fn write_png(path: &Path, image: &image::RgbImage) -> Result<(), ExperimentError> {
-    evogs_io::atomic::write_atomically(path, |w| {
-        image
-            .write_to(w, image::ImageFormat::Png)
-            .map_err(|cause| evogs_io::IoError::Image {
-                path: path.to_path_buf(),
-                cause,
-            })
-    })?;
+    evogs_io::image_io::save_rgb8_png(path, image)?;
     Ok(())
 }
 

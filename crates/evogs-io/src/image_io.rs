@@ -1,7 +1,6 @@
 //! Images as f32 RGB in file space (no sRGB conversion: 3DGS compares colours as stored), loaded
 //! from PNG or JPEG, alpha composited over a background, resized with the camera, saved as PNG.
 
-use std::io::Write;
 use std::path::Path;
 
 use image::{DynamicImage, ImageFormat, ImageReader, Rgb32FImage};
@@ -166,6 +165,18 @@ pub fn to_u8(v: f32) -> u8 {
     }
 }
 
+/// Saves an 8-bit RGB image (a plot, a picture) as a PNG, atomically.
+pub fn save_rgb8_png(path: &Path, image: &image::RgbImage) -> Result<(), IoError> {
+    write_atomically(path, |w| {
+        image
+            .write_to(w, ImageFormat::Png)
+            .map_err(|cause| IoError::Image {
+                path: path.to_path_buf(),
+                cause,
+            })
+    })
+}
+
 /// Saves f32 RGB pixels as an 8-bit PNG (see [`to_u8`]), atomically.
 pub fn save_png(path: &Path, image: &ImageRgb) -> Result<(), IoError> {
     let expected = image.width as usize * image.height as usize;
@@ -187,13 +198,5 @@ pub fn save_png(path: &Path, image: &ImageRgb) -> Result<(), IoError> {
             problem: "pixel buffer does not match the size".into(),
         }
     })?;
-    let mut encoded = Vec::new();
-    rgb.write_to(&mut std::io::Cursor::new(&mut encoded), ImageFormat::Png)
-        .map_err(|cause| IoError::Image {
-            path: path.to_path_buf(),
-            cause,
-        })?;
-    write_atomically(path, |w| {
-        w.write_all(&encoded).map_err(|e| IoError::io(path, e))
-    })
+    save_rgb8_png(path, &rgb)
 }

@@ -173,6 +173,19 @@ fn png_output_is_clamped_rounded_and_atomic() {
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
 }
 
+#[test]
+fn an_8_bit_image_is_saved_exactly_and_errors_name_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("plot.png");
+    let img = image::RgbImage::from_fn(3, 2, |x, y| image::Rgb([x as u8 * 80, y as u8 * 200, 7]));
+    evogs_io::image_io::save_rgb8_png(&path, &img).unwrap();
+    assert_eq!(image::open(&path).unwrap().to_rgb8(), img);
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    let missing = dir.path().join("no-such-dir").join("plot.png");
+    let err = evogs_io::image_io::save_rgb8_png(&missing, &img).unwrap_err();
+    assert!(err.to_string().contains("plot.png"), "{err}");
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
 

@@ -12,7 +12,9 @@
 //! - [`checkpoint`]: exact checkpoints; [`eval`], [`render`]: evaluation, rendering, export;
 //! - [`video`]: the frames of a video (path, times) and side-by-side comparisons;
 //! - [`motion_report`]: a diagnostic of EvoGS's motion statistics (speeds and θ by decade);
-//!   [`gain_report`]: K's distribution (overall, moving vs still, per frame).
+//!   [`gain_report`]: K's distribution (overall, moving vs still, per frame);
+//! - [`train_plot`]: the training plot of `evogs plot`; [`plotting`]: what it shares with the
+//!   plots of `evogs-experiments` (text-less fallback, axis ranges).
 //!
 //! The recipe follows Deformable-3D-Gaussians (`ingra14m/Deformable-3D-Gaussians`: `train.py`,
 //! `arguments/__init__.py`, `scene/deform_model.py`, `utils/time_utils.py`) and 3DGS's
@@ -42,6 +44,7 @@ pub mod gain_report;
 pub mod hex_backbone;
 pub mod init;
 pub mod motion_report;
+pub mod plotting;
 pub mod render;
 pub mod run;
 pub mod state;

@@ -6,6 +6,7 @@
 use image::RgbImage;
 use plotters::prelude::*;
 
+use crate::plotting::{draw_with_fallback, padded_range};
 use crate::train_log::LogLine;
 
 const WIDTH: u32 = 900;
@@ -13,26 +14,12 @@ const HEIGHT: u32 = 900;
 
 /// The plot as an RGB image; the error is plotters' message.
 pub fn plot(lines: &[LogLine]) -> Result<RgbImage, String> {
-    let mut buf = vec![255u8; (WIDTH * HEIGHT * 3) as usize];
-    if draw(lines, &mut buf, true).is_err() {
-        buf.fill(255);
-        draw(lines, &mut buf, false)?;
-    }
-    RgbImage::from_raw(WIDTH, HEIGHT, buf).ok_or_else(|| "plot buffer of the wrong size".into())
+    draw_with_fallback((WIDTH, HEIGHT), |buf, text| draw(lines, buf, text))
 }
 
-/// A finite range around `values` with a margin (a unit range when there are none).
+/// The axis range of `values`, 5 % margins.
 fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (lo, hi) = values
-        .filter(|v| v.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-            (lo.min(v), hi.max(v))
-        });
-    if !lo.is_finite() {
-        return (0.0, 1.0);
-    }
-    let margin = ((hi - lo) * 0.05).max(1e-6 * hi.abs().max(1.0));
-    (lo - margin, hi + margin)
+    padded_range(values, 0.05, 1e-6)
 }
 
 /// A panel: its axis name, the value it reads from a line, its colour.
@@ -101,13 +88,6 @@ pub fn plot_run(run: &std::path::Path, out: &std::path::Path) -> Result<usize, c
     }
     let image =
         plot(&lines).map_err(|problem| TrainError::file(out, format!("plotting: {problem}")))?;
-    evogs_io::atomic::write_atomically(out, |w| {
-        image
-            .write_to(w, image::ImageFormat::Png)
-            .map_err(|cause| evogs_io::IoError::Image {
-                path: out.to_path_buf(),
-                cause,
-            })
-    })?;
+    evogs_io::image_io::save_rgb8_png(out, &image)?;
     Ok(lines.len())
 }
