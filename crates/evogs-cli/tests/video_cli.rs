@@ -237,6 +237,42 @@ fn videos_equal_renders_at_their_cameras_and_times() {
         plan_frames(&loaded, &path, Some(n), time).unwrap()
     };
 
+    // A JSON camera path: two cameras with times, listed out of time order, replayed one frame
+    // per camera in time order, each exactly `evogs render` at that camera and time.
+    let orbit2 = planned(PathSpec::Orbit, 2, TimeSpec::Sweep);
+    let keyed = [(orbit2[1].0, 0.7f32), (orbit2[0].0, 0.2f32)];
+    let entries: Vec<String> = keyed
+        .iter()
+        .map(|(c, t)| {
+            evogs_io::nerfies_camera_json(&CameraInfo::pinhole(*c)).replacen(
+                '{',
+                &format!("{{\n  \"time\": {t},"),
+                1,
+            )
+        })
+        .collect();
+    let cams = f.dir.path().join("cams.json");
+    std::fs::write(&cams, format!("[{}]", entries.join(",\n"))).unwrap();
+    let replay = f.dir.path().join("json_replay");
+    let out = ok(&evogs(&[
+        "video",
+        "--run",
+        s(&f.run),
+        "--path",
+        s(&cams),
+        "--out",
+        s(&replay),
+    ]));
+    assert!(out.contains("2 frames, 32x32"), "{out}");
+    for (k, (camera, t)) in keyed.iter().rev().enumerate() {
+        let direct = render(&f, &f.run, camera, *t, &format!("json{k}"));
+        assert_eq!(
+            png(&replay.join(format!("frame_{k:04}.png"))),
+            direct,
+            "json frame {k}"
+        );
+    }
+
     // An orbit GIF frozen at t = 0.4: four frames of the dataset's size, first and last equal
     // to the renders up to the GIF palette (256 colours per frame).
     let gif = f.dir.path().join("orbit.gif");
