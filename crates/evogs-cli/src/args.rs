@@ -185,7 +185,7 @@ pub struct TrainArgs {
     /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
     #[arg(
         long,
-        conflicts_with_all = ["data", "time_from", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "max_gaussians", "checkpoint_every"]
+        conflicts_with_all = ["data", "time_from", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "max_gaussians", "memory_limit", "checkpoint_every"]
     )]
     pub resume: bool,
 
@@ -204,6 +204,12 @@ pub struct TrainArgs {
     #[arg(long, value_name = "N")]
     pub max_gaussians: Option<usize>,
 
+    /// Peak memory the run may use, e.g. 8G or 512M: the run refuses to start when its estimate
+    /// (printed at the start) already exceeds it, and densification stops growing the Gaussians
+    /// before the estimate would [default: no limit].
+    #[arg(long, value_name = "BYTES", value_parser = parse_memory)]
+    pub memory_limit: Option<u64>,
+
     /// Write the checkpoint (what --resume continues from) every N iterations [default: the
     /// preset's, scaled with --iterations].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
@@ -212,6 +218,11 @@ pub struct TrainArgs {
     /// Stop after this many iterations in total (the run stays resumable).
     #[arg(long, value_name = "N", hide = true)]
     pub stop_after: Option<u64>,
+}
+
+/// `--memory-limit`: a byte count with an optional K, M, G or T suffix.
+fn parse_memory(text: &str) -> Result<u64, String> {
+    evogs_train::memory::parse_bytes(text)
 }
 
 /// Arguments of `evogs eval`.

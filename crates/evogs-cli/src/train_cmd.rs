@@ -60,6 +60,7 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
         e.psi_lr = Some(v);
     }
     config.densify.max_gaussians = args.max_gaussians;
+    config.memory_limit = args.memory_limit;
     if let Some(n) = args.checkpoint_every {
         config.checkpoint_every = n;
     }
@@ -105,11 +106,25 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
     let started = Instant::now();
     let mut first = None;
     let mut said_backend = false;
+    // The estimate at the most Gaussians the run had, to compare with the measured peak.
+    let mut peak: Option<(usize, u64)> = None;
     let mut motion: Option<evogs_train::motion_report::MotionReport> = None;
     let summary = train(&request, &mut |report, trainer| {
         if !said_backend {
             println!("{}", trainer.backend());
+            let n = report.gaussians;
+            let mut line = trainer.memory_estimate().summary(n);
+            if let Some(cap) = trainer.max_gaussians() {
+                line += &format!("; densification stops at {cap} Gaussians");
+            }
+            println!("{line}");
             said_backend = true;
+        }
+        if peak.is_none_or(|(n, _)| report.gaussians > n) {
+            peak = Some((
+                report.gaussians,
+                trainer.memory_estimate().at(report.gaussians),
+            ));
         }
         if args.motion_report
             && let Some(stats) = trainer.motion_stats()
@@ -146,6 +161,16 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
         }
     })?;
     bar.finish_and_clear();
+    if let (Some((n, estimate)), Some(measured)) = (peak, evogs_train::train_log::peak_rss_bytes())
+    {
+        use evogs_train::memory::human_bytes;
+        println!(
+            "memory: estimate {} at the most Gaussians ({n}), measured peak {} ({:+.1}%)",
+            human_bytes(estimate),
+            human_bytes(measured),
+            100.0 * (estimate as f64 / measured as f64 - 1.0)
+        );
+    }
     if args.gain_report {
         match &summary.gain {
             Some(g) => print!("{}", g.table()),

@@ -295,3 +295,62 @@ fn a_full_disk_names_the_file_keeps_the_previous_checkpoint_and_resumes_once_spa
     finish(&resume_args(&run));
     assert_same_end(&straight, &run);
 }
+
+/// The number after `prefix` in `text`.
+fn number_after(text: &str, prefix: &str) -> Option<usize> {
+    let rest = &text[text.find(prefix)? + prefix.len()..];
+    let digits: String = rest.chars().take_while(char::is_ascii_digit).collect();
+    digits.parse().ok()
+}
+
+#[test]
+fn a_memory_limit_refuses_to_start_below_the_estimate_and_caps_densification_above_it() {
+    const ITERATIONS: u64 = 40;
+    let dir = tempfile::tempdir().unwrap();
+    let data = scene(dir.path());
+    let run = |name: &str, limit: Option<&str>| {
+        let mut args = train_args(&data, &dir.path().join(name), ITERATIONS, 10);
+        if let Some(limit) = limit {
+            args.extend(["--memory-limit".into(), limit.into()]);
+        }
+        Command::new(env!("CARGO_BIN_EXE_evogs"))
+            .args(&args)
+            .output()
+            .unwrap()
+    };
+    let free = run("free", None);
+    assert!(free.status.success(), "{}", stderr(&free));
+    let out = String::from_utf8_lossy(&free.stdout).into_owned();
+    assert!(out.contains("memory estimate: "), "{out}");
+    let grown = number_after(&out, "at the most Gaussians (").unwrap();
+    let start = number_after(&out, " MiB with ").unwrap();
+    assert!(
+        grown > start,
+        "densification must grow the run for this test: {out}"
+    );
+
+    let o = run("small", Some("1M"));
+    assert!(!o.status.success());
+    let err = stderr(&o);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("memory_limit") && err.contains("needs"),
+        "{err}"
+    );
+    assert!(!dir.path().join("small/checkpoint.safetensors").exists());
+
+    // A limit 2 MiB above the estimate at the start: densification stops at the count that fits.
+    let at_start: f64 = out["memory estimate: ".len() + out.find("memory estimate: ").unwrap()..]
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    let o = run("capped", Some(&format!("{:.1}M", at_start + 2.0)));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    let cap = number_after(&out, "densification stops at ").unwrap();
+    assert!(start <= cap && cap < grown, "{out}");
+    let most = number_after(&out, "at the most Gaussians (").unwrap();
+    assert!(most <= cap, "{out}");
+}

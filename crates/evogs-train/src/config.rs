@@ -370,6 +370,12 @@ pub struct TrainConfig {
     /// time 0 they trained with.
     #[serde(default = "time_from_of_older_runs")]
     pub time_from: evogs_io::TimeFrom,
+    /// Peak memory the run may use, in bytes (`--memory-limit`): the run refuses to start when
+    /// [`crate::memory::MemoryEstimate`] exceeds it already, and densification never grows the
+    /// Gaussians past the count that fits. None by default; runs written before it existed read
+    /// as none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub memory_limit: Option<u64>,
 }
 
 /// `time_from` of a `config.json` written before the field existed: COLMAP frames had time 0.
@@ -409,6 +415,7 @@ impl TrainConfig {
             evogs: crate::evo_settings::EvoSettings::default(),
             backend: splat_raster::BackendChoice::Cpu,
             time_from: evogs_io::TimeFrom::Order,
+            memory_limit: None,
         };
         match preset {
             Preset::Paper => paper,

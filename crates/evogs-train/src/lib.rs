@@ -43,6 +43,7 @@ pub mod evo_settings;
 pub mod gain_report;
 pub mod hex_backbone;
 pub mod init;
+pub mod memory;
 pub mod motion_report;
 pub mod plotting;
 pub mod render;

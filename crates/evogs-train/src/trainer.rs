@@ -37,6 +37,7 @@ use crate::error::TrainError;
 use crate::evo_settings::DensifyPolicy;
 use crate::gain_report::GainReport;
 use crate::init::random_gaussians;
+use crate::memory::{MemoryEstimate, MemoryInputs};
 use crate::motion_report::{MotionReport, pixels_per_unit};
 use crate::state::SceneState;
 use crate::timers::{Phase, PhaseTimes};
@@ -106,6 +107,24 @@ pub fn densify_config(config: &TrainConfig) -> DensifyConfig {
     }
 }
 
+/// [`MemoryEstimate`] of `config` training on `train` with `backbone`.
+fn memory_estimate(
+    config: &TrainConfig,
+    train: &SplitViews,
+    backbone: &dyn Backbone,
+) -> MemoryEstimate {
+    let first = &train.views[0].image;
+    MemoryEstimate::new(
+        config,
+        &MemoryInputs {
+            views: train.views.len(),
+            pixels: first.width as usize * first.height as usize,
+            frames: train.times().len(),
+            network_params: backbone.params().iter().map(|(_, p)| p.len()).sum(),
+        },
+    )
+}
+
 /// A training run in memory.
 pub struct Trainer {
     /// Settings.
@@ -169,10 +188,29 @@ impl Trainer {
             // One camera (or coincident centres): fall back to the initial cube's size.
             extent = 1.1 * config.init_half_extent;
         }
-        let densify = densify_config(&config);
+        let mut densify = densify_config(&config);
         densify.validate()?;
         let mut backbone = backbone;
         backbone.prepare(&train.times(), state.len(), extent)?;
+        let memory = memory_estimate(&config, &train, backbone.as_ref());
+        if let Some(limit) = config.memory_limit {
+            match memory.max_gaussians(limit) {
+                Some(cap) if cap >= state.len() => {
+                    densify.max_gaussians = Some(densify.max_gaussians.map_or(cap, |m| m.min(cap)));
+                }
+                _ => {
+                    return Err(TrainError::config(
+                        "memory_limit",
+                        format!(
+                            "{} is below the {} the run needs at the start ({})",
+                            crate::memory::human_bytes(limit),
+                            crate::memory::human_bytes(memory.at(state.len())),
+                            memory.summary(state.len())
+                        ),
+                    ));
+                }
+            }
+        }
         let (raster, backend) = select_rasterizer(config.backend)?;
         Ok(Self {
             densify,
@@ -187,6 +225,17 @@ impl Trainer {
             backend,
             order: (u64::MAX, Vec::new()),
         })
+    }
+
+    /// The estimate of this run's peak memory ([`crate::memory`]); `at(n)` for `n` Gaussians.
+    pub fn memory_estimate(&self) -> MemoryEstimate {
+        memory_estimate(&self.config, &self.train, self.backbone.as_ref())
+    }
+
+    /// The most Gaussians densification may grow to (`--max-gaussians` and `--memory-limit`),
+    /// `None` without a limit.
+    pub fn max_gaussians(&self) -> Option<usize> {
+        self.densify.max_gaussians
     }
 
     /// The rasterizer backend in use (chosen from `config.backend`) and why.

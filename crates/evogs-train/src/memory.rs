@@ -1,0 +1,297 @@
+//! An estimate of a training run's peak memory, printed by `evogs train` at the start and
+//! checked against `--memory-limit` ([`MemoryEstimate::max_gaussians`]).
+//!
+//! What it is: a sum of the buffers the trainer holds at the peak of a training step, from the
+//! settings and the sizes known at the start — the training images, the process's fixed cost,
+//! the per-pixel render buffers, the network (parameters, gradients, Adam moments) — plus a cost
+//! per Gaussian (parameters, Adam moments, gradients, densification statistics, the
+//! rasterizer's records and tile lists, the deformation rows and the network's per-row
+//! activations, EvoGS's buffer and per-frame memory). The Gaussian count is the one unknown at the
+//! start: [`MemoryEstimate::at`] gives the estimate for any count, and a memory limit becomes
+//! a cap on the count.
+//!
+//! What it is not: a measurement. The per-row network activations are modelled as the layer
+//! widths (the exact buffers depend on the backbone), the tile lists as [`TILES_PER_GAUSSIAN`]
+//! tiles per Gaussian, and the fixed cost ([`PROCESS_BYTES`]) was measured once; the figures it
+//! was checked against are in `results/memory.md`.
+
+use crate::config::{BackboneKind, Method, TrainConfig};
+
+/// Bytes of a process that holds no data yet: the binary, its libraries, the thread pool and
+/// the allocator's own (peak RSS of `evogs train` on a 24×24 scene with a few hundred
+/// Gaussians, see `results/memory.md`).
+pub const PROCESS_BYTES: u64 = 24 << 20;
+
+/// Tiles (16×16 pixels) a Gaussian's footprint touches on average, for the rasterizer's tile
+/// lists (8 bytes per Gaussian–tile pair).
+pub const TILES_PER_GAUSSIAN: u64 = 4;
+
+/// Bytes per pixel of the render buffers of one step: the rendered colour, alpha and depth, the
+/// compositor's final transmittance and last contributor, the loss gradient and the SSIM's
+/// blurred images (forward and backward).
+pub const BYTES_PER_PIXEL: u64 = 4 * (3 + 1 + 1 + 1 + 1 + 3 + 5 * 3 * 2);
+
+/// The sizes a run's memory depends on besides its settings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MemoryInputs {
+    /// Training views (images held in memory).
+    pub views: usize,
+    /// Pixels of one training image after resizing.
+    pub pixels: usize,
+    /// Distinct training times (EvoGS keeps a buffer and a memory row per time).
+    pub frames: usize,
+    /// Floats in the network's parameters.
+    pub network_params: usize,
+}
+
+/// The estimate, by part (bytes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MemoryEstimate {
+    /// The training images (f32 RGB).
+    pub images: u64,
+    /// Everything that does not grow with the Gaussians: the process, the render buffers and
+    /// the network (parameters, gradients and two Adam moments).
+    pub fixed: u64,
+    /// Of which the network.
+    pub network: u64,
+    /// Bytes per Gaussian.
+    pub per_gaussian: u64,
+    /// Of which EvoGS's buffer and per-frame memory (0 for other methods).
+    pub evolution_per_gaussian: u64,
+}
+
+impl MemoryEstimate {
+    /// The estimate for `config` on a dataset of `inputs`.
+    pub fn new(config: &TrainConfig, inputs: &MemoryInputs) -> Self {
+        const F32: u64 = 4;
+        let images = (inputs.views * inputs.pixels) as u64 * 3 * F32;
+        let network = inputs.network_params as u64 * 4 * F32;
+        let fixed = PROCESS_BYTES + inputs.pixels as u64 * BYTES_PER_PIXEL + network;
+        // Per Gaussian: P floats of parameters, two Adam moments, the gradients (P plus the 2-D
+        // means and the radius), the deformed copy of the geometry (10) and the deformation rows
+        // with their gradient (14 each).
+        let sh = 3 * (config.sh_degree as u64 + 1).pow(2);
+        let p = 3 + 3 + 4 + 1 + sh;
+        let gaussian = F32 * (p + 2 * p + (p + 3) + 10 + 2 * 14);
+        // Densification statistics: 7 arrays of 4 bytes.
+        let stats = 7 * 4;
+        // Rasterizer: the drawn record (56 bytes), its depth rank, pair start and radius, and
+        // the tile lists' two entries per touched tile.
+        let raster = 56 + 4 + 8 + 4 + 8 * TILES_PER_GAUSSIAN;
+        let (network_rows, evolution) = per_row_network(config, inputs.frames);
+        Self {
+            images,
+            fixed,
+            network,
+            per_gaussian: gaussian + stats + raster + network_rows + evolution,
+            evolution_per_gaussian: evolution,
+        }
+    }
+
+    /// The estimated peak with `gaussians` Gaussians.
+    pub fn at(&self, gaussians: usize) -> u64 {
+        self.images + self.fixed + self.per_gaussian * gaussians as u64
+    }
+
+    /// The most Gaussians whose estimate stays within `limit` bytes; `None` when even the
+    /// images and fixed part exceed it.
+    pub fn max_gaussians(&self, limit: u64) -> Option<usize> {
+        let room = limit.checked_sub(self.images + self.fixed)?;
+        Some(usize::try_from(room / self.per_gaussian.max(1)).unwrap_or(usize::MAX))
+    }
+
+    /// One line: the total at `gaussians` and its parts.
+    pub fn summary(&self, gaussians: usize) -> String {
+        format!(
+            "memory estimate: {} with {gaussians} Gaussians (images {}, network {}, other fixed {}, \
+             {} per Gaussian{})",
+            human_bytes(self.at(gaussians)),
+            human_bytes(self.images),
+            human_bytes(self.network),
+            human_bytes(self.fixed - self.network),
+            human_bytes(self.per_gaussian),
+            if self.evolution_per_gaussian > 0 {
+                format!(
+                    " of which {} evolution buffer and memory",
+                    human_bytes(self.evolution_per_gaussian)
+                )
+            } else {
+                String::new()
+            }
+        )
+    }
+}
+
+/// Per Gaussian: the network's activations kept for the backward and the gradients of its
+/// inputs (f32), and EvoGS's buffer and per-frame memory.
+fn per_row_network(config: &TrainConfig, frames: usize) -> (u64, u64) {
+    const F32: u64 = 4;
+    let net = &config.net;
+    match (config.method, config.backbone) {
+        (Method::Baseline, BackboneKind::D3dgs) => {
+            // Encoded position and time, every hidden layer, the output; the positions and the
+            // input gradient.
+            let input = 3 * (1 + 2 * net.xyz_freqs) + (1 + 2 * net.t_freqs);
+            let layers = net.width * net.depth + 10;
+            (F32 * (2 * input + layers + 3) as u64, 0)
+        }
+        (Method::Baseline, BackboneKind::FourDgs) => {
+            // Plane features and the small decoder's layers.
+            (F32 * (2 * 64 + net.width * 2 + 10) as u64, 0)
+        }
+        (Method::Evogs, _) => {
+            let s = &config.evogs;
+            let dim = s.components.layout().dim();
+            let width = (net.width / 2).max(1);
+            let planes = 3 * s.triplane_channels * s.triplane_resolutions.len();
+            let input = planes + s.bspline_width;
+            let phi = 2 * input + width * s.hidden_layers + dim;
+            // The step (prediction, observation, gain, corrected state and their gradients).
+            let step = 8 * dim;
+            let blocks = match s.history {
+                crate::HistorySetting::Buffer => 2,
+                crate::HistorySetting::Requery => 1,
+            };
+            let storage = match s.buffer {
+                crate::Bits::F32 => 4,
+                crate::Bits::F16 => 2,
+            };
+            let evolution = if s.evolution {
+                (blocks * frames * dim * storage) as u64
+            } else {
+                0
+            };
+            (F32 * (phi + step) as u64, evolution)
+        }
+    }
+}
+
+/// Bytes as `12.3 MiB` (binary units).
+pub fn human_bytes(bytes: u64) -> String {
+    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
+    let mut value = bytes as f64;
+    let mut unit = 0;
+    while value >= 1024.0 && unit + 1 < UNITS.len() {
+        value /= 1024.0;
+        unit += 1;
+    }
+    if unit == 0 {
+        format!("{bytes} B")
+    } else {
+        format!("{value:.1} {}", UNITS[unit])
+    }
+}
+
+/// Parses a byte count with an optional binary suffix: `8G`, `512M`, `64k`, `1.5GiB`, `1000`.
+pub fn parse_bytes(text: &str) -> Result<u64, String> {
+    let t = text.trim();
+    let split = t
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(t.len());
+    let (number, suffix) = t.split_at(split);
+    let value: f64 = number
+        .parse()
+        .map_err(|_| format!("{text:?} is not a byte count (e.g. 8G, 512M, 1000000)"))?;
+    let shift = match suffix.trim().to_ascii_lowercase().as_str() {
+        "" | "b" => 0,
+        "k" | "kb" | "kib" => 10,
+        "m" | "mb" | "mib" => 20,
+        "g" | "gb" | "gib" => 30,
+        "t" | "tb" | "tib" => 40,
+        other => {
+            return Err(format!(
+                "{text:?}: unknown unit {other:?} (use K, M, G or T)"
+            ));
+        }
+    };
+    let bytes = value * (1u64 << shift) as f64;
+    if !(bytes.is_finite() && bytes >= 1.0 && bytes < u64::MAX as f64) {
+        return Err(format!("{text:?} is not a positive byte count"));
+    }
+    Ok(bytes as u64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Bits, HistorySetting, Preset};
+
+    fn inputs() -> MemoryInputs {
+        MemoryInputs {
+            views: 50,
+            pixels: 400 * 400,
+            frames: 50,
+            network_params: 10_000,
+        }
+    }
+
+    #[test]
+    fn images_and_the_network_are_counted_exactly() {
+        let e = MemoryEstimate::new(&TrainConfig::preset(Preset::Cpu), &inputs());
+        assert_eq!(e.images, 50 * 400 * 400 * 12);
+        assert_eq!(e.network, 10_000 * 16);
+        assert_eq!(e.fixed, PROCESS_BYTES + 160_000 * BYTES_PER_PIXEL + 160_000);
+        assert_eq!(e.at(0), e.images + e.fixed);
+        assert_eq!(e.at(1000) - e.at(0), 1000 * e.per_gaussian);
+    }
+
+    #[test]
+    fn a_gaussian_costs_at_least_its_parameters_and_adam_moments() {
+        let e = MemoryEstimate::new(&TrainConfig::preset(Preset::Cpu), &inputs());
+        // SH degree 3: 59 floats, three copies (value, m, v).
+        assert!(e.per_gaussian >= 59 * 4 * 3, "{}", e.per_gaussian);
+        assert_eq!(e.evolution_per_gaussian, 0);
+    }
+
+    #[test]
+    fn the_evolution_buffer_and_memory_grow_with_frames_and_storage() {
+        let mut c = TrainConfig::preset(Preset::Cpu);
+        c.method = Method::Evogs;
+        let dim = c.evogs.components.layout().dim() as u64;
+        let e = MemoryEstimate::new(&c, &inputs());
+        assert_eq!(e.evolution_per_gaussian, 2 * 50 * dim * 4);
+        c.evogs.buffer = Bits::F16;
+        assert_eq!(
+            MemoryEstimate::new(&c, &inputs()).evolution_per_gaussian,
+            2 * 50 * dim * 2
+        );
+        c.evogs.history = HistorySetting::Requery;
+        assert_eq!(
+            MemoryEstimate::new(&c, &inputs()).evolution_per_gaussian,
+            50 * dim * 2
+        );
+        let fewer = MemoryInputs {
+            frames: 10,
+            ..inputs()
+        };
+        assert_eq!(
+            MemoryEstimate::new(&c, &fewer).evolution_per_gaussian,
+            10 * dim * 2
+        );
+    }
+
+    #[test]
+    fn a_limit_becomes_the_largest_count_that_fits() {
+        let e = MemoryEstimate::new(&TrainConfig::preset(Preset::Cpu), &inputs());
+        let n = e.max_gaussians(e.at(12_345) + e.per_gaussian - 1).unwrap();
+        assert_eq!(n, 12_345);
+        assert!(e.at(n) <= e.at(12_345));
+        assert_eq!(e.max_gaussians(e.at(0) - 1), None);
+        assert_eq!(e.max_gaussians(e.at(0)), Some(0));
+    }
+
+    #[test]
+    fn byte_counts_parse_with_binary_suffixes() {
+        assert_eq!(parse_bytes("1000").unwrap(), 1000);
+        assert_eq!(parse_bytes("8G").unwrap(), 8 << 30);
+        assert_eq!(parse_bytes("512M").unwrap(), 512 << 20);
+        assert_eq!(parse_bytes("64k").unwrap(), 64 << 10);
+        assert_eq!(parse_bytes("1.5GiB").unwrap(), 3 << 29);
+        assert_eq!(parse_bytes("2 TB").unwrap(), 2 << 40);
+        for bad in ["", "G", "-1G", "8X", "0", "1e3", "nanG"] {
+            assert!(parse_bytes(bad).is_err(), "{bad}");
+        }
+        assert_eq!(human_bytes(512), "512 B");
+        assert_eq!(human_bytes(3 << 29), "1.5 GiB");
+    }
+}
