@@ -44,6 +44,19 @@ pub enum TrainError {
         /// What is wrong.
         problem: String,
     },
+    /// A parameter became NaN or infinite during training (checked every log interval).
+    #[error(
+        "iteration {iteration}: `{group}` holds a non-finite value (NaN or infinity) at index {index}; \
+         the run stopped (resume from the last checkpoint with a lower learning rate)"
+    )]
+    NonFinite {
+        /// The iteration after which it was found.
+        iteration: u64,
+        /// The parameter group.
+        group: String,
+        /// Index of the first non-finite value in the group.
+        index: usize,
+    },
     /// A setting is out of range or unsupported.
     #[error("invalid setting `{field}`: {problem}")]
     Config {

@@ -338,6 +338,16 @@ pub fn train(
             trainer.backbone.gain_stats(),
             report.iteration == end,
         )?;
+        if (report.iteration.is_multiple_of(trainer.config.log_every) || report.iteration == end)
+            && let Some((group, index)) = trainer.state.first_non_finite(trainer.backbone.as_ref())
+        {
+            // Before the checkpoint: the last one written stays the last finite state.
+            return Err(TrainError::NonFinite {
+                iteration: report.iteration,
+                group,
+                index,
+            });
+        }
         if report
             .iteration
             .is_multiple_of(trainer.config.checkpoint_every)

@@ -165,6 +165,41 @@ impl SceneState {
         self.gaussians.len()
     }
 
+    /// The first parameter group holding a NaN or an infinity, with the index of the value:
+    /// the Gaussians' arrays (`gaussians.means`, ...), every Adam group's moments
+    /// (`adam.<group>.m` / `.v`) and the backbone's parameters (by their names). `None` when every
+    /// value is finite. The trainer checks it at every log interval (it reads each value once).
+    pub fn first_non_finite(&self, backbone: &dyn Backbone) -> Option<(String, usize)> {
+        let bad = |v: &[f32]| v.iter().position(|x| !x.is_finite());
+        let g = &self.gaussians;
+        let arrays: [(&str, &[f32]); 5] = [
+            ("gaussians.means", g.means.as_flattened()),
+            ("gaussians.log_scales", g.log_scales.as_flattened()),
+            ("gaussians.rotations", g.rotations.as_flattened()),
+            ("gaussians.opacity_logits", &g.opacity_logits),
+            ("gaussians.sh", &g.sh),
+        ];
+        for (name, values) in arrays {
+            if let Some(i) = bad(values) {
+                return Some((name.to_string(), i));
+            }
+        }
+        for group in self.adam.groups() {
+            for (moment, values) in [("m", &group.m), ("v", &group.v)] {
+                if let Some(i) = bad(values) {
+                    return Some((format!("adam.{}.{moment}", group.name), i));
+                }
+            }
+        }
+        for (name, store) in backbone.params() {
+            let mut buf = Vec::new();
+            if let Some(i) = bad(store.view_f32(&mut buf)) {
+                return Some((name, i));
+            }
+        }
+        None
+    }
+
     /// True when there are no Gaussians.
     pub fn is_empty(&self) -> bool {
         self.gaussians.is_empty()
@@ -330,6 +365,37 @@ mod tests {
             group.v.clone_from(&group.m);
         }
         (s, backbone)
+    }
+
+    #[test]
+    fn a_nan_or_infinity_in_any_parameter_group_is_found_with_its_group_and_index() {
+        let (mut s, mut backbone) = state(4);
+        assert_eq!(s.first_non_finite(&backbone), None);
+        s.gaussians.sh[7] = f32::NAN;
+        assert_eq!(
+            s.first_non_finite(&backbone),
+            Some(("gaussians.sh".into(), 7))
+        );
+        s.gaussians.sh[7] = 0.0;
+        s.gaussians.means[2][1] = f32::INFINITY;
+        assert_eq!(
+            s.first_non_finite(&backbone),
+            Some(("gaussians.means".into(), 7))
+        );
+        s.gaussians.means[2][1] = 0.0;
+        let id = s.groups.all()[0];
+        s.adam.group_mut(id).v[3] = f32::NEG_INFINITY;
+        let name = s.adam.groups()[0].name.clone();
+        assert_eq!(
+            s.first_non_finite(&backbone),
+            Some((format!("adam.{name}.v"), 3))
+        );
+        s.adam.group_mut(id).v[3] = 0.0;
+        let (param, _) = backbone.params().into_iter().next().unwrap();
+        if let Some((_, StoreMut::F32(values))) = backbone.params_mut().into_iter().next() {
+            values[5] = f32::NAN;
+        }
+        assert_eq!(s.first_non_finite(&backbone), Some((param, 5)));
     }
 
     #[test]
