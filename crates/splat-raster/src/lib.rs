@@ -4,7 +4,7 @@
 //! backward pass (gradients to every raw Gaussian parameter) of 3DGS, exactly as pinned in the
 //! repository's docs/DESIGN.md §3, over plain structure-of-arrays inputs ([`GaussiansView`]) and an OpenCV-axes
 //! pinhole [`Camera`]. The [`Rasterizer`] trait is the backend interface; [`CpuRasterizer`] is the
-//! rayon-parallel CPU backend, and `WgpuRasterizer` (cargo feature `wgpu`, on by default) the
+//! rayon-parallel CPU backend, and `WgpuRasterizer` (cargo feature `wgpu`, off by default; `evogs-cli` turns it on) the
 //! GPU backend with WGSL compute kernels, checked against the CPU one; [`select_rasterizer`] picks
 //! one at run time from a [`BackendChoice`] (`cpu`, `wgpu`, `auto`).
 //!
