@@ -1,5 +1,5 @@
 //! `densify`: 3DGS adaptive density control (clone, split, prune, opacity reset) and EvoGS's
-//! uncertainty-aware trigger and deformation-aware clone/split (SPEC §6), expressed as plans.
+//! uncertainty-aware trigger and deformation-aware clone/split (DESIGN §6), expressed as plans.
 //!
 //! Flow per training iteration:
 //! 1. [`DensifyStats::add_view`] with the rasterizer's per-Gaussian dL/d(projected mean) and
@@ -16,7 +16,7 @@
 //! reads plain slices from the rasterizer (`means2d`: dL/d projected mean in pixels, `radii`: px,
 //! 0 when culled) and evo-state's public step outputs, and never depends on their internals.
 //!
-//! Choices where SPEC §6 is silent (details in each module):
+//! Choices where DESIGN §6 is silent (details in each module):
 //! - Conditions and order are those of 3DGS's `train.py` / `densify_and_prune` (see
 //!   [`config::Schedule`], [`planner`]); the one deliberate difference is that the screen-size
 //!   prune reads the interval's maximum radius (the original zeroes it just before reading it).

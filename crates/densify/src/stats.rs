@@ -3,7 +3,7 @@
 //! - Projected-mean gradient norm in NDC units, summed over the views where the Gaussian is
 //!   visible (radius > 0), and the number of such views (3DGS's `xyz_gradient_accum` / `denom`).
 //!   The rasterizer gives dL/d(pixel mean); a pixel coordinate is `u = (ndc + 1) W/2 - 0.5`, so
-//!   dL/d(ndc) = dL/du · W/2 and likewise H/2 (SPEC §6).
+//!   dL/d(ndc) = dL/du · W/2 and likewise H/2 (DESIGN §6.1).
 //! - Maximum screen radius over the interval (`max_radii2D`).
 //! - EvoGS: sum and count of the per-step residual norm and of the angular deviation θ, fed from
 //!   evo-state's forward outputs ([`residual_norms`], [`thetas`]).

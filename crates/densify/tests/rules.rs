@@ -601,7 +601,7 @@ fn evolution_cues_come_from_evo_state_steps() {
         "steady motion is predicted exactly"
     );
     assert!(stats.mean_residual(1) > 0.05);
-    // Not exactly 0: SPEC's θ divides by |v1||v2| + 1e-6 (here |v|² = 0.01, so θ ≈ 0.014).
+    // Not exactly 0: DESIGN §4.7's θ divides by |v1||v2| + 1e-6 (here |v|² = 0.01, so θ ≈ 0.014).
     assert!(stats.mean_theta(0) < 0.05, "{}", stats.mean_theta(0));
     assert!(stats.mean_theta(1) > 1.0, "{}", stats.mean_theta(1));
 }

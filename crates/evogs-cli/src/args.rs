@@ -139,7 +139,7 @@ pub struct TrainArgs {
 
     /// EvoGS motion floor: below this speed per frame spacing, as a fraction of the scene
     /// extent, a Gaussian counts as still and its angular deviation θ is 0 [default: 1e-3, the
-    /// trainer's; SPEC's 1e-6 is far below the noise, see the README's EvoGS section].
+    /// trainer's; the paper's 1e-6 is far below the noise, see docs/DESIGN.md §4.7].
     #[arg(long, value_name = "F", allow_negative_numbers = true)]
     pub motion_floor: Option<f32>,
 

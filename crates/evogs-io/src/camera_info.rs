@@ -27,7 +27,7 @@ impl Distortion {
 }
 
 /// A camera as read from a file: the pinhole [`Camera`] the rasterizer uses, plus skew and
-/// distortion, which rendering ignores (SPEC §1: rendering is pinhole).
+/// distortion, which rendering ignores (DESIGN §1.2: rendering is pinhole).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CameraInfo {
     /// The pinhole camera.

@@ -1,4 +1,4 @@
-//! The nerfies camera JSON (HyperNeRF, NeRF-DS), SPEC §1: `orientation` is R (rows are the camera
+//! The nerfies camera JSON (HyperNeRF, NeRF-DS), DESIGN §1.3: `orientation` is R (rows are the camera
 //! axes in world), `position` is the centre C, `focal_length` is fx, `fy = focal_length ·
 //! pixel_aspect_ratio`, `principal_point` is (cx, cy), `image_size` is [w, h]; `skew`,
 //! `radial_distortion` and `tangential_distortion` are kept in [`CameraInfo`].

@@ -54,7 +54,7 @@ pub struct Frame {
     pub image_path: PathBuf,
     /// Time in [0, 1] (0 for static scenes).
     pub time: f32,
-    /// The camera (OpenCV axes, SPEC §1) at the image file's size, with skew and distortion.
+    /// The camera (OpenCV axes, DESIGN §1.2) at the image file's size, with skew and distortion.
     pub camera: CameraInfo,
 }
 

@@ -1,4 +1,4 @@
-//! D-NeRF / Blender datasets (SPEC §1): `transforms_{train,test,val}.json` with a frame list of
+//! D-NeRF / Blender datasets (DESIGN §1.4): `transforms_{train,test,val}.json` with a frame list of
 //! `file_path`, `time` and `transform_matrix` (camera-to-world, OpenGL axes). Cameras are
 //! converted to OpenCV axes by flipping the camera's y and z axes; `fx = fy = 0.5·W /
 //! tan(0.5·camera_angle_x)`, principal point at the image centre. Image sizes come from the

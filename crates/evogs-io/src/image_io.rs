@@ -128,7 +128,7 @@ pub fn resize_image(image: &ImageRgb, factor: f32) -> Option<ImageRgb> {
 }
 
 /// Loads the image a camera sees, composited over `background`, and resizes both by `factor`
-/// (intrinsics scaled by the same factor, SPEC §1). The image must be the camera's size.
+/// (intrinsics scaled by the same factor, DESIGN §1.2). The image must be the camera's size.
 pub fn load_view(
     path: &Path,
     camera: &Camera,

@@ -7,7 +7,7 @@
 //! ([`neu3d`]), COLMAP ([`colmap`]) and nerfstudio ([`nerfstudio`]) read into one [`Dataset`]
 //! type by [`load_dataset`], which detects the layout ([`detect_format`]), with `.npy` arrays
 //! read by [`npy`] and times for frames that store none by [`frame_time`]; conventions as
-//! pinned in SPEC §1–2 and, where it is silent, Deformable-3D-Gaussians'. Every error
+//! pinned in DESIGN §1–2 and, where it is silent, Deformable-3D-Gaussians'. Every error
 //! names the file and the field or problem; every write is atomic (temporary file, then rename).
 //!
 //! What it is not: a renderer, a trainer or a data augmenter. Cameras come out as

@@ -6,7 +6,7 @@
 //! DIR/dataset.json      {"ids": [...], "train_ids": [...], "val_ids": [...]}
 //! DIR/metadata.json     {"<id>": {"time_id": n, "camera_id": n, ...}, ...}   (or "warp_id")
 //! DIR/scene.json        {"scale": s, "center": [x, y, z], "near": n, "far": f}
-//! DIR/camera/<id>.json  nerfies camera JSON (SPEC §1), at full resolution
+//! DIR/camera/<id>.json  nerfies camera JSON (DESIGN §1.3), at full resolution
 //! DIR/rgb/<N>x/<id>.png images downscaled by N
 //! DIR/points.npy        (P, 3) float array, optional
 //! ```

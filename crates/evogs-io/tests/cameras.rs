@@ -1,4 +1,4 @@
-//! nerfies camera JSON: field meanings (SPEC §1), write/read round trips, warnings for skew and
+//! nerfies camera JSON: field meanings (DESIGN §1.3), write/read round trips, warnings for skew and
 //! distortion, and errors naming the file and the field.
 
 use std::path::{Path, PathBuf};

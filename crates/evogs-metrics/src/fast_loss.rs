@@ -1,5 +1,5 @@
 //! The training loss of [`photometric_loss`](crate::photometric_loss), fast and allocation-free:
-//! the same `0.8·L1 + 0.2·(1 − SSIM)` (SPEC §7) and its gradient with respect to the rendering,
+//! the same `0.8·L1 + 0.2·(1 − SSIM)` (DESIGN §7.1) and its gradient with respect to the rendering,
 //! plus the MSE for the training PSNR, in two passes over the rows with reused buffers.
 //!
 //! How: images stay interleaved RGB as the rasterizer writes them. A row of `W` pixels is a row of

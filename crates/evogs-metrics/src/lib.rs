@@ -1,4 +1,4 @@
-//! `evogs-metrics`: the image and temporal metrics shared by training and evaluation (SPEC §7).
+//! `evogs-metrics`: the image and temporal metrics shared by training and evaluation (DESIGN §7.1, §8).
 //!
 //! - [`psnr`] and [`mse`]: per image, over RGB in `[0, 1]`.
 //! - [`ssim`]: 3DGS's SSIM (`utils/loss_utils.py`): 11×11 Gaussian window, σ = 1.5, C1 = 0.01²,

@@ -1,4 +1,4 @@
-//! The photometric training loss `0.8·L1 + 0.2·(1 − SSIM)` (SPEC §7) and its exact gradient.
+//! The photometric training loss `0.8·L1 + 0.2·(1 − SSIM)` (DESIGN §7.1) and its exact gradient.
 
 use rayon::prelude::*;
 

@@ -1,4 +1,4 @@
-//! Temporal consistency metrics (SPEC §7): fixed-camera flicker and trajectory jitter.
+//! Temporal consistency metrics (DESIGN §8.3): fixed-camera flicker and trajectory jitter.
 
 use crate::{ImageSize, MetricsError, check_image};
 

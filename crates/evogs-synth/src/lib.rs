@@ -1,4 +1,4 @@
-//! `evogs-synth`: procedural dynamic scenes with exact ground truth (SPEC §8), and the demo's
+//! `evogs-synth`: procedural dynamic scenes with exact ground truth (DESIGN §10), and the demo's
 //! embedded scene.
 //!
 //! A scene is an object — a checkered *body* sphere and a small *satellite* cube beside it — made

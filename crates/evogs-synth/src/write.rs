@@ -3,7 +3,7 @@
 //! ```text
 //! DIR/transforms_{train,test,val}.json   camera_angle_x; frames: file_path, time, transform_matrix
 //! DIR/{train,test,val}/r_NNN.png         RGBA, 8 bit, straight (un-premultiplied) alpha
-//! DIR/canonical.ply                      canonical Gaussians, 3DGS PLY layout (SPEC §2)
+//! DIR/canonical.ply                      canonical Gaussians, 3DGS PLY layout (DESIGN §2.2)
 //! DIR/ground_truth.safetensors           per-frame state, f32 little-endian (see below)
 //! DIR/scene.json                         index: summary, spec, seed, tensor names and shapes
 //! ```

@@ -1,6 +1,6 @@
 //! Adding a backbone's deformation to canonical Gaussians: mean + Δposition, raw quaternion +
 //! Δrotation, log-scale + Δscale (DESIGN §4.1), and, where the backbone
-//! deforms appearance (EvoGS's optional components, SPEC §4), opacity logit + Δopacity and SH DC
+//! deforms appearance (EvoGS's optional components, DESIGN §4.1), opacity logit + Δopacity and SH DC
 //! + Δcolour. Appearance that is not deformed is read from the canonical Gaussians, never copied.
 //!
 //! D-3DGS adds `d_rotation` to the *normalised* quaternion and `d_scaling` to the *activated*

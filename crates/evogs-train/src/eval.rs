@@ -1,6 +1,6 @@
 //! Evaluation of a run on a split: per-image PSNR, SSIM and LPIPS (`lpips_alex`, and
 //! `lpips_vgg` when asked for; see [`EvalLpips`]) and their means, fixed-camera flicker and
-//! trajectory jitter (SPEC §7), written as JSON and as a markdown table.
+//! trajectory jitter (DESIGN §8), written as JSON and as a markdown table.
 //!
 //! Temporal metrics: the split's distinct times, sorted, are rendered from one fixed camera (the
 //! split's first). Flicker compares consecutive renders; its ground-truth part exists only when

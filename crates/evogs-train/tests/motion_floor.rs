@@ -1,6 +1,6 @@
-//! The trainer's motion floor (SPEC §4's θ, with the trainer's deliberate floor) through
+//! The trainer's motion floor (DESIGN §4.7's θ, with the trainer's deliberate floor) through
 //! densify's uncertainty trigger: a still Gaussian whose evolved position jitters below the floor
-//! gets θ = 0 and densifies; a Gaussian that genuinely turns is still blocked. With SPEC's
+//! gets θ = 0 and densifies; a Gaussian that genuinely turns is still blocked. With evo-state's
 //! default floor (1e-6 of the extent) the same jitter blocks the still Gaussian, which is the
 //! failure the trainer's floor fixes.
 
@@ -146,7 +146,7 @@ fn still_gaussian_below_the_floor_densifies_and_a_turning_one_is_blocked() {
 #[test]
 fn with_specs_floor_the_same_jitter_blocks_the_still_gaussian() {
     let spec_floor = evo_state::EvoConfig::default().motion_floor;
-    assert_eq!(spec_floor, 1e-6, "evo-state keeps SPEC's default");
+    assert_eq!(spec_floor, 1e-6, "evo-state keeps the paper's default");
     let (theta, summary, _) = trigger(spec_floor, &[jitter(0.3 * TRAINER_MOTION_FLOOR)]);
     assert!(
         (theta[0] - std::f32::consts::FRAC_PI_2).abs() < 1e-3,
@@ -160,7 +160,7 @@ fn with_specs_floor_the_same_jitter_blocks_the_still_gaussian() {
 #[test]
 fn motion_just_above_the_floor_is_measured() {
     // A straight path at 2 floors per frame spacing: θ ≈ 0 because it is consistent, not
-    // because of the floor (SPEC's ε = 1e-6 in the denominator keeps it slightly above 0);
+    // because of the floor (DESIGN §4.7's ε = 1e-6 in the denominator keeps it slightly above 0);
     // reversing it gives θ ≈ π, which blocks.
     let f = TRAINER_MOTION_FLOOR;
     let a = 2.0 * f * EXTENT;
@@ -198,7 +198,7 @@ fn settings_record_the_floor_and_old_configs_read_specs() {
     let old: EvoSettings = serde_json::from_value(json).unwrap();
     assert_eq!(
         old.motion_floor, 1e-6,
-        "runs written before the field trained with SPEC's"
+        "runs written before the field trained with the paper's"
     );
     let bad = EvoSettings {
         motion_floor: f32::NAN,

@@ -1,9 +1,9 @@
-//! The pinhole camera of SPEC §1: OpenCV axes (+x right, +y down, +z forward), world-to-camera
+//! The pinhole camera of DESIGN §1.2: OpenCV axes (+x right, +y down, +z forward), world-to-camera
 //! `x_cam = R x_world + t`, pixel (i, j) centred at (i + 0.5, j + 0.5).
 
 use glam::{Mat3, Vec3};
 
-/// A pinhole camera, world-to-camera, OpenCV axes (SPEC §1).
+/// A pinhole camera, world-to-camera, OpenCV axes (DESIGN §1.2).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
     /// Image width in pixels.
@@ -80,7 +80,7 @@ impl Camera {
         self.rotation * p + self.translation
     }
 
-    /// Scales the image size and the intrinsics by `factor` (SPEC §1: resizing scales fx, fy, cx,
+    /// Scales the image size and the intrinsics by `factor` (DESIGN §1.2: resizing scales fx, fy, cx,
     /// cy by the same factor). Sizes are rounded to the nearest pixel.
     pub fn scaled(&self, factor: f32) -> Self {
         Self {

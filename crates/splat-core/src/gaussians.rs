@@ -1,4 +1,4 @@
-//! Gaussians as structure-of-arrays in raw (pre-activation) parameters, SPEC §2.
+//! Gaussians as structure-of-arrays in raw (pre-activation) parameters, DESIGN §2.1.
 //!
 //! Per Gaussian: mean (3), log-scale (3), quaternion `w, x, y, z` (4, unnormalised), opacity
 //! logit (1), and SH coefficients `[(deg+1)²][3]`, coefficient-major (all three channels of

@@ -12,7 +12,7 @@
 //!   [`CameraInfo`](crate::CameraInfo) and reported, never applied. Any other model is an error
 //!   naming the file and the model.
 //! - COLMAP's `qvec` (w, x, y, z) and `tvec` are world-to-camera in OpenCV axes, and its pixel
-//!   centres are at +0.5 like SPEC §1, so they convert directly.
+//!   centres are at +0.5 like DESIGN §1.2, so they convert directly.
 //! - Frames are sorted by image name; with `llff_hold > 0` every `llff_hold`-th (from the first)
 //!   is a test frame (D-3DGS `--eval`, hold 8).
 //! - Times by [`TimeFrom`] over all registered images before the split: the rank of the name

@@ -1,4 +1,4 @@
-//! The original 3DGS vertex layout (SPEC §2) and how its properties map to [`Gaussians`] fields.
+//! The original 3DGS vertex layout (DESIGN §2) and how its properties map to [`Gaussians`] fields.
 //!
 //! [`Gaussians`]: splat_core::Gaussians
 

@@ -1,4 +1,4 @@
-//! 3DGS PLY files (SPEC §2): the original 3DGS vertex layout, written as binary little-endian
+//! 3DGS PLY files (DESIGN §2): the original 3DGS vertex layout, written as binary little-endian
 //! float32 and read from ASCII or binary of either endianness with any numeric property types;
 //! and plain point clouds (`x y z red green blue`, [`read_point_cloud`]) with the same decoder.
 //!

@@ -59,7 +59,7 @@ impl Fail {
     }
 }
 
-/// Reads a 3DGS PLY file (SPEC §2): ASCII or binary of either endianness, any numeric property
+/// Reads a 3DGS PLY file (DESIGN §2.3): ASCII or binary of either endianness, any numeric property
 /// types, properties in any order, unknown properties ignored.
 pub fn read_ply(path: &Path) -> Result<LoadedPly, IoError> {
     let file = File::open(path).map_err(|e| IoError::io(path, e))?;

@@ -21,7 +21,7 @@ pub fn ply_header(count: usize, degree: u32) -> String {
     header
 }
 
-/// Writes Gaussians to `writer` in the 3DGS layout (SPEC §2): normals zero, `f_rest` channel-major,
+/// Writes Gaussians to `writer` in the 3DGS layout (DESIGN §2.2): normals zero, `f_rest` channel-major,
 /// raw values bit for bit. `path` only names the destination in errors.
 pub fn write_ply_to<W: Write>(
     writer: &mut W,
