@@ -1,7 +1,8 @@
 //! One training iteration (render, loss, backward, backbone backward, Adam) of the baseline and of
 //! EvoGS on the embedded synthetic scene (64×64), after the warm-up, with densification off so
 //! both methods run on the same 2 000 Gaussians and every measured iteration runs the network;
-//! plus EvoGS with the opacity and colour components (D = 14 instead of 10).
+//! plus EvoGS with the opacity and colour components (D = 14 instead of 10); and beside each, the
+//! NaN/Inf check of every parameter group that training runs every log interval.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use evogs_io::Split;
@@ -48,6 +49,11 @@ fn bench(c: &mut Criterion) {
         group.bench_function(format!("{method}{label} ({n} Gaussians)"), |b| {
             b.iter(|| t.step().unwrap())
         });
+        // The NaN/Inf check training runs every log interval, against one step above.
+        group.bench_function(
+            format!("{method}{label} non-finite check ({n} Gaussians)"),
+            |b| b.iter(|| t.state.first_non_finite(t.backbone.as_ref())),
+        );
     }
     group.finish();
 }
