@@ -66,6 +66,13 @@ fn main() -> ExitCode {
             println!("time per phase:\n{}", s.phases);
         }),
         Command::Eval(args) => run_eval(args).map(|r| {
+            if r.non_finite_views > 0 {
+                eprintln!(
+                    "evogs eval: warning: non-finite deformed Gaussians at {} of the rendered \
+                     times (at most {} at one); those renders are not trustworthy",
+                    r.non_finite_views, r.non_finite_gaussians
+                );
+            }
             println!(
                 "{} split: mean PSNR {:.2} dB, mean SSIM {:.4} over {} images; wrote {}",
                 r.split,

@@ -121,6 +121,52 @@ pub struct EvalReport {
     pub lpips_missing: Vec<String>,
     /// Temporal metrics (absent with fewer than two distinct times).
     pub temporal: Option<Temporal>,
+    /// Views (and times of the temporal metrics) at which a deformed Gaussian held a non-finite
+    /// value (the rendered image is then not trustworthy). Reports written before it existed
+    /// read as 0.
+    #[serde(default)]
+    pub non_finite_views: usize,
+    /// The most Gaussians with a non-finite deformed value at one of those views
+    /// ([`non_finite_gaussians`]).
+    #[serde(default)]
+    pub non_finite_gaussians: usize,
+}
+
+/// How many of `g`'s Gaussians hold a non-finite value (mean, scale, rotation, opacity or SH).
+pub fn non_finite_gaussians(g: &splat_raster::Gaussians) -> usize {
+    let stride = if g.is_empty() {
+        0
+    } else {
+        g.sh.len() / g.len()
+    };
+    (0..g.len())
+        .filter(|&i| {
+            let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
+            !(finite(&g.means[i])
+                && finite(&g.log_scales[i])
+                && finite(&g.rotations[i])
+                && g.opacity_logits[i].is_finite()
+                && finite(&g.sh[i * stride..(i + 1) * stride]))
+        })
+        .count()
+}
+
+/// Non-finite deformed Gaussians over the views of an evaluation: views affected and the most
+/// Gaussians at one.
+#[derive(Clone, Copy, Debug, Default)]
+struct NonFiniteTally {
+    views: usize,
+    most: usize,
+}
+
+impl NonFiniteTally {
+    fn add(&mut self, g: &splat_raster::Gaussians) {
+        let n = non_finite_gaussians(g);
+        if n > 0 {
+            self.views += 1;
+            self.most = self.most.max(n);
+        }
+    }
 }
 
 impl EvalReport {
@@ -165,8 +211,10 @@ pub fn evaluate(
     std::fs::create_dir_all(&dir).map_err(|e| TrainError::io(&dir, e))?;
     let mut images = Vec::with_capacity(views.views.len());
     let mut lpips_missing = lpips.missing.clone();
+    let mut non_finite = NonFiniteTally::default();
     for (k, view) in views.views.iter().enumerate() {
         let g = run.deformed(view.time)?;
+        non_finite.add(&g);
         let out = run.raster.forward(g.view(), &view.camera, &opts)?;
         let size = ImageSize::new(view.image.width as usize, view.image.height as usize);
         let clamped: Vec<[f32; 3]> = out
@@ -222,7 +270,7 @@ pub fn evaluate(
             .map(|v| v.iter().sum::<f64>() / count)
     };
     let (mean_lpips_alex, mean_lpips_vgg) = (mean_lpips(Backbone::Alex), mean_lpips(Backbone::Vgg));
-    let temporal = temporal_metrics(run, &views, &opts)?;
+    let temporal = temporal_metrics(run, &views, &opts, &mut non_finite)?;
     let report = EvalReport {
         split: split.name().to_string(),
         iteration: run.summary.iteration,
@@ -234,6 +282,8 @@ pub fn evaluate(
         mean_lpips_vgg,
         lpips_missing,
         temporal,
+        non_finite_views: non_finite.views,
+        non_finite_gaussians: non_finite.most,
     };
     write_json(&run.paths.eval_json(split), &report)?;
     write_text(&run.paths.eval_markdown(split), &markdown(&report))?;
@@ -244,6 +294,7 @@ fn temporal_metrics(
     run: &mut LoadedRun,
     views: &crate::data::SplitViews,
     opts: &RenderOptions,
+    non_finite: &mut NonFiniteTally,
 ) -> Result<Option<Temporal>, TrainError> {
     let times = views.times();
     if times.len() < 2 {
@@ -256,6 +307,7 @@ fn temporal_metrics(
     let mut visible = Vec::with_capacity(times.len());
     for &t in &times {
         let g = run.deformed(t)?;
+        non_finite.add(&g);
         let out = run.raster.forward(g.view(), camera, opts)?;
         visible.push(out.radii().iter().map(|&r| r > 0.0).collect::<Vec<bool>>());
         renders.push(out.color);
@@ -374,6 +426,14 @@ pub fn markdown(report: &EvalReport) -> String {
     }
     for line in &report.lpips_missing {
         let _ = writeln!(s, "\nNot reported: {line}.");
+    }
+    if report.non_finite_views > 0 {
+        let _ = writeln!(
+            s,
+            "\n**Non-finite deformed Gaussians** at {} of the rendered times (at most {} at one): \
+             those renders are not trustworthy.",
+            report.non_finite_views, report.non_finite_gaussians
+        );
     }
     s
 }
