@@ -166,7 +166,7 @@ pub struct TrainArgs {
 
     /// Settings preset: paper (D-3DGS reference, width 256, 40K iterations), cpu (400×400 on
     /// 2 cores, width 64, 3K iterations), tiny (CI, width 32, 300 iterations), dnerf (the D-NeRF
-    /// benchmark at 400×400: 12K iterations, He-initialised network whose lr is not compressed).
+    /// benchmark at 400×400: 12K iterations, network lr decay not compressed).
     #[arg(long, default_value = "cpu")]
     pub preset: String,
 

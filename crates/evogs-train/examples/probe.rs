@@ -6,9 +6,15 @@
 //! ```text
 //! cargo run --release -p evogs-train --example probe -- DATA OUT ITERATIONS EVERY \
 //!     [--preset cpu] [--method baseline] [--patch JSON] [--region x0,y0,z0,x1,y1,z1] [--report val]
+//!     [--stop N] [--continue yes]
 //! ```
 //! `--patch` is merged into the config (after the preset is scaled to ITERATIONS), e.g.
-//! `'{"lr":{"deform_max_steps":40000}}'`.
+//! `'{"lr":{"deform_max_steps":40000}}'`. `--stop N` ends the run after iteration N of the
+//! ITERATIONS-long schedule (the schedule's first N iterations, not a compressed one).
+//! `--continue yes` resumes the run already in OUT with the settings of its `config.json` (e.g. a
+//! copy of a warmed-up run whose network settings were edited) instead of starting afresh. Each
+//! segment also prints (stderr) the canonical box of the 1% most-moving opaque Gaussians and,
+//! with `--region`, the region's mean displacement at t = 0, 0.1, …, 1.
 
 use std::path::PathBuf;
 
@@ -41,6 +47,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut patch = serde_json::json!({});
     let mut region: Option<[f32; 6]> = None;
     let mut report = Split::Val;
+    let mut stop_at = iterations;
+    let mut continue_existing = false;
     let mut k = 5;
     while k < args.len() {
         let v = &args[k + 1];
@@ -52,6 +60,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let p: Vec<f32> = v.split(',').map(|x| x.parse().unwrap()).collect();
                 region = Some([p[0], p[1], p[2], p[3], p[4], p[5]]);
             }
+            "--stop" => stop_at = v.parse()?,
+            "--continue" => continue_existing = v == "yes",
             "--report" => report = if v == "test" { Split::Test } else { Split::Val },
             other => return Err(format!("unknown argument {other}").into()),
         }
@@ -76,10 +86,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut prev_params: Option<Vec<f32>> = None;
     // ITERATIONS = 0: analyse the run in OUT as it is.
     let analyse_only = iterations == 0;
-    let mut done = 0u64;
+    let mut done = if continue_existing {
+        LoadedRun::open(&out)?.summary.iteration
+    } else {
+        0
+    };
     let mut secs = 0.0;
-    while done < iterations || analyse_only {
-        let stop = (done + every).min(iterations);
+    while done < stop_at || analyse_only {
+        let stop = (done + every).min(stop_at);
         let (mut psnr_sum, mut grad_sum, mut n, mut gn) = (0.0, 0.0, 0u64, 0u64);
         let summary = if analyse_only {
             LoadedRun::open(&out)?.summary
@@ -181,6 +195,32 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .filter(|&i| canon.opacity_logits[i] > (0.1f32 / 0.9).ln())
             .collect();
         let mut moves: Vec<f32> = opaque.iter().map(|&i| movement(i)).collect();
+        // Where the most-moving 1% sit in the canonical space (5th..95th percentile per axis).
+        let mut by_move: Vec<(f32, usize)> = opaque.iter().map(|&i| (movement(i), i)).collect();
+        by_move.sort_by(|a, b| b.0.total_cmp(&a.0));
+        let top: Vec<usize> = by_move
+            .iter()
+            .filter(|m| m.0.is_finite())
+            .take(opaque.len().div_ceil(100))
+            .map(|m| m.1)
+            .collect();
+        if !top.is_empty() {
+            let pct = |c: usize, p: f64| {
+                let mut v: Vec<f32> = top.iter().map(|&i| canon.means[i][c]).collect();
+                v.sort_by(f32::total_cmp);
+                v[((v.len() - 1) as f64 * p) as usize]
+            };
+            eprintln!(
+                "it {done}: top-1% movers ({}) box {:.2},{:.2},{:.2},{:.2},{:.2},{:.2}",
+                top.len(),
+                pct(0, 0.05),
+                pct(1, 0.05),
+                pct(2, 0.05),
+                pct(0, 0.95),
+                pct(1, 0.95),
+                pct(2, 0.95)
+            );
+        }
         moves.sort_by(f32::total_cmp);
         let q = |p: f64| {
             if moves.is_empty() {
@@ -214,7 +254,57 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         format!("({:.3},{:.3},{:.3})", s[0], s[1], s[2])
                     })
                     .collect();
-                eprintln!("region trajectory t=0..1: {}", traj.join(" "));
+                eprintln!("it {done}: region trajectory t=0..1: {}", traj.join(" "));
+                // Against the ground truth: the share of the region's Gaussians whose centre,
+                // deformed to each training view's time (or left canonical), projects onto the
+                // object in that view's image (a pixel brighter than the black background).
+                let mut off = Vec::new();
+                for v in &train_views.views {
+                    let g = run.deformed(v.time)?;
+                    let on_object = |p: [f32; 3]| {
+                        let c = v.camera.world_to_camera(glam::Vec3::from(p));
+                        if c.z <= 0.0 {
+                            return false;
+                        }
+                        let u = v.camera.fx * c.x / c.z + v.camera.cx;
+                        let w = v.camera.fy * c.y / c.z + v.camera.cy;
+                        if u < 0.0 || w < 0.0 {
+                            return false;
+                        }
+                        let (u, w) = (u as u32, w as u32);
+                        u < v.image.width
+                            && w < v.image.height
+                            && v.image.pixels[(w * v.image.width + u) as usize]
+                                .iter()
+                                .any(|&x| x > 0.05)
+                    };
+                    let n = inside.len().max(1) as f32;
+                    let moved =
+                        inside.iter().filter(|&&i| !on_object(g.means[i])).count() as f32 / n;
+                    let still = inside
+                        .iter()
+                        .filter(|&&i| !on_object(canon.means[i]))
+                        .count() as f32
+                        / n;
+                    off.push((v.time, moved, still));
+                }
+                off.sort_by(|a, b| a.0.total_cmp(&b.0));
+                let mean = |k: usize| {
+                    off.iter()
+                        .map(|o| if k == 1 { o.1 } else { o.2 })
+                        .sum::<f32>()
+                        / off.len().max(1) as f32
+                };
+                let per_time: Vec<String> = off
+                    .iter()
+                    .map(|o| format!("{:.2}:{:.2}/{:.2}", o.0, o.1, o.2))
+                    .collect();
+                eprintln!(
+                    "it {done}: region off the ground-truth silhouette, deformed / canonical: mean {:.3} / {:.3}; per time {}",
+                    mean(1),
+                    mean(2),
+                    per_time.join(" ")
+                );
                 (inside.len(), mean_move)
             }
             None => (0, f32::NAN),

@@ -87,20 +87,15 @@ pub fn gaussian_schedules(lr: &LrSettings) -> [LrSchedule; 6] {
 }
 
 /// The network's schedule (D-3DGS `DeformModel.train_setting`): `position_init · 5` decaying to
-/// `position_final` (not scaled) over `deform_max_steps`.
+/// `position_final` (not scaled) over `deform_max_steps`, both ends times `deform_scale`.
 pub fn network_schedule(lr: &LrSettings) -> LrSchedule {
-    LrSchedule::Exponential(ExponentialLr {
-        lr_init: lr.position_init * lr.spatial_lr_scale,
-        lr_final: lr.position_final,
-        delay_steps: 0,
-        delay_mult: lr.position_delay_mult,
-        max_steps: lr.deform_max_steps,
-    })
+    scaled_network_schedule(lr, 1.0)
 }
 
 /// [`network_schedule`] with both ends multiplied by `scale` (a backbone's per-buffer factor,
 /// [`Backbone::lr_scale`]).
 pub fn scaled_network_schedule(lr: &LrSettings, scale: f32) -> LrSchedule {
+    let scale = scale * lr.deform_scale;
     LrSchedule::Exponential(ExponentialLr {
         lr_init: lr.position_init * lr.spatial_lr_scale * scale,
         lr_final: lr.position_final * scale,
