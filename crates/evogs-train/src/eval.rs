@@ -309,9 +309,18 @@ fn temporal_metrics(
         let g = run.deformed(t)?;
         non_finite.add(&g);
         let out = run.raster.forward(g.view(), camera, opts)?;
-        visible.push(out.radii().iter().map(|&r| r > 0.0).collect::<Vec<bool>>());
+        let mut drawn: Vec<bool> = out.radii().iter().map(|&r| r > 0.0).collect();
+        // A non-finite position (counted above) is left out of the jitter, not an error.
+        let mut means = g.means;
+        for (m, d) in means.iter_mut().zip(&mut drawn) {
+            if !m.iter().all(|v| v.is_finite()) {
+                *m = [0.0; 3];
+                *d = false;
+            }
+        }
+        visible.push(drawn);
         renders.push(out.color);
-        positions.push(g.means);
+        positions.push(means);
     }
     let size = ImageSize::new(camera.width as usize, camera.height as usize);
     let rendered: Vec<&[[f32; 3]]> = renders.iter().map(Vec::as_slice).collect();
