@@ -7,7 +7,8 @@
 //! procedural scene of [`demo_scene`], or a trained run at a time or a time sweep via
 //! [`render_run`]), `synth` ([`synth_cmd`]: procedural scenes in the D-NeRF layout), `video` ([`video_cmd`]: a
 //! run along a camera path into an mp4, a GIF or PNG frames), and `prepare` ([`prepare_cmd`]: a video or image
-//! folder to a COLMAP dataset, via `evogs-prepare`).
+//! folder to a COLMAP dataset, via `evogs-prepare`), and `view` ([`view_cmd`]: the web viewer of
+//! `evogs-view`).
 //!
 //! What it is not: a trainer or a scene generator; training, evaluation, export and synthetic
 //! scenes live in `evogs-train`, file formats in `evogs-io`, rendering in `splat-raster`. Errors are `anyhow`
@@ -26,5 +27,6 @@ pub mod render_run;
 pub mod synth_cmd;
 pub mod train_cmd;
 pub mod video_cmd;
+pub mod view_cmd;
 
 pub use args::{Cli, Command, EvalArgs, ExportArgs, RenderArgs, TrainArgs};

@@ -140,6 +140,21 @@ fn main() -> ExitCode {
         }
         Command::Prepare(args) => evogs_cli::prepare_cmd::run_prepare(args)
             .map(|summary| println!("{}", evogs_cli::prepare_cmd::report_line(args, &summary))),
+        Command::View(args) => evogs_cli::view_cmd::start_view(args).map(|viewer| {
+            if let Some(w) = evogs_cli::view_cmd::host_warning(args.host) {
+                eprintln!("evogs: {w}");
+            }
+            for info in viewer.infos() {
+                println!(
+                    "loaded {}: {} Gaussians, iteration {}, backend {}",
+                    info.name, info.gaussians, info.iteration, info.backend
+                );
+            }
+            println!("viewer at {} (Ctrl-C stops it)", viewer.url());
+            use std::io::Write;
+            let _ = std::io::stdout().flush();
+            viewer.wait();
+        }),
         Command::Synth(args) => evogs_cli::synth_cmd::run_synth(args)
             .map(|summary| println!("{}", evogs_cli::synth_cmd::report_line(args, &summary))),
     };

@@ -30,23 +30,7 @@ pub struct RenderReport {
     pub height: u32,
 }
 
-/// Resizes a camera to `width × height` (either may be absent), scaling fx, cx by the width
-/// ratio and fy, cy by the height ratio.
-pub fn resize_camera(camera: Camera, width: Option<u32>, height: Option<u32>) -> Camera {
-    let w = width.unwrap_or(camera.width);
-    let h = height.unwrap_or(camera.height);
-    let sx = w as f32 / camera.width as f32;
-    let sy = h as f32 / camera.height as f32;
-    Camera {
-        width: w,
-        height: h,
-        fx: camera.fx * sx,
-        cx: camera.cx * sx,
-        fy: camera.fy * sy,
-        cy: camera.cy * sy,
-        ..camera
-    }
-}
+pub use evogs_train::camera_path::resize_camera;
 
 pub(crate) fn check_output_name(out: &Path) -> Result<()> {
     let is_png = out

@@ -195,7 +195,7 @@ impl<'a> Fields<'a> {
 
 /// How far `rows` (3×3, row-major) is from a proper rotation: the largest entry of `R Rᵀ − I`,
 /// or infinity when the determinant is not positive.
-pub(crate) fn rotation_error(rows: &[[f64; 3]; 3]) -> f64 {
+pub fn rotation_error(rows: &[[f64; 3]; 3]) -> f64 {
     let dot = |a: &[f64; 3], b: &[f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     let mut worst: f64 = 0.0;
     for i in 0..3 {
@@ -211,4 +211,4 @@ pub(crate) fn rotation_error(rows: &[[f64; 3]; 3]) -> f64 {
 }
 
 /// Rotations whose `R Rᵀ` deviates from `I` by more than this are rejected.
-pub(crate) const ROTATION_TOLERANCE: f64 = 1e-3;
+pub const ROTATION_TOLERANCE: f64 = 1e-3;

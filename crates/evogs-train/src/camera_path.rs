@@ -324,6 +324,24 @@ impl fmt::Display for CameraSpec {
     }
 }
 
+/// Resizes a camera to `width × height` (either may be absent), scaling fx, cx by the width
+/// ratio and fy, cy by the height ratio.
+pub fn resize_camera(camera: Camera, width: Option<u32>, height: Option<u32>) -> Camera {
+    let w = width.unwrap_or(camera.width);
+    let h = height.unwrap_or(camera.height);
+    let sx = w as f32 / camera.width as f32;
+    let sy = h as f32 / camera.height as f32;
+    Camera {
+        width: w,
+        height: h,
+        fx: camera.fx * sx,
+        cx: camera.cx * sx,
+        fy: camera.fy * sy,
+        cy: camera.cy * sy,
+        ..camera
+    }
+}
+
 /// The cameras and times of a split of `run`'s dataset, in file order, at the run's resolution
 /// (the dataset's cameras scaled by its downscale factor, as training and evaluation load them).
 /// Errors name the dataset file when the split is empty.

@@ -1,0 +1,408 @@
+//! `evogs view` end to end through its HTTP API on a tiny trained run: views equal `evogs render`
+//! bit for bit (dataset cameras and saved camera files), the run's description, hostile and
+//! malformed requests (4xx with a reason, never a crash, no file ever served), the connection
+//! bound, `--watch`, and runs that cannot be loaded.
+
+mod support;
+
+use std::path::Path;
+
+use support::view::{Viewer, diff, fixture, train_run};
+use support::{evogs, s, stderr};
+
+fn png(path: &Path) -> image::RgbImage {
+    image::open(path).unwrap().to_rgb8()
+}
+
+/// `evogs render --run RUN --camera CAMERA --time T [--width W --height H]`, decoded.
+fn render(run: &Path, camera: &str, time: &str, size: Option<(u32, u32)>) -> image::RgbImage {
+    let out = run.parent().unwrap().join("render_out.png");
+    let mut args = vec![
+        "render".to_string(),
+        "--run".into(),
+        s(run).into(),
+        "--camera".into(),
+        camera.into(),
+        "--time".into(),
+        time.into(),
+        "--out".into(),
+        s(&out).into(),
+    ];
+    if let Some((w, h)) = size {
+        args.extend([
+            "--width".into(),
+            w.to_string(),
+            "--height".into(),
+            h.to_string(),
+        ]);
+    }
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = evogs(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    png(&out)
+}
+
+#[test]
+fn views_equal_evogs_render_bit_for_bit_and_saved_cameras_round_trip() {
+    let f = fixture();
+    let v = Viewer::start(&[s(&f.run)]);
+    assert!(v.stdout.contains("Gaussians"), "{}", v.stdout);
+
+    // A dataset camera at a time between frames, resized.
+    let r = v.get("/api/render?cam=dataset:test:1&t=0.37&w=40&h=28&fmt=png");
+    assert_eq!(r.header("content-type"), Some("image/png"));
+    assert_eq!(r.header("x-time"), Some("0.37"));
+    let expected = render(&f.run, "dataset:test:1", "0.37", Some((40, 28)));
+    assert_eq!(
+        r.image(),
+        expected,
+        "dataset camera view differs from evogs render"
+    );
+
+    // Without w/h and t: the run's resolution and the camera's own time.
+    let r = v.get("/api/render?cam=dataset:train:3&fmt=png");
+    let info: serde_json::Value = serde_json::from_slice(&v.get("/api/info").body).unwrap();
+    let t3 = info["runs"][0]["cameras"]["train"][3]["t"]
+        .as_f64()
+        .unwrap() as f32;
+    assert_eq!(
+        r.image(),
+        render(&f.run, "dataset:train:3", &t3.to_string(), None)
+    );
+
+    // A free camera (orbited off the dataset's cameras): the API's view equals `evogs render`
+    // with the camera file the page's "save camera" downloads.
+    let (c, s2) = (0.6f32.cos(), 0.6f32.sin());
+    let rot = [c, 0.0, -s2, 0.0, 1.0, 0.0, s2, 0.0, c];
+    let rot = rot.map(|x| x.to_string()).join(",");
+    let pose = format!("R={rot}&C=1.1,-0.3,-2.5&K=41.5,40.25,18.5,14&w=36&h=30");
+    let saved = v.get(&format!("/api/camera?{pose}"));
+    assert_eq!(saved.status, 200, "{}", saved.text());
+    assert!(
+        saved
+            .header("content-disposition")
+            .is_some_and(|d| d.contains("camera.json"))
+    );
+    let cam_path = f.dir.path().join("camera.json");
+    std::fs::write(&cam_path, &saved.body).unwrap();
+    let read = evogs_io::read_nerfies_camera(&cam_path).unwrap().camera;
+    assert_eq!(
+        (read.width, read.height, read.fx, read.fy),
+        (36, 30, 41.5, 40.25)
+    );
+    assert_eq!((read.cx, read.cy), (18.5, 14.0));
+    assert!((read.center() - glam::Vec3::new(1.1, -0.3, -2.5)).length() < 1e-5);
+    let view = v.get(&format!("/api/render?{pose}&t=0.8&fmt=png")).image();
+    assert_eq!(
+        view,
+        render(&f.run, s(&cam_path), "0.8", None),
+        "free camera view differs from evogs render with the saved camera"
+    );
+    // The view moved: it is not the dataset camera's image at another size.
+    assert_ne!(view.dimensions(), (40, 28));
+
+    // The page's JPEG is the same view within JPEG's loss.
+    let jpeg = v.get(&format!("/api/render?{pose}&t=0.8"));
+    assert_eq!(jpeg.header("content-type"), Some("image/jpeg"));
+    let (mean, _) = diff(&jpeg.image(), &view);
+    assert!(mean < 4.0, "JPEG mean difference {mean}");
+
+    // A dataset camera saved as a file reads back as that camera.
+    let saved = v.get("/api/camera?cam=dataset:test:1");
+    std::fs::write(&cam_path, &saved.body).unwrap();
+    assert_eq!(
+        v.get("/api/render?cam=dataset:test:1&t=0.2&fmt=png")
+            .image(),
+        render(&f.run, s(&cam_path), "0.2", None)
+    );
+
+    // Ground truth: the dataset image at the run's resolution.
+    let gt = v.get("/api/gt?split=test&index=1&fmt=png").image();
+    assert_eq!(gt.dimensions(), (32, 32));
+    let file = f.data.join("test").join("r_001.png");
+    if file.exists() {
+        let (mean, _) = diff(&gt, &image::open(&file).unwrap().to_rgb8());
+        assert!(mean < 40.0, "{mean}");
+    }
+}
+
+#[test]
+fn info_describes_the_run() {
+    let f = fixture();
+    let v = Viewer::start(&[s(&f.run)]);
+    let r = v.get("/api/info");
+    assert_eq!(r.status, 200);
+    assert_eq!(r.header("content-type"), Some("application/json"));
+    let info: serde_json::Value = serde_json::from_slice(&r.body).unwrap();
+    let run = &info["runs"][0];
+    assert_eq!(run["name"], "trained");
+    assert_eq!(run["iteration"], 100);
+    assert!(run["gaussians"].as_u64().unwrap() > 0);
+    assert!(run["method"].is_string() && run["backend"].as_str().unwrap().contains("cpu"));
+    let eval: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(f.run.join("eval_test.json")).unwrap())
+            .unwrap();
+    assert_eq!(run["psnr"]["test"], eval["mean_psnr"]);
+    assert!(run["psnr"].get("train").is_none(), "no eval file, no PSNR");
+    assert_eq!(
+        (run["width"].as_u64(), run["height"].as_u64()),
+        (Some(32), Some(32))
+    );
+    for split in ["train", "test"] {
+        assert!(
+            !run["cameras"][split].as_array().unwrap().is_empty(),
+            "{split}"
+        );
+    }
+    let cam = &run["cameras"]["test"][0];
+    assert_eq!(cam["R"].as_array().unwrap().len(), 9);
+    assert_eq!(cam["K"].as_array().unwrap().len(), 4);
+    // The page and its assets come from the binary, with a policy that forbids other origins.
+    let page = v.get("/");
+    assert_eq!(page.status, 200);
+    assert!(page.text().contains("evogs view"));
+    assert!(
+        page.header("content-security-policy")
+            .is_some_and(|p| p.contains("default-src 'self'"))
+    );
+    for asset in ["/viewer.js", "/viewer.css"] {
+        assert_eq!(v.get(asset).status, 200, "{asset}");
+    }
+    assert!(!page.text().contains("http://") && !page.text().contains("https://"));
+    assert!(!v.get("/viewer.js").text().contains("https://"));
+}
+
+#[test]
+fn hostile_and_malformed_requests_get_4xx_with_a_reason() {
+    let f = fixture();
+    let v = Viewer::start(&[s(&f.run)]);
+    let cases: &[(&str, u16, &str)] = &[
+        ("/api/render?cam=dataset:test:0&t=NaN", 400, "finite"),
+        ("/api/render?cam=dataset:test:0&t=inf", 400, "finite"),
+        ("/api/render?cam=dataset:test:0&w=100000&h=10", 400, "`w`"),
+        (
+            "/api/render?cam=dataset:test:0&w=99999999999999999999",
+            400,
+            "`w`",
+        ),
+        ("/api/render?cam=dataset:dev:0", 400, "unknown split"),
+        ("/api/render?cam=dataset:test:999", 404, "does not exist"),
+        ("/api/render?cam=dataset:test:0&run=1", 400, "`run`"),
+        ("/api/render?cam=/etc/passwd", 400, "not read from requests"),
+        (
+            "/api/render?cam=..%2F..%2Fetc%2Fpasswd",
+            400,
+            "not read from requests",
+        ),
+        (
+            "/api/render?cam=dataset:test:0&file=/etc/passwd",
+            400,
+            "unknown parameter",
+        ),
+        (
+            "/api/render?R=1,0,0,0,1,0,0,0,1&C=0,0,0&K=1,1,0,0&w=8",
+            400,
+            "`w` and `h`",
+        ),
+        (
+            "/api/render?R=1,1,0,0,1,0,0,0,1&C=0,0,0&K=1,1,0,0&w=8&h=8",
+            400,
+            "not a rotation",
+        ),
+        ("/api/render?%ff%fe=1", 400, "unknown parameter"),
+        ("/api/gt?split=test&index=999", 404, "does not exist"),
+        ("/api/gt?split=../../etc&index=0", 400, "split"),
+        (
+            "/api/camera?R=nan,0,0,0,1,0,0,0,1&C=0,0,0&K=1,1,0,0&w=8&h=8",
+            400,
+            "finite",
+        ),
+        ("/../../../etc/passwd", 404, "not found"),
+        ("/%2e%2e/%2e%2e/etc/passwd", 404, "not found"),
+        ("/api/../../Cargo.toml", 404, "not found"),
+        ("/page/index.html", 404, "not found"),
+        ("/api/", 404, "not found"),
+    ];
+    for (path, status, reason) in cases {
+        let r = v.get(path);
+        assert_eq!(r.status, *status, "{path}: {}", r.text());
+        assert!(r.text().contains(reason), "{path}: {}", r.text());
+        assert!(
+            r.text().lines().count() == 1,
+            "{path}: one line: {}",
+            r.text()
+        );
+        assert!(!r.text().contains("root:"), "{path}");
+    }
+    let long = format!("/api/render?cam=dataset:test:0&t={}", "1".repeat(3000));
+    assert_eq!(v.get(&long).status, 400);
+    let port = v.addr.port();
+    let raw: &[(&[u8], u16)] = &[
+        (b"POST /api/info HTTP/1.1\r\nHost: localhost\r\n\r\n", 405),
+        (b"DELETE / HTTP/1.1\r\nHost: localhost\r\n\r\n", 405),
+        (
+            b"GET / HTTP/1.1\r\nHost: localhost\r\nContent-Length: 5\r\n\r\nhello",
+            413,
+        ),
+        (b"GET / HTTP/1.1\r\nHost: evil.example\r\n\r\n", 403),
+        (b"GET / HTTP/1.1\r\n\r\n", 403),
+        (b"\x00\x01\x02 garbage\r\n\r\n", 400),
+        (b"GET / HTTP/1.1\r\nHo st: x\r\n\r\n", 400),
+    ];
+    for (bytes, status) in raw {
+        let r = v.raw(bytes);
+        assert_eq!(
+            r.status,
+            *status,
+            "{:?}: {}",
+            String::from_utf8_lossy(bytes),
+            r.text()
+        );
+    }
+    let huge = format!(
+        "GET / HTTP/1.1\r\nHost: localhost:{port}\r\nX-Pad: {}\r\n\r\n",
+        "a".repeat(40_000)
+    );
+    assert_eq!(v.raw(huge.as_bytes()).status, 431);
+    let r = v.raw(b"GET / HTTP/1.1\r\nHost: localhost\r\n\r\n");
+    assert_eq!(r.status, 200, "a HEAD-less GET with a loopback name works");
+    let r = v.raw(format!("HEAD / HTTP/1.1\r\nHost: [::1]:{port}\r\n\r\n").as_bytes());
+    assert_eq!((r.status, r.body.len()), (200, 0));
+    // Still serving after all of that.
+    assert_eq!(v.get("/api/render?cam=dataset:test:0&w=8&h=8").status, 200);
+}
+
+#[test]
+fn connections_beyond_the_bound_are_refused_at_once() {
+    let f = fixture();
+    let v = Viewer::start(&[s(&f.run)]);
+    let limits = evogs_view::http::Limits::default();
+    // Idle connections occupy every worker and backlog place; the next ones get 503.
+    let idle: Vec<std::net::TcpStream> = (0..limits.workers + limits.backlog + 4)
+        .map(|_| std::net::TcpStream::connect(v.addr).unwrap())
+        .collect();
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    let r = v.get("/api/info");
+    assert_eq!(r.status, 503, "{}", r.text());
+    drop(idle);
+    // Once they close, the workers are free again.
+    let mut status = 0;
+    for _ in 0..50 {
+        status = v.get("/api/info").status;
+        if status == 200 {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    assert_eq!(status, 200);
+}
+
+#[test]
+fn watch_reloads_a_run_whose_files_change() {
+    let f = fixture();
+    let live = f.dir.path().join("live");
+    let early = train_run(f.dir.path(), "early", 1);
+    std::fs::rename(&early, &live).unwrap();
+    let v = Viewer::start(&[s(&live), "--watch"]);
+    let info = |v: &Viewer| -> serde_json::Value {
+        serde_json::from_slice(&v.get("/api/info").body).unwrap()
+    };
+    assert_eq!(info(&v)["runs"][0]["iteration"], 1);
+    let before = v.get("/api/render?cam=dataset:test:0&t=0&fmt=png").image();
+    // "Training goes on": the trained run's files replace the early ones, each atomically.
+    for name in [
+        "canonical.ply",
+        "deform.safetensors",
+        "evo_state.safetensors",
+        "checkpoint.safetensors",
+        "train_metrics.json",
+    ] {
+        let from = f.run.join(name);
+        if from.exists() {
+            let tmp = live.join(format!("{name}.tmp"));
+            std::fs::copy(&from, &tmp).unwrap();
+            std::fs::rename(&tmp, live.join(name)).unwrap();
+        }
+    }
+    let mut now = info(&v);
+    for _ in 0..100 {
+        if now["runs"][0]["version"] == 2 {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+        now = info(&v);
+    }
+    assert_eq!(now["runs"][0]["version"], 2, "{now}");
+    assert_eq!(now["runs"][0]["iteration"], 100);
+    let after = v.get("/api/render?cam=dataset:test:0&t=0&fmt=png");
+    assert_eq!(after.header("x-version"), Some("2"));
+    assert_ne!(
+        after.image(),
+        before,
+        "the reloaded model renders differently"
+    );
+    assert_eq!(
+        after.image(),
+        render(&f.run, "dataset:test:0", "0", None),
+        "the reloaded model is the trained one"
+    );
+    // A broken file does not stop the viewer: the previous model stays, the error is shown.
+    std::fs::write(live.join("canonical.ply"), b"not a ply").unwrap();
+    let mut now = info(&v);
+    for _ in 0..100 {
+        if now["runs"][0]["reload_error"].is_string() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+        now = info(&v);
+    }
+    let err = now["runs"][0]["reload_error"].as_str().unwrap_or_default();
+    assert!(err.contains("canonical.ply"), "{now}");
+    assert_eq!(v.get("/api/render?cam=dataset:test:0&w=8&h=8").status, 200);
+}
+
+#[test]
+fn two_runs_side_by_side_share_camera_and_time() {
+    let f = fixture();
+    let other = train_run(f.dir.path(), "other", 1);
+    let v = Viewer::start(&[s(&f.run), s(&other)]);
+    let info: serde_json::Value = serde_json::from_slice(&v.get("/api/info").body).unwrap();
+    assert_eq!(info["runs"].as_array().unwrap().len(), 2);
+    assert_eq!(info["runs"][1]["name"], "other");
+    let q = "cam=dataset:test:2&t=0.5&fmt=png";
+    let a = v.get(&format!("/api/render?run=0&{q}")).image();
+    let b = v.get(&format!("/api/render?run=1&{q}")).image();
+    assert_eq!(a, render(&f.run, "dataset:test:2", "0.5", None));
+    assert_eq!(b, render(&other, "dataset:test:2", "0.5", None));
+    assert_ne!(a, b);
+    assert_eq!(v.get(&format!("/api/render?run=2&{q}")).status, 400);
+}
+
+#[test]
+fn runs_that_cannot_be_loaded_stop_with_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = evogs(&["view", s(&dir.path().join("missing")), "--port", "0"]);
+    assert!(!o.status.success());
+    let err = stderr(&o);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("missing"), "{err}");
+    // A run directory whose config is damaged: the line names the file.
+    let run = dir.path().join("broken");
+    std::fs::create_dir(&run).unwrap();
+    std::fs::write(run.join("config.json"), b"{\"data\": 3}").unwrap();
+    let o = evogs(&["view", s(&run), "--port", "0"]);
+    let err = stderr(&o);
+    assert!(!o.status.success());
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("config.json"), "{err}");
+    // Three runs are refused by the argument parser.
+    let o = evogs(&["view", "a", "b", "c"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
+
+#[test]
+fn a_non_loopback_host_warns() {
+    assert!(evogs_cli::view_cmd::host_warning("0.0.0.0".parse().unwrap()).is_some());
+    assert!(evogs_cli::view_cmd::host_warning("127.0.0.1".parse().unwrap()).is_none());
+    assert!(evogs_cli::view_cmd::host_warning("::1".parse().unwrap()).is_none());
+}

@@ -1,0 +1,114 @@
+//! A small timed client of a running `evogs view`: asks for `N` views (default 50) of run 0 one
+//! after another, as the page does (one request in flight), each from a camera orbited a little
+//! further around test camera 0's look-at point, and prints views per second with the server's
+//! own render times. Not a test: numbers depend on the machine and its load.
+//!
+//! ```sh
+//! evogs view RUN --port 8080 &
+//! cargo run --release -p evogs-view --example view_client -- 127.0.0.1:8080 50 400 jpeg
+//! ```
+
+use std::io::{Read, Write};
+use std::net::TcpStream;
+use std::time::Instant;
+
+fn get(addr: &str, path: &str) -> (u16, Vec<(String, String)>, Vec<u8>) {
+    let mut s = TcpStream::connect(addr).expect("connect");
+    write!(s, "GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n").expect("write");
+    let mut all = Vec::new();
+    s.read_to_end(&mut all).expect("read");
+    let end = all
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .expect("a response head");
+    let head = String::from_utf8_lossy(&all[..end]).to_string();
+    let mut lines = head.split("\r\n");
+    let status = lines
+        .next()
+        .and_then(|l| l.split(' ').nth(1))
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(0);
+    let headers = lines
+        .filter_map(|l| l.split_once(':'))
+        .map(|(k, v)| (k.trim().to_ascii_lowercase(), v.trim().to_string()))
+        .collect();
+    (status, headers, all[end + 4..].to_vec())
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let addr = args.get(1).map_or("127.0.0.1:8080", String::as_str);
+    let n: usize = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(50);
+    let side: u32 = args.get(3).and_then(|a| a.parse().ok()).unwrap_or(400);
+    let fmt = args.get(4).map_or("jpeg", String::as_str);
+    let (status, _, body) = get(addr, "/api/info");
+    assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+    let info: serde_json::Value = serde_json::from_slice(&body).expect("info JSON");
+    let run = &info["runs"][0];
+    let cams = &run["cameras"]["test"];
+    let cam = if cams.as_array().is_some_and(|c| !c.is_empty()) {
+        &cams[0]
+    } else {
+        &run["cameras"]["train"][0]
+    };
+    let f = |v: &serde_json::Value, k: usize| v[k].as_f64().expect("number") as f32;
+    let rows: Vec<glam::Vec3> = (0..3)
+        .map(|i| {
+            glam::Vec3::new(
+                f(&cam["R"], 3 * i),
+                f(&cam["R"], 3 * i + 1),
+                f(&cam["R"], 3 * i + 2),
+            )
+        })
+        .collect();
+    let centre = glam::Vec3::new(f(&cam["C"], 0), f(&cam["C"], 1), f(&cam["C"], 2));
+    let target = glam::Vec3::new(
+        f(&run["target"], 0),
+        f(&run["target"], 1),
+        f(&run["target"], 2),
+    );
+    let up = glam::Vec3::new(f(&run["up"], 0), f(&run["up"], 1), f(&run["up"], 2)).normalize();
+    let scale = side as f32 / cam["w"].as_f64().expect("w") as f32;
+    let k = [0, 1, 2, 3].map(|i| f(&cam["K"], i) * scale);
+    println!(
+        "{} ({} Gaussians, backend {}): {n} views of {side}x{side} as {fmt}",
+        run["name"], run["gaussians"], run["backend"]
+    );
+    let mut server_ms = Vec::with_capacity(n);
+    let start = Instant::now();
+    for i in 0..n {
+        let q = glam::Quat::from_axis_angle(up, 0.02 * i as f32);
+        let r: Vec<glam::Vec3> = rows.iter().map(|row| q * *row).collect();
+        let c = target + q * (centre - target);
+        let list = |v: &[f32]| {
+            v.iter()
+                .map(|x| x.to_string())
+                .collect::<Vec<_>>()
+                .join(",")
+        };
+        let rot: Vec<f32> = r.iter().flat_map(|v| v.to_array()).collect();
+        let t = i as f32 / n as f32;
+        let path = format!(
+            "/api/render?R={}&C={}&K={}&w={side}&h={side}&t={t}&fmt={fmt}",
+            list(&rot),
+            list(&c.to_array()),
+            list(&k)
+        );
+        let (status, headers, body) = get(addr, &path);
+        assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+        if let Some((_, ms)) = headers.iter().find(|(k, _)| k == "x-render-ms") {
+            server_ms.push(ms.parse::<f64>().unwrap_or(f64::NAN));
+        }
+    }
+    let secs = start.elapsed().as_secs_f64();
+    server_ms.sort_by(f64::total_cmp);
+    let median = server_ms
+        .get(server_ms.len() / 2)
+        .copied()
+        .unwrap_or(f64::NAN);
+    println!(
+        "{:.2} views/s ({:.1} ms per view end to end; server render median {median:.1} ms)",
+        n as f64 / secs,
+        1e3 * secs / n as f64
+    );
+}
