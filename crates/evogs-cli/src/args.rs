@@ -68,8 +68,7 @@ pub enum Command {
     Plot(PlotArgs),
     /// Turn a video (or an image folder) into a dataset: ffmpeg frames, COLMAP poses on the CPU.
     Prepare(crate::prepare_cmd::PrepareArgs),
-    /// Look at a run (or two side by side) in a web browser: orbit, time slider, dataset cameras
-    /// with their ground truth; serves a local page and prints its URL.
+    /// Look at a run, or two side by side, in a web browser (orbit, time slider, ground truth).
     View(crate::view_cmd::ViewArgs),
 }
 

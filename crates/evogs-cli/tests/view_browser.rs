@@ -28,11 +28,16 @@ fn chromium() -> PathBuf {
     path
 }
 
+/// Evaluates `js` in the page; its value comes back through JSON (objects included).
 fn eval(tab: &Tab, js: &str) -> serde_json::Value {
-    tab.evaluate(js, false)
+    let text = tab
+        .evaluate(&format!("JSON.stringify({js})"), false)
         .unwrap_or_else(|e| panic!("{js}: {e}"))
-        .value
-        .unwrap_or(serde_json::Value::Null)
+        .value;
+    match text {
+        Some(serde_json::Value::String(t)) => serde_json::from_str(&t).unwrap(),
+        _ => serde_json::Value::Null,
+    }
 }
 
 fn wait_settled(tab: &Tab) {
@@ -129,7 +134,7 @@ fn the_page_orbits_and_moves_in_time_showing_the_servers_renders() {
         "--disable-component-update",
         "--no-first-run",
         // No name resolves: the page can reach nothing but the viewer's loopback address.
-        "--host-resolver-rules=MAP * ~NOTFOUND",
+        "--host-resolver-rules=MAP * ~NOTFOUND, EXCLUDE 127.0.0.1",
     ]
     .iter()
     .map(OsStr::new)

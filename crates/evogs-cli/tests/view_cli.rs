@@ -274,16 +274,35 @@ fn hostile_and_malformed_requests_get_4xx_with_a_reason() {
 
 #[test]
 fn connections_beyond_the_bound_are_refused_at_once() {
+    use std::io::Read;
     let f = fixture();
     let v = Viewer::start(&[s(&f.run)]);
     let limits = evogs_view::http::Limits::default();
-    // Idle connections occupy every worker and backlog place; the next ones get 503.
-    let idle: Vec<std::net::TcpStream> = (0..limits.workers + limits.backlog + 4)
+    // Idle connections occupy the workers and the backlog; at most `workers + backlog` are held,
+    // every further one is answered 503 and closed at once (not after the read timeout).
+    let extra = 4;
+    let mut idle: Vec<std::net::TcpStream> = (0..limits.workers + limits.backlog + extra)
         .map(|_| std::net::TcpStream::connect(v.addr).unwrap())
         .collect();
-    std::thread::sleep(std::time::Duration::from_millis(300));
-    let r = v.get("/api/info");
-    assert_eq!(r.status, 503, "{}", r.text());
+    let start = std::time::Instant::now();
+    let mut refused = 0;
+    for stream in &mut idle {
+        stream
+            .set_read_timeout(Some(std::time::Duration::from_millis(500)))
+            .unwrap();
+        let mut head = [0u8; 12];
+        if stream.read_exact(&mut head).is_ok() && head.starts_with(b"HTTP/1.1 503") {
+            refused += 1;
+        }
+    }
+    assert!(
+        refused >= extra,
+        "{refused} of the idle connections were refused"
+    );
+    assert!(
+        start.elapsed() < limits.timeout,
+        "the refusals were not immediate"
+    );
     drop(idle);
     // Once they close, the workers are free again.
     let mut status = 0;
