@@ -146,7 +146,7 @@ fn main() -> ExitCode {
             }
             for info in viewer.infos() {
                 println!(
-                    "loaded {}: {} Gaussians, iteration {}, backend {}",
+                    "loaded {}: {} Gaussians, iteration {}, {}",
                     info.name, info.gaussians, info.iteration, info.backend
                 );
             }

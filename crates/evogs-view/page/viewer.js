@@ -133,7 +133,7 @@ function updateStats() {
   const vps = S.done.length / 2;
   const ms = S.lastMs.map((m) => (m == null ? '–' : `${m} ms`)).join(' / ');
   const backend = S.info ? S.info.runs.map((r) => r.backend).join(' | ') : '';
-  $('stats').textContent = `${vps.toFixed(1)} views/s · render ${ms} · backend ${backend}` +
+  $('stats').textContent = `${vps.toFixed(1)} views/s · render ${ms} · ${backend}` +
     (S.error ? ` · ${S.error}` : '');
   S.panes.forEach((p, i) => { p.cap.textContent = caption(i); });
   const sz = size(false);
