@@ -80,7 +80,7 @@ pub struct Viewer {
 impl Viewer {
     /// Starts `evogs view ARGS --port 0` and waits for its URL.
     pub fn start(args: &[&str]) -> Self {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_evogs"))
+        let child = Command::new(env!("CARGO_BIN_EXE_evogs"))
             .arg("view")
             .args(args)
             .args(["--port", "0"])
@@ -88,30 +88,28 @@ impl Viewer {
             .stderr(Stdio::piped())
             .spawn()
             .unwrap();
-        let mut out = BufReader::new(child.stdout.take().unwrap());
-        let mut printed = String::new();
+        // Owned by the viewer from here on, so that it is killed and waited for on every path.
+        let mut viewer = Self {
+            child,
+            addr: SocketAddr::from(([127, 0, 0, 1], 0)),
+            stdout: String::new(),
+        };
+        let mut out = BufReader::new(viewer.child.stdout.take().unwrap());
         loop {
             let mut line = String::new();
             if out.read_line(&mut line).unwrap() == 0 {
                 let mut err = String::new();
-                child
-                    .stderr
-                    .take()
-                    .unwrap()
-                    .read_to_string(&mut err)
-                    .unwrap();
-                panic!("evogs view stopped: {printed}{err}");
+                if let Some(mut e) = viewer.child.stderr.take() {
+                    let _ = e.read_to_string(&mut err);
+                }
+                panic!("evogs view stopped: {}{err}", viewer.stdout);
             }
-            printed.push_str(&line);
+            viewer.stdout.push_str(&line);
             if let Some(url) = line.trim().strip_prefix("viewer at http://") {
-                let addr = url.split('/').next().unwrap().parse().unwrap();
+                viewer.addr = url.split('/').next().unwrap().parse().unwrap();
                 // Keep draining stdout so that the viewer never blocks on a full pipe.
                 std::thread::spawn(move || std::io::copy(&mut out, &mut std::io::sink()));
-                return Self {
-                    child,
-                    addr,
-                    stdout: printed,
-                };
+                return viewer;
             }
         }
     }
