@@ -86,7 +86,7 @@ fn errors(g: &Gaussians, kept: &[usize], back: &Gaussians) -> Errors {
             let b = c * CHUNK_SIZE + j;
             for (k, bits) in [11, 10, 11].into_iter().enumerate() {
                 let tol = |range: f32, bits: u32, v: f32| {
-                    step(range, bits) + 4.0 * f32::EPSILON * v.abs()
+                    step(range, bits) + 4.0 * f32::EPSILON * (v.abs() + range)
                 };
                 let dp = (back.means[b][k] - g.means[i][k]).abs();
                 e.position = e.position.max(dp / tol(p_range[k], bits, g.means[i][k]));
