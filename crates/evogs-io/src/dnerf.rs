@@ -2,7 +2,8 @@
 //! `file_path`, `time` and `transform_matrix` (camera-to-world, OpenGL axes). Cameras are
 //! converted to OpenCV axes by flipping the camera's y and z axes; `fx = fy = 0.5·W /
 //! tan(0.5·camera_angle_x)`, principal point at the image centre. Image sizes come from the
-//! top-level `w`/`h` keys when present, otherwise from each image file's header.
+//! top-level `w`/`h` keys when present, otherwise from each image file's header. The writer of the
+//! same layout is [`write_dnerf_split`] (module [`write`]).
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -14,6 +15,10 @@ use splat_core::Camera;
 use crate::IoError;
 use crate::camera_json::image_side;
 use crate::json_fields::{Fields, ROTATION_TOLERANCE, load_json, rotation_error};
+
+pub mod write;
+
+pub use write::{DnerfImage, dnerf_camera_angle_x, opengl_c2w, write_dnerf_split};
 
 /// A dataset split.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

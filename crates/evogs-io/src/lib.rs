@@ -2,7 +2,8 @@
 //!
 //! What it is: readers and writers for 3DGS PLY files ([`ply`]), the web viewers' `.splat`
 //! ([`splat`]) and PlayCanvas/SuperSplat's compressed PLY ([`compressed_ply`]), nerfies camera
-//! JSON and D-NeRF `transforms_*.json` cameras ([`camera_json`], [`dnerf`]), PNG/JPEG images as
+//! JSON and D-NeRF `transforms_*.json` cameras ([`camera_json`], [`dnerf`]; D-NeRF splits are
+//! written too, [`write_dnerf_split`]), PNG/JPEG images as
 //! f32 RGB ([`image_io`]), and datasets: D-NeRF, nerfies (HyperNeRF, NeRF-DS, [`nerfies`]), Neu3D
 //! ([`neu3d`]), COLMAP ([`colmap`]) and nerfstudio ([`nerfstudio`]) read into one [`Dataset`]
 //! type by [`load_dataset`], which detects the layout ([`detect_format`]), with `.npy` arrays
@@ -42,7 +43,10 @@ pub use dataset::{
     Dataset, Format, Frame, LoadOptions, NerfiesSplit, Normalisation, PointCloud, TimeDenominator,
     detect_format, load_dataset,
 };
-pub use dnerf::{DnerfFrame, Split, read_dnerf_split, read_transforms};
+pub use dnerf::{
+    DnerfFrame, DnerfImage, Split, dnerf_camera_angle_x, opengl_c2w, read_dnerf_split,
+    read_transforms, write_dnerf_split,
+};
 pub use error::IoError;
 pub use frame_time::TimeFrom;
 pub use image_io::{ImageRgb, load_image, load_view, resize_image, save_png};

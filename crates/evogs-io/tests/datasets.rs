@@ -12,7 +12,7 @@ use evogs_io::colmap::{
 use evogs_io::npy::encode_npy;
 use evogs_io::{
     CameraInfo, Dataset, Format, Frame, ImageRgb, LoadOptions, NerfiesSplit, TimeDenominator,
-    TimeFrom, detect_format, load_dataset, load_image, save_png, write_nerfies_camera,
+    TimeFrom, detect_format, load_dataset, load_image, opengl_c2w, save_png, write_nerfies_camera,
 };
 use glam::{DMat3, DQuat, Vec3};
 use splat_core::Camera;
@@ -101,16 +101,6 @@ fn write_dnerf(dir: &Path) {
             json.to_string(),
         );
     }
-}
-
-/// The c2w matrix of a camera in OpenGL axes: columns x, −y, −z of the camera, then the centre.
-fn opengl_c2w(cam: &Camera) -> Vec<[f32; 4]> {
-    let r = cam.rotation;
-    let centre = cam.center();
-    (0..3)
-        .map(|i| [r.row(0)[i], -r.row(1)[i], -r.row(2)[i], centre[i]])
-        .chain([[0.0, 0.0, 0.0, 1.0]])
-        .collect()
 }
 
 /// nerfstudio: shared `w`, `h`, `cx`; per-frame `fl_x`, `fl_y`, `cy`; `time` = k / (TIMES − 1)

@@ -1,11 +1,16 @@
 //! D-NeRF datasets: real lego frames (the fixture `tests/data/dnerf-lego`: counts, sizes, camera
-//! geometry) and errors naming the file and field for broken datasets.
+//! geometry), errors naming the file and field for broken datasets, and the writer read back by
+//! the reader.
 
 use std::path::{Path, PathBuf};
 
 use evogs_io::dnerf::camera_from_opengl_c2w;
-use evogs_io::{IoError, Split, read_dnerf_split, read_transforms};
+use evogs_io::{
+    DnerfImage, IoError, Split, dnerf_camera_angle_x, load_image, opengl_c2w, read_dnerf_split,
+    read_transforms, write_dnerf_split,
+};
 use glam::Vec3;
+use splat_core::Camera;
 
 /// Seven real lego frames at 100×100 (see `tests/data/README.md`).
 fn lego() -> PathBuf {
@@ -216,4 +221,108 @@ fn broken_datasets_name_the_file_and_field() {
     // A split whose file is absent names that file.
     let err = read_dnerf_split(dir.path(), Split::Val).unwrap_err();
     assert!(err.to_string().contains("transforms_val.json"), "{err}");
+}
+
+/// A `w×h` image whose pixels vary in colour and opacity (fully transparent in one corner), as
+/// premultiplied colour and alpha.
+fn test_pixels(w: u32, h: u32, seed: u32) -> (Vec<[f32; 3]>, Vec<f32>) {
+    let (mut color, mut alpha) = (Vec::new(), Vec::new());
+    for y in 0..h {
+        for x in 0..w {
+            let a = if x + y == 0 {
+                0.0
+            } else {
+                (x + seed) as f32 / (w + seed) as f32
+            };
+            let straight = [
+                x as f32 / w as f32,
+                y as f32 / h as f32,
+                ((x * y + seed) % 7) as f32 / 6.0,
+            ];
+            color.push(straight.map(|c| c * a));
+            alpha.push(a);
+        }
+    }
+    (color, alpha)
+}
+
+#[test]
+fn written_split_reads_back_with_the_same_cameras_times_and_pixels() {
+    let (w, h) = (12, 8);
+    let cameras = [
+        Camera::look_at(w, h, 0.9, Vec3::new(3.0, 1.0, 2.0), Vec3::ZERO, Vec3::Z),
+        Camera::look_at(w, h, 0.9, Vec3::new(-1.0, -4.0, 0.5), Vec3::ZERO, Vec3::Z),
+    ];
+    let pixels = [test_pixels(w, h, 1), test_pixels(w, h, 4)];
+    let times = [0.0, 0.75];
+    let images: Vec<DnerfImage<'_>> = (0..2)
+        .map(|i| DnerfImage {
+            time: times[i],
+            camera: &cameras[i],
+            color: &pixels[i].0,
+            alpha: &pixels[i].1,
+        })
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let angle = dnerf_camera_angle_x(&cameras[0]);
+    write_dnerf_split(dir.path(), Split::Val, &images, angle).unwrap();
+    assert!(dir.path().join("val/r_001.png").is_file());
+
+    let frames = read_dnerf_split(dir.path(), Split::Val).unwrap();
+    assert_eq!(frames.len(), 2);
+    let background = [0.2, 0.5, 1.0];
+    for (i, (read, mine)) in frames.iter().zip(&cameras).enumerate() {
+        assert_eq!(read.time, times[i]);
+        assert_eq!((read.camera.width, read.camera.height), (w, h));
+        for (a, b) in [(read.camera.fx, mine.fx), (read.camera.fy, mine.fy)] {
+            assert!((a - b).abs() < 1e-4 * b, "focal {a} vs {b}");
+        }
+        assert!(read.camera.rotation.abs_diff_eq(mine.rotation, 1e-6));
+        assert!(read.camera.translation.abs_diff_eq(mine.translation, 1e-5));
+        // Over a background the PNG gives the premultiplied colour plus b·(1 − α), to 8 bits.
+        let image = load_image(&read.image_path, background).unwrap();
+        let (color, alpha) = &pixels[i];
+        for (p, (c, &a)) in image.pixels.iter().zip(color.iter().zip(alpha)) {
+            for k in 0..3 {
+                let want = c[k] + background[k] * (1.0 - a);
+                assert!((p[k] - want).abs() <= 1.5 / 255.0, "{p:?} vs {c:?}, α {a}");
+            }
+        }
+    }
+}
+
+#[test]
+fn opengl_c2w_inverts_the_readers_conversion() {
+    let camera = Camera::look_at(30, 20, 1.1, Vec3::new(1.0, -2.0, 3.0), Vec3::X, Vec3::Z);
+    let m = opengl_c2w(&camera);
+    assert_eq!(m[3], [0.0, 0.0, 0.0, 1.0]);
+    let back = camera_from_opengl_c2w(
+        &[m[0], m[1], m[2]],
+        30,
+        20,
+        f64::from(camera.fx),
+        f64::from(camera.fy),
+    );
+    assert!(back.rotation.abs_diff_eq(camera.rotation, 1e-6));
+    assert!(back.translation.abs_diff_eq(camera.translation, 1e-5));
+    // The focal length of `camera_angle_x` is the camera's.
+    let focal = 0.5 * 30.0 / (0.5 * dnerf_camera_angle_x(&camera)).tan();
+    assert!((focal - f64::from(camera.fx)).abs() < 1e-9 * focal);
+}
+
+#[test]
+fn writing_pixels_of_the_wrong_size_names_the_image() {
+    let camera = Camera::look_at(4, 4, 0.9, Vec3::new(0.0, -3.0, 0.0), Vec3::ZERO, Vec3::Z);
+    let (color, alpha) = test_pixels(4, 3, 0);
+    let image = DnerfImage {
+        time: 0.5,
+        camera: &camera,
+        color: &color,
+        alpha: &alpha,
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let err = write_dnerf_split(dir.path(), Split::Train, &[image], 0.9).unwrap_err();
+    assert!(matches!(err, IoError::InvalidData { .. }), "{err}");
+    assert!(err.to_string().contains("r_000.png"), "{err}");
+    assert!(!dir.path().join("transforms_train.json").exists());
 }

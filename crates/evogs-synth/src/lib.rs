@@ -40,7 +40,6 @@ mod scene;
 mod summary;
 mod write;
 
-pub use cameras::{dnerf_camera_angle_x, opengl_c2w};
 pub use effects::{AppearanceChange, Jump, LargeMotion, Occlusion, RigidMotion, Wave};
 pub use embedded::embedded_scene;
 pub use error::SynthError;

@@ -1,4 +1,5 @@
-//! Writing a scene in the D-NeRF layout, with its ground truth.
+//! Writing a scene in the D-NeRF layout (the splits through `evogs_io::write_dnerf_split`), with
+//! its ground truth.
 //!
 //! ```text
 //! DIR/transforms_{train,test,val}.json   camera_angle_x; frames: file_path, time, transform_matrix
@@ -19,13 +20,11 @@ use std::io::Write;
 use std::path::Path;
 
 use evogs_io::atomic::write_atomically;
-use evogs_io::image_io::to_u8;
-use evogs_io::{IoError, Split, write_ply};
+use evogs_io::{DnerfImage, IoError, Split, dnerf_camera_angle_x, write_dnerf_split, write_ply};
 use safetensors::{Dtype, tensor::TensorView};
 use serde_json::json;
 
-use super::cameras::{dnerf_camera_angle_x, opengl_c2w};
-use super::{Part, SceneSummary, SynthError, SynthFrame, SyntheticScene};
+use super::{Part, SceneSummary, SynthError, SyntheticScene};
 
 /// File name of the canonical Gaussians.
 pub const PLY_FILE: &str = "canonical.ply";
@@ -46,31 +45,6 @@ fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), SynthError> {
     Ok(())
 }
 
-fn encode_rgba(path: &Path, frame: &SynthFrame) -> Result<Vec<u8>, SynthError> {
-    let (w, h) = (frame.camera.width, frame.camera.height);
-    let mut bytes = Vec::with_capacity(frame.alpha.len() * 4);
-    for (c, &a) in frame.color.iter().zip(&frame.alpha) {
-        let straight = |v: f32| if a > 1e-6 { v / a } else { 0.0 };
-        bytes.extend([
-            to_u8(straight(c[0])),
-            to_u8(straight(c[1])),
-            to_u8(straight(c[2])),
-            to_u8(a),
-        ]);
-    }
-    let encode_error = |problem: String| SynthError::Encode {
-        path: path.to_path_buf(),
-        problem,
-    };
-    let image = image::RgbaImage::from_raw(w, h, bytes)
-        .ok_or_else(|| encode_error("pixel buffer does not match the camera size".into()))?;
-    let mut png = Vec::new();
-    image
-        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .map_err(|e| encode_error(e.to_string()))?;
-    Ok(png)
-}
-
 fn f32_bytes(values: impl IntoIterator<Item = f32>) -> Vec<u8> {
     values.into_iter().flat_map(f32::to_le_bytes).collect()
 }
@@ -80,31 +54,21 @@ pub fn write_dnerf(scene: &SyntheticScene, dir: &Path) -> Result<(), SynthError>
     std::fs::create_dir_all(dir).map_err(|e| io_error(dir, e))?;
     for split in Split::ALL {
         let frames = scene.split(split);
-        let sub = dir.join(split.name());
-        std::fs::create_dir_all(&sub).map_err(|e| io_error(&sub, e))?;
-        let mut entries = Vec::with_capacity(frames.len());
-        for (i, frame) in frames.iter().enumerate() {
-            let stem = format!("r_{i:03}");
-            let path = sub.join(format!("{stem}.png"));
-            write_bytes(&path, &encode_rgba(&path, frame)?)?;
-            entries.push(json!({
-                "file_path": format!("./{}/{stem}", split.name()),
-                "time": frame.time,
-                "transform_matrix": opengl_c2w(&frame.camera),
-            }));
-        }
+        let images: Vec<DnerfImage<'_>> = frames
+            .iter()
+            .map(|f| DnerfImage {
+                time: f.time,
+                camera: &f.camera,
+                color: &f.color,
+                alpha: &f.alpha,
+            })
+            .collect();
         let angle = frames
             .first()
             .map_or(f64::from(scene.spec.camera_angle_x), |f| {
                 dnerf_camera_angle_x(&f.camera)
             });
-        let doc = json!({ "camera_angle_x": angle, "frames": entries });
-        let path = split.transforms_path(dir);
-        let text = serde_json::to_string_pretty(&doc).map_err(|e| SynthError::Encode {
-            path: path.clone(),
-            problem: e.to_string(),
-        })?;
-        write_bytes(&path, text.as_bytes())?;
+        write_dnerf_split(dir, split, &images, angle)?;
     }
 
     write_ply(&dir.join(PLY_FILE), scene.canonical.view())?;
