@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use clap::builder::PossibleValue;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use evogs_io::TimeFrom;
-use evogs_train::camera_path::CameraSpec;
+use evogs_video::camera_path::CameraSpec;
 use splat_raster::BackendChoice;
 
 /// A time rule as a command-line value; names and help come from the library.

@@ -126,7 +126,7 @@ pub fn run_demo(args: &DemoArgs) -> Result<(u64, Vec<DemoRow>)> {
             &RenderArgs {
                 ply: None,
                 run: Some(out.clone()),
-                camera: Some(evogs_train::camera_path::CameraSpec::File(camera.clone())),
+                camera: Some(evogs_video::camera_path::CameraSpec::File(camera.clone())),
                 time: None,
                 sweep: Some(8),
                 out: out.join("sweep"),

@@ -134,7 +134,7 @@ fn main() -> ExitCode {
                 .out
                 .clone()
                 .unwrap_or_else(|| args.run.join("train_log.png"));
-            evogs_train::train_plot::plot_run(&args.run, &out)
+            evogs_experiments::train_plot::plot_run(&args.run, &out)
                 .map(|n| println!("plotted {n} log lines; wrote {}", out.display()))
                 .map_err(anyhow::Error::from)
         }

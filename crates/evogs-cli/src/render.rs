@@ -6,7 +6,7 @@ use anyhow::{Context, Result, bail};
 use evogs_io::{ImageRgb, read_nerfies_camera, read_ply, save_png};
 use splat_raster::{Camera, Gaussians, RenderOptions, select_rasterizer};
 
-use evogs_train::camera_path::CameraSpec;
+use evogs_video::camera_path::CameraSpec;
 
 use crate::args::RenderArgs;
 use crate::demo_scene;
@@ -30,7 +30,7 @@ pub struct RenderReport {
     pub height: u32,
 }
 
-pub use evogs_train::camera_path::resize_camera;
+pub use evogs_video::camera_path::resize_camera;
 
 pub(crate) fn check_output_name(out: &Path) -> Result<()> {
     let is_png = out

@@ -6,8 +6,8 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use evogs_io::read_nerfies_camera;
 use evogs_train::LoadedRun;
-use evogs_train::camera_path::{CameraSpec, dataset_camera};
 use evogs_train::render::{render_at, sweep};
+use evogs_video::camera_path::{CameraSpec, dataset_camera};
 use splat_raster::Camera;
 
 use crate::args::RenderArgs;

@@ -9,7 +9,7 @@ use clap::Args;
 use evogs_io::VideoWriter;
 use evogs_train::LoadedRun;
 use evogs_train::render::render_at;
-use evogs_train::video::{PathSpec, TimeSpec, plan_frames, side_by_side};
+use evogs_video::video::{PathSpec, TimeSpec, plan_frames, side_by_side};
 use indicatif::{ProgressBar, ProgressStyle};
 use splat_raster::BackendChoice;
 
@@ -142,7 +142,7 @@ pub fn run_video(args: &VideoArgs) -> Result<VideoReport> {
     let (width, height) = match other {
         Some(_) => (
             2 * first.width,
-            first.height + evogs_train::video::LABEL_BAR,
+            first.height + evogs_video::video::LABEL_BAR,
         ),
         None => (first.width, first.height),
     };

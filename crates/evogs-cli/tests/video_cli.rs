@@ -10,7 +10,7 @@ use std::process::{Command, Output};
 
 use evogs_io::{CameraInfo, write_nerfies_camera};
 use evogs_train::LoadedRun;
-use evogs_train::video::{LABEL_BAR, PathSpec, TimeSpec, plan_frames};
+use evogs_video::video::{LABEL_BAR, PathSpec, TimeSpec, plan_frames};
 use image::{AnimationDecoder, RgbImage};
 use support::{evogs, s, stderr};
 
@@ -499,7 +499,7 @@ fn exported_sequences_read_back_and_render_within_their_precision() {
     use splat_raster::{CpuRasterizer, Rasterizer, RenderOptions};
     let f = fixture();
     let mut run = LoadedRun::open(&f.run).unwrap();
-    let camera = evogs_train::camera_path::split_cameras(&run, evogs_io::Split::Test).unwrap()[0].0;
+    let camera = evogs_video::camera_path::split_cameras(&run, evogs_io::Split::Test).unwrap()[0].0;
     // Mean and largest absolute difference of the two Gaussians' renders (colour in [0, 1]),
     // with SH up to `degree` (all the data's bands with None).
     let render_error = |a: &splat_raster::Gaussians, b: &splat_raster::Gaussians, degree| {

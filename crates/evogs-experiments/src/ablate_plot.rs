@@ -2,7 +2,7 @@
 //! bitmap backend). Text is drawn with the system's sans-serif font; where none can be found the
 //! plot is drawn again without text (points and axes only).
 
-use evogs_train::plotting::{draw_with_fallback, padded_range};
+use crate::plotting::{draw_with_fallback, padded_range};
 use image::RgbImage;
 use plotters::prelude::*;
 

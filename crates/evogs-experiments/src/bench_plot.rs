@@ -3,7 +3,7 @@
 //! (`plotters`, bitmap backend). Text is drawn with the system's sans-serif font; where none can
 //! be found the plot is drawn again without text.
 
-use evogs_train::plotting::{draw_with_fallback, finite_bounds};
+use crate::plotting::{draw_with_fallback, finite_bounds};
 use image::RgbImage;
 use plotters::prelude::*;
 

@@ -5,6 +5,8 @@
 //!   one-method piece `evogs demo` shares;
 //! - [`bench`], [`bench_plot`]: the D-NeRF benchmark (scenes × methods, table with the published
 //!   figures, PSNR-against-time plot, pictures);
+//! - [`train_plot`]: the training plot of `evogs plot` (from `train_log.jsonl`);
+//!   [`plotting`]: what the plots share (text-less fallback, axis ranges);
 //! - [`error`]: [`ExperimentError`], the crate's one error type.
 //!
 //! What it is not: the trainer, the evaluator or a metric. Those are `evogs-train` and
@@ -15,6 +17,8 @@ pub mod ablate_plot;
 pub mod bench;
 pub mod bench_plot;
 pub mod error;
+pub mod plotting;
+pub mod train_plot;
 mod write;
 
 pub use error::ExperimentError;

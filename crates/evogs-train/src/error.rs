@@ -68,14 +68,16 @@ pub enum TrainError {
 }
 
 impl TrainError {
-    pub(crate) fn file(path: impl Into<PathBuf>, problem: impl Into<String>) -> Self {
+    /// A [`TrainError::File`] error: `path` and what is wrong with it.
+    pub fn file(path: impl Into<PathBuf>, problem: impl Into<String>) -> Self {
         Self::File {
             path: path.into(),
             problem: problem.into(),
         }
     }
 
-    pub(crate) fn field(
+    /// A [`TrainError::Field`] error: the file, its field and what is wrong with it.
+    pub fn field(
         path: impl Into<PathBuf>,
         field: impl Into<String>,
         problem: impl Into<String>,
@@ -87,7 +89,8 @@ impl TrainError {
         }
     }
 
-    pub(crate) fn config(field: impl Into<String>, problem: impl Into<String>) -> Self {
+    /// A [`TrainError::Config`] error: the setting and what is wrong with it.
+    pub fn config(field: impl Into<String>, problem: impl Into<String>) -> Self {
         Self::Config {
             field: field.into(),
             problem: problem.into(),

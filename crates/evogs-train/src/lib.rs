@@ -5,16 +5,13 @@
 //!
 //! - [`config`]: the D-3DGS recipe and the presets (`paper`, `cpu`, `tiny`);
 //! - [`backbone`]: the deformation-backbone trait and the D-3DGS backbone;
-//! - [`camera_path`]: video camera paths (orbit, spiral, keyframes) and dataset cameras;
 //! - [`evo_backbone`], [`evo_settings`]: EvoGS (Φ + evo-state + Ψ) and its switches;
 //! - [`state`]: canonical Gaussians, Adam groups and statistics, aligned through densify's plans;
 //! - [`trainer`]: the training loop; [`run`]: run directories, `train` and resume;
 //! - [`checkpoint`]: exact checkpoints; [`eval`], [`render`]: evaluation, rendering, export;
-//! - [`video`]: the frames of a video (path, times) and side-by-side comparisons;
 //! - [`motion_report`]: a diagnostic of EvoGS's motion statistics (speeds and θ by decade);
 //!   [`gain_report`]: K's distribution (overall, moving vs still, per frame);
-//! - [`train_plot`]: the training plot of `evogs plot`; [`plotting`]: what it shares with the
-//!   plots of `evogs-experiments` (text-less fallback, axis ranges).
+//! - [`train_log`]: `train_log.jsonl` (its plot, `evogs plot`, is in `evogs-experiments`).
 //!
 //! The recipe follows Deformable-3D-Gaussians (`ingra14m/Deformable-3D-Gaussians`: `train.py`,
 //! `arguments/__init__.py`, `scene/deform_model.py`, `utils/time_utils.py`) and 3DGS's
@@ -26,12 +23,11 @@
 //! [`evo_settings::TRAINER_MOTION_FLOOR`] for the measurement and the reasoning.
 //!
 //! What it is not: a rasterizer, a network library, a file-format reader, a metrics library, a scene
-//! generator, an experiment (ablation ladder, benchmark) or a command line. Those are
-//! `splat-raster`, `tiny-nn`, `evogs-io`, `evogs-metrics`, `evogs-synth`, `evogs-experiments` and
-//! `evogs-cli`.
+//! generator, an experiment or a plot (ablation ladder, benchmark, training plot), camera paths
+//! and videos, or a command line. Those are `splat-raster`, `tiny-nn`, `evogs-io`,
+//! `evogs-metrics`, `evogs-synth`, `evogs-experiments`, `evogs-video` and `evogs-cli`.
 
 pub mod backbone;
-pub mod camera_path;
 pub mod checkpoint;
 pub mod config;
 pub mod data;
@@ -45,15 +41,12 @@ pub mod hex_backbone;
 pub mod init;
 pub mod memory;
 pub mod motion_report;
-pub mod plotting;
 pub mod render;
 pub mod run;
 pub mod state;
 pub mod timers;
 pub mod train_log;
-pub mod train_plot;
 pub mod trainer;
-pub mod video;
 
 pub use backbone::{Backbone, D3dgsBackbone, DEFORM_DIM, DensifyCues};
 pub use config::{BackboneKind, Background, Method, Preset, TrainConfig};

@@ -1,6 +1,6 @@
-//! `train_log.jsonl` and its plot: a line every `log_every` iterations and at the end of each
-//! process, the lines of a resumed run continue those up to its checkpoint, and `plot_run`
-//! draws them.
+//! `train_log.jsonl`: a line every `log_every` iterations and at the end of each process, and the
+//! lines of a resumed run continue those up to its checkpoint. (Its plot is tested in
+//! `evogs-experiments`.)
 
 mod common;
 
@@ -16,7 +16,7 @@ fn config() -> TrainConfig {
 }
 
 #[test]
-fn log_lines_follow_the_interval_across_a_resume_and_plot() {
+fn log_lines_follow_the_interval_across_a_resume() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("scene");
     common::write_scene(&data);
@@ -57,23 +57,6 @@ fn log_lines_follow_the_interval_across_a_resume_and_plot() {
     }
     // Time accumulates over the two processes.
     assert!(lines.windows(2).all(|w| w[1].seconds >= w[0].seconds));
-
-    let png = dir.path().join("log.png");
-    let n = evogs_train::train_plot::plot_run(&out, &png).unwrap();
-    assert_eq!(n, 4);
-    let image = image::open(&png).unwrap();
-    assert_eq!((image.width(), image.height()), (900, 900));
-    // Something other than the white background was drawn.
-    assert!(image.to_rgb8().pixels().any(|p| p.0 != [255, 255, 255]));
-}
-
-#[test]
-fn plot_of_a_run_without_log_names_the_file() {
-    let dir = tempfile::tempdir().unwrap();
-    let err = evogs_train::train_plot::plot_run(dir.path(), &dir.path().join("x.png"))
-        .unwrap_err()
-        .to_string();
-    assert!(err.contains("train_log.jsonl"), "{err}");
 }
 
 #[test]

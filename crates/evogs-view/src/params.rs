@@ -14,7 +14,7 @@
 use std::collections::HashMap;
 
 use evogs_io::Split;
-use evogs_train::camera_path::CameraSpec;
+use evogs_video::camera_path::CameraSpec;
 use glam::{Mat3, Vec3};
 use splat_raster::Camera;
 

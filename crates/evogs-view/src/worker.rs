@@ -12,10 +12,10 @@ use std::sync::{Arc, PoisonError, RwLock};
 use std::time::{Duration, Instant, SystemTime};
 
 use evogs_io::{Frame, ImageRgb, Split};
-use evogs_train::camera_path::{SceneFit, resize_camera, split_cameras};
 use evogs_train::data::open_dataset;
 use evogs_train::render::render_at;
 use evogs_train::{LoadedRun, TrainError};
+use evogs_video::camera_path::{SceneFit, resize_camera, split_cameras};
 use splat_raster::{BackendChoice, Camera};
 
 use crate::ViewError;

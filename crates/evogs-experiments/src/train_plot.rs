@@ -1,13 +1,15 @@
 //! The training plot of `evogs plot RUN`: loss, training PSNR and Gaussian count against the
-//! iteration, three panels from `train_log.jsonl` ([`crate::train_log`]), drawn with `plotters`
+//! iteration, three panels from `train_log.jsonl` (`evogs_train::train_log`), drawn with `plotters`
 //! (bitmap backend). Text uses the system's sans-serif font; where none can be found the panels
 //! are drawn again without text (curves and axes only), as the ablation plot does.
 
+use evogs_train::RunPaths;
+use evogs_train::train_log::{LogLine, read_log};
 use image::RgbImage;
 use plotters::prelude::*;
 
+use crate::ExperimentError;
 use crate::plotting::{draw_with_fallback, padded_range};
-use crate::train_log::LogLine;
 
 const WIDTH: u32 = 900;
 const HEIGHT: u32 = 900;
@@ -79,15 +81,14 @@ fn draw(lines: &[LogLine], buf: &mut [u8], text: bool) -> Result<(), String> {
 
 /// Draws the run's `train_log.jsonl` into `out` (PNG, written atomically); returns the number
 /// of lines plotted. Errors name the file.
-pub fn plot_run(run: &std::path::Path, out: &std::path::Path) -> Result<usize, crate::TrainError> {
-    use crate::TrainError;
-    let log = crate::RunPaths::new(run).train_log();
-    let lines = crate::train_log::read_log(&log)?;
+pub fn plot_run(run: &std::path::Path, out: &std::path::Path) -> Result<usize, ExperimentError> {
+    let log = RunPaths::new(run).train_log();
+    let lines = read_log(&log)?;
     if lines.is_empty() {
-        return Err(TrainError::file(&log, "no lines to plot"));
+        return Err(ExperimentError::output(&log, "no lines to plot"));
     }
-    let image =
-        plot(&lines).map_err(|problem| TrainError::file(out, format!("plotting: {problem}")))?;
+    let image = plot(&lines)
+        .map_err(|problem| ExperimentError::output(out, format!("plotting: {problem}")))?;
     evogs_io::image_io::save_rgb8_png(out, &image)?;
     Ok(lines.len())
 }

@@ -12,7 +12,7 @@
 //! training range [0, 1]; replays: the interpolated keyframe times), `T` freezes it ("bullet time"), `A:B` runs
 //! evenly from A to B (A ≤ B, both finite).
 //!
-//! What it is not: a renderer ([`crate::render::render_at`] renders each frame) or an encoder
+//! What it is not: a renderer ([`evogs_train::render::render_at`] renders each frame) or an encoder
 //! (`evogs_io::VideoWriter`).
 
 use std::fmt;
@@ -20,13 +20,13 @@ use std::path::PathBuf;
 use std::str::FromStr;
 
 use evogs_io::{ImageRgb, Split, read_camera_path};
+use evogs_train::TrainError;
+use evogs_train::run::LoadedRun;
 use splat_raster::Camera;
 
 use crate::camera_path::{
     CameraSpec, Keyframes, SceneFit, dataset_camera, orbit, spiral, split_cameras,
 };
-use crate::error::TrainError;
-use crate::run::LoadedRun;
 
 /// Frames of an orbit or a spiral when no count is given.
 pub const DEFAULT_FRAMES: usize = 60;
