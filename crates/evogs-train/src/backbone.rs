@@ -4,10 +4,11 @@
 //! `[position 3, rotation 4, scale 3, opacity 1, colour 3]` added to the raw mean, raw
 //! quaternion, log-scale, opacity logit and SH DC ([`DEFORM_DIM`]). The appearance columns are
 //! used only where the backbone says so ([`Backbone::appearance`]; EvoGS's optional components);
-//! D-3DGS deforms geometry only and leaves them zero. It keeps what its backward pass needs from the last forward, exposes its
-//! parameter buffers (for Adam, checkpoints and weight files) and, when it holds per-Gaussian
-//! rows of its own (EvoGS's evolution state, issue T2), hands them to densification so they
-//! stay aligned with the Gaussians.
+//! D-3DGS deforms geometry only and leaves them zero. It keeps what its backward pass needs from
+//! the last forward and exposes its parameter buffers (for Adam, checkpoints and weight files):
+//! that is the whole of [`Backbone`]. When it holds per-Gaussian rows of its own (EvoGS's
+//! evolution state) it also implements [`PerGaussianState`], which hands them to densification so
+//! they stay aligned with the Gaussians.
 
 use std::path::Path;
 
@@ -24,7 +25,12 @@ pub const DEFORM_DIM: usize = 14;
 /// The geometric part of a row (position, rotation, scale): D-3DGS's heads.
 pub const GEOMETRY_DIM: usize = 10;
 
-/// A deformation backbone.
+/// A deformation backbone: the core every backbone implements (forward, backward, parameters,
+/// weights). A backbone that keeps per-Gaussian state of its own (EvoGS's evolution state) also
+/// implements [`PerGaussianState`] and returns it from [`Backbone::state`] and
+/// [`Backbone::state_mut`]; one without (D-3DGS, HexPlane) implements nothing more. The trainer
+/// reaches the state through the methods of `dyn Backbone` (`prepare`, `rows_mut`,
+/// `densify_cues`, …), which answer "nothing" for a backbone without state.
 pub trait Backbone: Send {
     /// Short name for messages and files.
     fn name(&self) -> &'static str;
@@ -66,77 +72,10 @@ pub trait Backbone: Send {
         Appearance::default()
     }
 
-    /// Per-Gaussian arrays the backbone holds (none for D-3DGS), for densification plans.
-    fn rows_mut(&mut self) -> Vec<&mut dyn PerGaussian> {
-        Vec::new()
-    }
-
-    /// Sizes the backbone's per-Gaussian state for a run (training frame times, Gaussian count,
-    /// scene extent); called when a trainer is built. Nothing to do for D-3DGS.
-    fn prepare(
-        &mut self,
-        _frame_times: &[f32],
-        _rows: usize,
-        _extent: f32,
-    ) -> Result<(), TrainError> {
-        Ok(())
-    }
-
     /// The backbone's own weighted loss terms of the last backward (EvoGS: λ1 L_sup + λ2 L_prior;
-    /// 0 for D-3DGS).
+    /// HexPlane: its grid regularisers; 0 for D-3DGS).
     fn loss_terms(&self) -> f64 {
         0.0
-    }
-
-    /// Uncertainty cues of the last training step for densification's trigger (none for D-3DGS).
-    fn densify_cues(&self, _extent: f32) -> Result<DensifyCues, TrainError> {
-        Ok(DensifyCues::default())
-    }
-
-    /// Motion statistics (|v1|, |v2|, θ per Gaussian) of the last training step, when it had
-    /// three history frames (none for D-3DGS).
-    fn motion_stats(&self) -> Option<&[evo_state::Stats]> {
-        None
-    }
-
-    /// The last training step of the evolution (its gains, statistics and frame), for the gain
-    /// report (none for D-3DGS).
-    fn latest_step(&self) -> Option<&evo_state::Step> {
-        None
-    }
-
-    /// The latest training step's deformation for deformation-aware densification (none for
-    /// D-3DGS).
-    fn latest_deformation(&self) -> Option<densify::Deformation<'_>> {
-        None
-    }
-
-    /// Statistics of the gain K of the latest training step (EvoGS; none for D-3DGS).
-    fn gain_stats(&self) -> Option<crate::train_log::GainStats> {
-        None
-    }
-
-    /// Bytes of per-Gaussian state the backbone stores (EvoGS's buffer and residual memory; 0
-    /// for D-3DGS).
-    fn state_bytes(&self) -> usize {
-        0
-    }
-
-    /// Rows of the backbone's per-Gaussian state (EvoGS: the evolution state's; `None` for
-    /// D-3DGS), to check alignment with the Gaussians.
-    fn state_rows(&self) -> Option<usize> {
-        None
-    }
-
-    /// Writes the backbone's non-parameter state (EvoGS's evolution state) to `path`; returns
-    /// whether there was any (D-3DGS: none, nothing written).
-    fn save_state(&self, _path: &Path) -> Result<bool, TrainError> {
-        Ok(false)
-    }
-
-    /// Reads the state written by [`Backbone::save_state`] (nothing for D-3DGS).
-    fn load_state(&mut self, _path: &Path) -> Result<(), TrainError> {
-        Ok(())
     }
 
     /// Writes the weights to a safetensors file (atomically).
@@ -144,6 +83,128 @@ pub trait Backbone: Send {
 
     /// Reads weights written by [`Backbone::save`] (same names, dtypes and sizes).
     fn load(&mut self, path: &Path) -> Result<(), TrainError>;
+
+    /// The backbone's per-Gaussian state, when it has one (EvoGS; `None` for D-3DGS).
+    fn state(&self) -> Option<&dyn PerGaussianState> {
+        None
+    }
+
+    /// The same state, mutable.
+    fn state_mut(&mut self) -> Option<&mut dyn PerGaussianState> {
+        None
+    }
+}
+
+/// The optional part of a backbone: per-Gaussian state of its own (EvoGS's evolution state, with
+/// its history, residual memory and last step), kept aligned with the Gaussians through
+/// densification's plans, saved beside the checkpoint, and read by the densification trigger and
+/// the reports.
+pub trait PerGaussianState: Send {
+    /// Sizes the state for a run (training frame times, Gaussian count, scene extent); called
+    /// when a trainer is built.
+    fn prepare(&mut self, frame_times: &[f32], rows: usize, extent: f32) -> Result<(), TrainError>;
+
+    /// The per-Gaussian arrays of the state, for densification plans.
+    fn rows_mut(&mut self) -> Vec<&mut dyn PerGaussian>;
+
+    /// Rows of the state, to check alignment with the Gaussians.
+    fn rows(&self) -> usize;
+
+    /// Bytes the state stores (EvoGS: its buffer and residual memory).
+    fn state_bytes(&self) -> usize;
+
+    /// Uncertainty cues of the last training step for densification's trigger.
+    fn densify_cues(&self, extent: f32) -> Result<DensifyCues, TrainError>;
+
+    /// Motion statistics (|v1|, |v2|, θ per Gaussian) of the last training step, when it had
+    /// three history frames.
+    fn motion_stats(&self) -> Option<&[evo_state::Stats]>;
+
+    /// The last training step of the evolution (its gains, statistics and frame), for the gain
+    /// report.
+    fn latest_step(&self) -> Option<&evo_state::Step>;
+
+    /// The latest training step's deformation for deformation-aware densification.
+    fn latest_deformation(&self) -> Option<densify::Deformation<'_>>;
+
+    /// Statistics of the gain K of the latest training step.
+    fn gain_stats(&self) -> Option<crate::train_log::GainStats>;
+
+    /// Writes the state to `path`.
+    fn save_state(&self, path: &Path) -> Result<(), TrainError>;
+
+    /// Reads the state written by [`PerGaussianState::save_state`].
+    fn load_state(&mut self, path: &Path) -> Result<(), TrainError>;
+}
+
+/// The per-Gaussian state of any backbone, through [`Backbone::state`]: what a backbone without
+/// state answers is said once here ("nothing").
+impl<'a> dyn Backbone + 'a {
+    /// Sizes the state for a run ([`PerGaussianState::prepare`]); nothing to do without state.
+    pub fn prepare(
+        &mut self,
+        frame_times: &[f32],
+        rows: usize,
+        extent: f32,
+    ) -> Result<(), TrainError> {
+        self.state_mut()
+            .map_or(Ok(()), |s| s.prepare(frame_times, rows, extent))
+    }
+
+    /// The state's per-Gaussian arrays (none without state).
+    pub fn rows_mut(&mut self) -> Vec<&mut dyn PerGaussian> {
+        self.state_mut().map_or_else(Vec::new, |s| s.rows_mut())
+    }
+
+    /// Rows of the state (`None` without state), to check alignment with the Gaussians.
+    pub fn state_rows(&self) -> Option<usize> {
+        self.state().map(|s| s.rows())
+    }
+
+    /// Bytes of per-Gaussian state (0 without state).
+    pub fn state_bytes(&self) -> usize {
+        self.state().map_or(0, |s| s.state_bytes())
+    }
+
+    /// Uncertainty cues of the last training step (none without state).
+    pub fn densify_cues(&self, extent: f32) -> Result<DensifyCues, TrainError> {
+        self.state()
+            .map_or_else(|| Ok(DensifyCues::default()), |s| s.densify_cues(extent))
+    }
+
+    /// Motion statistics of the last training step (none without state).
+    pub fn motion_stats(&self) -> Option<&[evo_state::Stats]> {
+        self.state()?.motion_stats()
+    }
+
+    /// The last training step of the evolution (none without state).
+    pub fn latest_step(&self) -> Option<&evo_state::Step> {
+        self.state()?.latest_step()
+    }
+
+    /// The latest training step's deformation (none without state).
+    pub fn latest_deformation(&self) -> Option<densify::Deformation<'_>> {
+        self.state()?.latest_deformation()
+    }
+
+    /// Statistics of the gain K of the latest training step (none without state).
+    pub fn gain_stats(&self) -> Option<crate::train_log::GainStats> {
+        self.state()?.gain_stats()
+    }
+
+    /// Writes the state to `path`; returns whether there was any (without state nothing is
+    /// written).
+    pub fn save_state(&self, path: &Path) -> Result<bool, TrainError> {
+        match self.state() {
+            Some(s) => s.save_state(path).map(|()| true),
+            None => Ok(false),
+        }
+    }
+
+    /// Reads the state written by [`PerGaussianState::save_state`] (nothing without state).
+    pub fn load_state(&mut self, path: &Path) -> Result<(), TrainError> {
+        self.state_mut().map_or(Ok(()), |s| s.load_state(path))
+    }
 }
 
 /// Per-Gaussian uncertainty cues of a training step, for densify's trigger.

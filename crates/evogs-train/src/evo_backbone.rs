@@ -15,8 +15,9 @@
 //!
 //! Parameter buffers: Φ's (`phi.*`), then Ψ's (`psi`), each its own Adam group (Ψ at its own
 //! constant lr, [`EvoSettings::psi_lr`], or the network schedule for older runs). The evolution
-//! state is a per-Gaussian container for densification ([`Backbone::rows_mut`]) and is saved and
-//! loaded whole with evo-state's safetensors format ([`Backbone::save_state`]).
+//! state is the backbone's [`PerGaussianState`]: a per-Gaussian container for densification
+//! ([`PerGaussianState::rows_mut`]), saved and loaded whole with evo-state's safetensors format
+//! ([`PerGaussianState::save_state`]).
 //!
 //! The trainer's deformation rows are N × 14 (position, rotation, scale, opacity, colour); the
 //! evolution layout holds any subset of the components (D <= 14, only enabled ones cost
@@ -32,7 +33,7 @@ use tiny_nn::{
     PlaneCombine, StoreMut, StoreRef, TriPlaneConfig,
 };
 
-use crate::backbone::{Backbone, DEFORM_DIM, DensifyCues};
+use crate::backbone::{Backbone, DEFORM_DIM, DensifyCues, PerGaussianState};
 use crate::config::TrainConfig;
 use crate::deformed::{Appearance, COLOUR_COLUMN, OPACITY_COLUMN};
 use crate::error::TrainError;
@@ -110,7 +111,7 @@ pub struct EvoBackbone {
 
 impl EvoBackbone {
     /// Φ and Ψ for a run, initialised from its seed. The evolution state is sized by
-    /// [`Backbone::prepare`] (or replaced by [`Backbone::load_state`]).
+    /// [`PerGaussianState::prepare`] (or replaced by [`PerGaussianState::load_state`]).
     pub fn new(config: &TrainConfig) -> Result<Self, TrainError> {
         let settings = config.evogs.clone();
         settings.validate()?;
@@ -269,21 +270,6 @@ impl Backbone for EvoBackbone {
         "evogs"
     }
 
-    fn prepare(&mut self, frame_times: &[f32], rows: usize, extent: f32) -> Result<(), TrainError> {
-        if self.ready {
-            return self.check_ready(rows);
-        }
-        let frames = Frames::from_timestamps(frame_times.iter().copied())
-            .map_err(|e| TrainError::config("frames", e.to_string()))?;
-        let psi = self.evo.psi().params();
-        let mut evo =
-            EvoState::new(evo_config(&self.settings, extent), frames, rows, 0).map_err(evo_err)?;
-        evo.psi_mut().set_params(&psi).map_err(evo_err)?;
-        self.evo = evo;
-        self.ready = true;
-        Ok(())
-    }
-
     fn forward(
         &mut self,
         canonical: GaussiansView<'_>,
@@ -413,32 +399,10 @@ impl Backbone for EvoBackbone {
         self.named_params_mut()
     }
 
-    fn rows_mut(&mut self) -> Vec<&mut dyn PerGaussian> {
-        // The kept step becomes stale once rows change.
-        self.training = None;
-        vec![&mut self.evo]
-    }
-
     fn loss_terms(&self) -> f64 {
         self.backward.as_ref().map_or(0.0, |b| {
             self.settings.lambda_sup as f64 * b.losses.sup
                 + self.settings.lambda_prior as f64 * b.losses.prior
-        })
-    }
-
-    fn gain_stats(&self) -> Option<crate::train_log::GainStats> {
-        let t = self.training.as_ref()?;
-        crate::train_log::GainStats::of(t.step.gains(), t.step.rows())
-    }
-
-    fn densify_cues(&self, extent: f32) -> Result<DensifyCues, TrainError> {
-        let Some(t) = &self.training else {
-            return Ok(DensifyCues::default());
-        };
-        let layout = self.settings.components.layout();
-        Ok(DensifyCues {
-            residual_norm: residual_norms(&t.step, &t.z, &layout, extent)?,
-            theta: thetas(&t.step),
         })
     }
 
@@ -465,6 +429,64 @@ impl Backbone for EvoBackbone {
         }
     }
 
+    fn state(&self) -> Option<&dyn PerGaussianState> {
+        Some(self)
+    }
+
+    fn state_mut(&mut self) -> Option<&mut dyn PerGaussianState> {
+        Some(self)
+    }
+
+    fn save(&self, path: &Path) -> Result<(), TrainError> {
+        Ok(tiny_nn::weights::save(path, self)?)
+    }
+
+    fn load(&mut self, path: &Path) -> Result<(), TrainError> {
+        Ok(tiny_nn::weights::load(path, self)?)
+    }
+}
+
+impl PerGaussianState for EvoBackbone {
+    fn prepare(&mut self, frame_times: &[f32], rows: usize, extent: f32) -> Result<(), TrainError> {
+        if self.ready {
+            return self.check_ready(rows);
+        }
+        let frames = Frames::from_timestamps(frame_times.iter().copied())
+            .map_err(|e| TrainError::config("frames", e.to_string()))?;
+        let psi = self.evo.psi().params();
+        let mut evo =
+            EvoState::new(evo_config(&self.settings, extent), frames, rows, 0).map_err(evo_err)?;
+        evo.psi_mut().set_params(&psi).map_err(evo_err)?;
+        self.evo = evo;
+        self.ready = true;
+        Ok(())
+    }
+
+    fn rows_mut(&mut self) -> Vec<&mut dyn PerGaussian> {
+        // The kept step becomes stale once rows change.
+        self.training = None;
+        vec![&mut self.evo]
+    }
+
+    fn rows(&self) -> usize {
+        self.evo.rows()
+    }
+
+    fn state_bytes(&self) -> usize {
+        self.evo.state_bytes()
+    }
+
+    fn densify_cues(&self, extent: f32) -> Result<DensifyCues, TrainError> {
+        let Some(t) = &self.training else {
+            return Ok(DensifyCues::default());
+        };
+        let layout = self.settings.components.layout();
+        Ok(DensifyCues {
+            residual_norm: residual_norms(&t.step, &t.z, &layout, extent)?,
+            theta: thetas(&t.step),
+        })
+    }
+
     fn motion_stats(&self) -> Option<&[evo_state::Stats]> {
         self.training.as_ref().and_then(|t| t.step.stats())
     }
@@ -480,21 +502,17 @@ impl Backbone for EvoBackbone {
         })
     }
 
-    fn state_bytes(&self) -> usize {
-        self.evo.state_bytes()
+    fn gain_stats(&self) -> Option<crate::train_log::GainStats> {
+        let t = self.training.as_ref()?;
+        crate::train_log::GainStats::of(t.step.gains(), t.step.rows())
     }
 
-    fn state_rows(&self) -> Option<usize> {
-        Some(self.evo.rows())
-    }
-
-    fn save_state(&self, path: &Path) -> Result<bool, TrainError> {
+    fn save_state(&self, path: &Path) -> Result<(), TrainError> {
         self.evo.save(path).map_err(|e| match e {
             // The message names the file once.
             EvoError::Io { path, source } => TrainError::io(path, source),
             e => TrainError::file(path, e.to_string()),
-        })?;
-        Ok(true)
+        })
     }
 
     fn load_state(&mut self, path: &Path) -> Result<(), TrainError> {
@@ -524,13 +542,5 @@ impl Backbone for EvoBackbone {
         self.ready = true;
         self.training = None;
         Ok(())
-    }
-
-    fn save(&self, path: &Path) -> Result<(), TrainError> {
-        Ok(tiny_nn::weights::save(path, self)?)
-    }
-
-    fn load(&mut self, path: &Path) -> Result<(), TrainError> {
-        Ok(tiny_nn::weights::load(path, self)?)
     }
 }

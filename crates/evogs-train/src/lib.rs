@@ -4,7 +4,8 @@
 //! through densify's row plans, deformation backbones, losses, schedules, checkpoints).
 //!
 //! - [`config`]: the D-3DGS recipe and the presets (`paper`, `cpu`, `tiny`);
-//! - [`backbone`]: the deformation-backbone trait and the D-3DGS backbone;
+//! - [`backbone`]: the deformation-backbone traits (the core, and the optional per-Gaussian
+//!   state) and the D-3DGS backbone;
 //! - [`evo_backbone`], [`evo_settings`]: EvoGS (Φ + evo-state + Ψ) and its switches;
 //! - [`state`]: canonical Gaussians, Adam groups and statistics, aligned through densify's plans;
 //! - [`trainer`]: the training loop; [`run`]: run directories, `train` and resume;
@@ -48,7 +49,7 @@ pub mod timers;
 pub mod train_log;
 pub mod trainer;
 
-pub use backbone::{Backbone, D3dgsBackbone, DEFORM_DIM, DensifyCues};
+pub use backbone::{Backbone, D3dgsBackbone, DEFORM_DIM, DensifyCues, PerGaussianState};
 pub use config::{BackboneKind, Background, Method, Preset, TrainConfig};
 pub use error::TrainError;
 pub use evo_backbone::EvoBackbone;

@@ -7,7 +7,7 @@
 //! the paths through d̂ (the rendering loss and L_sup; L_prior's d̂ is held at its value: the
 //! stop-gradient).
 
-use evogs_train::backbone::{Backbone, DEFORM_DIM};
+use evogs_train::backbone::{Backbone, DEFORM_DIM, PerGaussianState};
 use evogs_train::{
     Components, EvoBackbone, GainSetting, HistorySetting, Method, Preset, TrainConfig,
 };
