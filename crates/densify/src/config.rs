@@ -5,6 +5,10 @@
 //! `densify_until_iter = 15000`, `densification_interval = 100`, `opacity_reset_interval = 3000`,
 //! `densify_grad_threshold = 0.0002`, `percent_dense = 0.01`, minimum opacity 0.005, screen size
 //! 20 px, world size `0.1 · extent`, split into `N = 2` children of scale `s / (0.8 N)`.
+//!
+//! With the `serde` feature a [`DensifyConfig`] is written as one flat object: the schedule's
+//! four iteration counts, the thresholds, and every other field only where it differs from its
+//! default (so a file that predates a field reads as the default).
 
 use crate::error::DensifyError;
 
@@ -17,6 +21,7 @@ use crate::error::DensifyError;
 /// - opacity is reset when `iteration < until` and either `iteration % opacity_reset_interval == 0`
 ///   or (white background) `iteration == from`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Schedule {
     /// `densify_from_iter` (default 500); densification starts strictly after it.
     pub from: u64,
@@ -27,7 +32,8 @@ pub struct Schedule {
     /// `opacity_reset_interval` (default 3000).
     pub opacity_reset_interval: u64,
     /// The scene is trained on a white background (D-NeRF synthetic): 3DGS then also resets
-    /// opacity at `iteration == from`.
+    /// opacity at `iteration == from`. Recorded only when set.
+    #[cfg_attr(feature = "serde", serde(default, skip_serializing_if = "is_false"))]
     pub white_background: bool,
 }
 
@@ -89,6 +95,7 @@ impl Schedule {
 /// A Gaussian with no residual (or θ) sample in the interval (too little history) passes that
 /// test: there is no evidence of instability.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Trigger {
     /// τ_r, relative to the scene extent.
     pub tau_r: f32,
@@ -108,19 +115,46 @@ impl Default for Trigger {
 /// Every threshold and every policy switch. Each policy is switchable on its own, so every
 /// combination of the ablation table can be expressed.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DensifyConfig {
+    /// When it acts (written flat, beside the thresholds).
+    #[cfg_attr(feature = "serde", serde(flatten))]
     pub schedule: Schedule,
     /// Clone small Gaussians with a large gradient (3DGS).
+    #[cfg_attr(
+        feature = "serde",
+        serde(default = "yes", skip_serializing_if = "is_true")
+    )]
     pub clone: bool,
     /// Split large Gaussians with a large gradient (3DGS).
+    #[cfg_attr(
+        feature = "serde",
+        serde(default = "yes", skip_serializing_if = "is_true")
+    )]
     pub split: bool,
     /// Prune transparent and (after the first reset) too large Gaussians (3DGS).
+    #[cfg_attr(
+        feature = "serde",
+        serde(default = "yes", skip_serializing_if = "is_true")
+    )]
     pub prune: bool,
     /// Reset opacities periodically (3DGS).
+    #[cfg_attr(
+        feature = "serde",
+        serde(default = "yes", skip_serializing_if = "is_true")
+    )]
     pub opacity_reset: bool,
     /// EvoGS's uncertainty-aware trigger, when `Some`.
+    #[cfg_attr(
+        feature = "serde",
+        serde(default, skip_serializing_if = "Option::is_none")
+    )]
     pub trigger: Option<Trigger>,
     /// EvoGS's deformation-aware clone/split with this α (paper: 0.5), when `Some`.
+    #[cfg_attr(
+        feature = "serde",
+        serde(default, skip_serializing_if = "Option::is_none")
+    )]
     pub deformation_alpha: Option<f32>,
     /// Mean NDC gradient norm at or above which a Gaussian is densified (0.0002).
     pub grad_threshold: f32,
@@ -133,15 +167,68 @@ pub struct DensifyConfig {
     /// Max scale above `max_world_fraction · extent` is pruned (0.1).
     pub max_world_fraction: f32,
     /// Children per split (2); each gets scale / (0.8 · children).
+    #[cfg_attr(
+        feature = "serde",
+        serde(
+            default = "default_split_children",
+            skip_serializing_if = "is_default_split_children"
+        )
+    )]
     pub split_children: usize,
     /// Opacity reset value: opacity becomes min(opacity, this) (0.01).
+    #[cfg_attr(
+        feature = "serde",
+        serde(
+            default = "default_reset_opacity",
+            skip_serializing_if = "is_default_reset_opacity"
+        )
+    )]
     pub reset_opacity: f32,
     /// Seed of the split sampling (combined with the iteration).
+    #[cfg_attr(feature = "serde", serde(default, skip_serializing_if = "is_zero"))]
     pub seed: u64,
     /// Densification never grows the count past this (brush's `max_splats`): when the clones and
     /// splits a step wants would exceed it, those with the largest mean gradient go first and
     /// the rest wait (counted in [`crate::PlanSummary::capped`]). `None`: no limit.
+    #[cfg_attr(
+        feature = "serde",
+        serde(default, skip_serializing_if = "Option::is_none")
+    )]
     pub max_gaussians: Option<usize>,
+}
+
+/// serde's defaults and omissions: a field at its default is not written, and reads back as it.
+#[cfg(feature = "serde")]
+fn yes() -> bool {
+    true
+}
+#[cfg(feature = "serde")]
+fn is_true(v: &bool) -> bool {
+    *v
+}
+#[cfg(feature = "serde")]
+fn is_false(v: &bool) -> bool {
+    !*v
+}
+#[cfg(feature = "serde")]
+fn is_zero(v: &u64) -> bool {
+    *v == 0
+}
+#[cfg(feature = "serde")]
+fn default_split_children() -> usize {
+    DensifyConfig::default().split_children
+}
+#[cfg(feature = "serde")]
+fn is_default_split_children(v: &usize) -> bool {
+    *v == default_split_children()
+}
+#[cfg(feature = "serde")]
+fn default_reset_opacity() -> f32 {
+    DensifyConfig::default().reset_opacity
+}
+#[cfg(feature = "serde")]
+fn is_default_reset_opacity(v: &f32) -> bool {
+    *v == default_reset_opacity()
 }
 
 impl Default for DensifyConfig {

@@ -1,12 +1,24 @@
 //! Configuration: which deformation components exist, how the buffer is stored, and the
 //! ablation switches of DESIGN §4.12.
+//!
+//! The switches a user picks ([`Gain`], [`HistoryMode`], [`Storage`], and splat-core's
+//! [`Layout`]) have one command-line spelling each ([`FromStr`] / [`fmt::Display`]) and, with the
+//! `serde` feature, one file spelling (lowercase names; a fixed gain is `{"fixed": k}`).
+
+use std::fmt;
+use std::str::FromStr;
 
 use thiserror::Error;
 
 pub use splat_core::{Component, Layout};
 
-/// Element type of the buffer of corrected states.
+/// Element type of the buffer of corrected states (spelled `f32` / `f16`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "lowercase")
+)]
 pub enum Storage {
     /// 4·D bytes per Gaussian per frame.
     F32,
@@ -24,8 +36,14 @@ impl Storage {
     }
 }
 
-/// How the gain K is chosen once three history frames exist (h = 3).
+/// How the gain K is chosen once three history frames exist (h = 3); spelled `learned` or the
+/// fixed value (`0`, `0.5`, `1`).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "lowercase")
+)]
 pub enum Gain {
     /// K = Ψ(inputs), the EvoGS method.
     Learned,
@@ -35,14 +53,118 @@ pub enum Gain {
     Fixed(f32),
 }
 
-/// Where the history states come from.
+/// Where the history states come from (spelled `buffer` / `requery`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "lowercase")
+)]
 pub enum HistoryMode {
     /// The persistent buffer of corrected states (EvoGS).
     Buffer,
     /// Re-queried from the observation network at the history times ("without buffer"). No
     /// buffer is kept; every frame before the query counts as available.
     Requery,
+}
+
+/// A spelling of a [`Gain`], [`HistoryMode`] or [`Storage`] that names none.
+#[derive(Debug, Error, Clone, PartialEq, Eq)]
+#[error("`{value}`: expected {expected}")]
+pub struct ParseError {
+    /// The spelling given.
+    pub value: String,
+    /// What is accepted.
+    pub expected: &'static str,
+}
+
+impl Storage {
+    /// The spelling: `f32` or `f16`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Storage::F32 => "f32",
+            Storage::F16 => "f16",
+        }
+    }
+}
+
+impl FromStr for Storage {
+    type Err = ParseError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "f32" => Ok(Self::F32),
+            "f16" => Ok(Self::F16),
+            _ => Err(ParseError {
+                value: s.to_string(),
+                expected: "one of f32, f16",
+            }),
+        }
+    }
+}
+
+impl fmt::Display for Storage {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Gain {
+    type Err = ParseError;
+
+    /// `learned`, or a number in [0, 1].
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        if s == "learned" {
+            return Ok(Self::Learned);
+        }
+        match s.parse::<f32>() {
+            Ok(k) if (0.0..=1.0).contains(&k) => Ok(Self::Fixed(k)),
+            _ => Err(ParseError {
+                value: s.to_string(),
+                expected: "`learned` or a number in [0, 1] such as 0, 0.5 or 1",
+            }),
+        }
+    }
+}
+
+impl fmt::Display for Gain {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Learned => f.write_str("learned"),
+            Self::Fixed(k) => write!(f, "{k}"),
+        }
+    }
+}
+
+impl HistoryMode {
+    /// The spelling: `buffer` or `requery`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Buffer => "buffer",
+            Self::Requery => "requery",
+        }
+    }
+}
+
+impl FromStr for HistoryMode {
+    type Err = ParseError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "buffer" => Ok(Self::Buffer),
+            "requery" => Ok(Self::Requery),
+            _ => Err(ParseError {
+                value: s.to_string(),
+                expected: "one of buffer, requery",
+            }),
+        }
+    }
+}
+
+impl fmt::Display for HistoryMode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
 }
 
 /// Configuration of an [`crate::EvoState`].
@@ -223,6 +345,29 @@ mod tests {
             ..EvoConfig::default()
         };
         assert_eq!(off.memory_bytes(150_000, 300), 0);
+    }
+
+    #[test]
+    fn switches_parse_and_print() {
+        assert_eq!("learned".parse::<Gain>().unwrap(), Gain::Learned);
+        assert_eq!("0.5".parse::<Gain>().unwrap(), Gain::Fixed(0.5));
+        assert_eq!(Gain::Fixed(0.0).to_string(), "0");
+        assert_eq!(Gain::Fixed(1.0).to_string(), "1");
+        for bad in ["1.5", "-0.1", "NaN", "psi"] {
+            let e = bad.parse::<Gain>().unwrap_err().to_string();
+            assert!(e.contains("`learned` or a number in [0, 1]"), "{e}");
+        }
+        for h in [HistoryMode::Buffer, HistoryMode::Requery] {
+            assert_eq!(h.to_string().parse::<HistoryMode>().unwrap(), h);
+        }
+        for s in [Storage::F32, Storage::F16] {
+            assert_eq!(s.to_string().parse::<Storage>().unwrap(), s);
+        }
+        assert_eq!(
+            "bf16".parse::<Storage>().unwrap_err().to_string(),
+            "`bf16`: expected one of f32, f16"
+        );
+        assert!("memory".parse::<HistoryMode>().is_err());
     }
 
     #[test]

@@ -93,7 +93,7 @@ pub mod state;
 pub mod step;
 
 pub use buffer::StateBuffer;
-pub use config::{Component, EvoConfig, Gain, HistoryMode, Layout, Storage};
+pub use config::{Component, EvoConfig, Gain, HistoryMode, Layout, ParseError, Storage};
 pub use error::EvoError;
 pub use frames::{Frames, History};
 pub use gain::GainNet;

@@ -26,7 +26,7 @@ pub struct AblateArgs {
 
     /// Training preset for every row.
     #[arg(long, default_value = "cpu", value_name = "cpu|tiny|paper")]
-    pub preset: String,
+    pub preset: Preset,
 
     /// Iterations per row (scales the preset's schedule).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
@@ -50,8 +50,7 @@ pub struct AblateArgs {
 
 /// Runs `evogs ablate`; returns the results (the outputs are written).
 pub fn run_ablate(args: &AblateArgs) -> Result<Vec<AblationResult>> {
-    let preset: Preset = args.preset.parse()?;
-    let mut config = TrainConfig::preset(preset);
+    let mut config = TrainConfig::preset(args.preset);
     if let Some(n) = args.iterations {
         config = config.with_iterations(n);
     }

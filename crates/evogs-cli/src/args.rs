@@ -1,4 +1,5 @@
-//! Command-line arguments (clap derive).
+//! Command-line arguments (clap derive). Every value is parsed once, by clap, into the
+//! library's own type (its `FromStr` or a `ValueEnum` wrapper): the spellings live beside the types.
 
 use std::path::PathBuf;
 
@@ -104,7 +105,7 @@ pub struct TrainArgs {
     /// Deformation method: baseline (D-3DGS) or evogs (EvoGS(D-3DGS): observation network Φ
     /// at half the width, evolution state, gain network Ψ).
     #[arg(long, default_value = "baseline", value_name = "baseline|evogs")]
-    pub method: String,
+    pub method: evogs_train::Method,
 
     /// Deformation backbone: d3dgs (Deformable-3D-Gaussians' MLP) or 4dgs (4DGaussians'
     /// HexPlane field with its regularisers; baseline method only for now).
@@ -114,30 +115,30 @@ pub struct TrainArgs {
     /// EvoGS gain K: learned (Ψ), or fixed at a number in [0, 1] (0 = prior only, 1 =
     /// observation only) [default: learned].
     #[arg(long, value_name = "learned|0|0.5|1")]
-    pub gain: Option<String>,
+    pub gain: Option<evogs_train::Gain>,
 
     /// EvoGS history: from the buffer of corrected states, or re-queried from Φ ("without
     /// buffer") [default: buffer].
     #[arg(long, value_name = "buffer|requery")]
-    pub history: Option<String>,
+    pub history: Option<evogs_train::HistoryMode>,
 
     /// EvoGS densification: standard 3DGS, + uncertainty trigger, + deformation-aware
     /// clone/split [default: trigger+deform].
     #[arg(long, value_name = "standard|trigger|trigger+deform")]
-    pub densify: Option<String>,
+    pub densify: Option<evogs_train::DensifyPolicy>,
 
     /// EvoGS buffer storage [default: f32].
     #[arg(long, value_name = "f32|f16")]
-    pub buffer: Option<String>,
+    pub buffer: Option<evogs_train::Storage>,
 
     /// EvoGS Φ storage precision [default: f32].
     #[arg(long, value_name = "f32|f16")]
-    pub net_precision: Option<String>,
+    pub net_precision: Option<evogs_train::Precision>,
 
     /// EvoGS deformation components, comma-separated [default: pos,rot,scale]; opacity adds
     /// to the opacity logit, colour to the SH DC (EvoGS only; the baseline refuses them).
     #[arg(long, value_name = "pos,rot,scale[,opacity,colour]")]
-    pub components: Option<String>,
+    pub components: Option<evogs_train::Layout>,
 
     /// EvoGS motion floor: below this speed per frame spacing, as a fraction of the scene
     /// extent, a Gaussian counts as still and its angular deviation θ is 0 [default: 1e-3, the
@@ -170,7 +171,7 @@ pub struct TrainArgs {
     /// 2 cores, width 64, 3K iterations), tiny (CI, width 32, 300 iterations), dnerf (the D-NeRF
     /// benchmark at 400×400: 12K iterations, network lr decay not compressed).
     #[arg(long, default_value = "cpu")]
-    pub preset: String,
+    pub preset: evogs_train::Preset,
 
     /// Iterations; the preset's schedule is scaled to this count.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
@@ -193,7 +194,7 @@ pub struct TrainArgs {
 
     /// Background behind the Gaussians and the images' alpha [D-3DGS default for D-NeRF: black].
     #[arg(long, value_name = "white|black")]
-    pub background: Option<String>,
+    pub background: Option<evogs_train::Background>,
 
     /// Rasterizer backend: cpu, wgpu (the GPU through wgpu, any adapter; an error without
     /// one) or auto (wgpu on a hardware GPU, cpu otherwise). Recorded in the run; --resume keeps
@@ -236,7 +237,7 @@ pub struct EvalArgs {
 
     /// Split to evaluate.
     #[arg(long, default_value = "test", value_name = "test|val|train")]
-    pub split: String,
+    pub split: evogs_io::Split,
 
     /// Times of frames whose dataset stores none, instead of the rule the run trained with.
     #[arg(long, value_name = "RULE")]

@@ -31,11 +31,11 @@ pub struct BenchArgs {
         value_delimiter = ',',
         default_value = "baseline,evogs"
     )]
-    pub methods: Vec<String>,
+    pub methods: Vec<Method>,
 
     /// Training preset of every run.
     #[arg(long, default_value = "dnerf", value_name = "dnerf|cpu|tiny|paper")]
-    pub preset: String,
+    pub preset: Preset,
 
     /// Iterations per run (scales the preset's schedule) [default: the preset's].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
@@ -62,19 +62,14 @@ pub struct BenchArgs {
 
 /// Runs `evogs bench`; returns the runs (the outputs are written).
 pub fn run_bench_cmd(args: &BenchArgs) -> Result<Vec<BenchRun>> {
-    let preset: Preset = args.preset.parse()?;
-    let mut config = TrainConfig::preset(preset);
+    let mut config = TrainConfig::preset(args.preset);
     if let Some(n) = args.iterations {
         config = config.with_iterations(n);
     }
     if let Some(s) = args.seed {
         config.seed = s;
     }
-    let methods = args
-        .methods
-        .iter()
-        .map(|m| m.parse::<Method>())
-        .collect::<Result<Vec<_>, _>>()?;
+    let methods = args.methods.clone();
     let request = BenchRequest {
         scenes: args.data.iter().map(|d| BenchScene::from_dir(d)).collect(),
         methods,

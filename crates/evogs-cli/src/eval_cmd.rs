@@ -1,8 +1,7 @@
 //! `evogs eval`: scores a run on a split and writes `eval_<split>.json` and `.md`; says in one
 //! line on stderr when LPIPS weights are missing (and how to install them), and goes on.
 
-use anyhow::{Result, anyhow};
-use evogs_io::Split;
+use anyhow::Result;
 use evogs_metrics::lpips::Backbone;
 use evogs_train::LoadedRun;
 use evogs_train::eval::{EvalLpips, EvalReport, evaluate};
@@ -11,10 +10,7 @@ use crate::args::EvalArgs;
 
 /// Runs `evogs eval`.
 pub fn run_eval(args: &EvalArgs) -> Result<EvalReport> {
-    let split: Split = args
-        .split
-        .parse()
-        .map_err(|e: String| anyhow!("--split: {e}"))?;
+    let split = args.split;
     let mut run = LoadedRun::open(&args.run)?;
     if let Some(t) = args.time_from {
         run.run.train.time_from = t.0;

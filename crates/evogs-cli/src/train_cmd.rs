@@ -6,16 +6,14 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use evogs_train::{Background, Method, Preset, TrainConfig, TrainRequest, TrainSummary, train};
+use evogs_train::{TrainConfig, TrainRequest, TrainSummary, train};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::args::TrainArgs;
 
 /// The settings the flags ask for.
 pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
-    let preset: Preset = args.preset.parse()?;
-    let method: Method = args.method.parse()?;
-    let mut config = TrainConfig::preset(preset);
+    let mut config = TrainConfig::preset(args.preset);
     if let Some(n) = args.iterations {
         config = config.with_iterations(n);
     }
@@ -26,29 +24,29 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
         );
         config.downscale = 1.0 / f;
     }
-    if let Some(b) = &args.background {
-        config.background = b.parse::<Background>()?;
+    if let Some(b) = args.background {
+        config.background = b;
     }
-    config.method = method;
+    config.method = args.method;
     config.backbone = args.backbone;
     let e = &mut config.evogs;
-    if let Some(v) = &args.gain {
-        e.gain = v.parse()?;
+    if let Some(v) = args.gain {
+        e.gain = v;
     }
-    if let Some(v) = &args.history {
-        e.history = v.parse()?;
+    if let Some(v) = args.history {
+        e.history = v;
     }
-    if let Some(v) = &args.densify {
-        e.densify = v.parse()?;
+    if let Some(v) = args.densify {
+        e.densify = v;
     }
-    if let Some(v) = &args.buffer {
-        e.buffer = v.parse()?;
+    if let Some(v) = args.buffer {
+        e.buffer = v;
     }
-    if let Some(v) = &args.net_precision {
-        e.net_precision = v.parse()?;
+    if let Some(v) = args.net_precision {
+        e.net_precision = v;
     }
-    if let Some(v) = &args.components {
-        e.components = v.parse()?;
+    if let Some(v) = args.components {
+        e.components = v;
     }
     if let Some(v) = args.motion_floor {
         e.motion_floor = v;

@@ -5,13 +5,14 @@ use clap::Parser;
 use evogs_cli::train_cmd::config_from_args;
 use evogs_cli::{Cli, Command};
 use evogs_train::{
-    Bits, Components, DensifyPolicy, EvoSettings, GainSetting, HistorySetting, Method, TrainConfig,
+    DensifyPolicy, EvoSettings, Gain, HistoryMode, Layout, Method, Precision, Storage, TrainConfig,
 };
 
 fn config(flags: &[&str]) -> anyhow::Result<TrainConfig> {
-    let mut argv = vec![
-        "evogs", "train", "--data", "d", "--out", "o", "--method", "evogs",
-    ];
+    let mut argv = vec!["evogs", "train", "--data", "d", "--out", "o"];
+    if !flags.contains(&"--method") {
+        argv.extend_from_slice(&["--method", "evogs"]);
+    }
     argv.extend_from_slice(flags);
     let cli = Cli::try_parse_from(argv)?;
     match cli.command {
@@ -22,7 +23,7 @@ fn config(flags: &[&str]) -> anyhow::Result<TrainConfig> {
 
 #[test]
 fn each_switch_reaches_the_config() {
-    let comps = |pos, rot, scale| Components {
+    let comps = |pos, rot, scale| Layout {
         position: pos,
         rotation: rot,
         scale,
@@ -34,32 +35,32 @@ fn each_switch_reaches_the_config() {
         (
             &["--gain", "learned"],
             |e| format!("{:?}", e.gain),
-            format!("{:?}", GainSetting::Learned),
+            format!("{:?}", Gain::Learned),
         ),
         (
             &["--gain", "0"],
             |e| format!("{:?}", e.gain),
-            format!("{:?}", GainSetting::Fixed(0.0)),
+            format!("{:?}", Gain::Fixed(0.0)),
         ),
         (
             &["--gain", "0.5"],
             |e| format!("{:?}", e.gain),
-            format!("{:?}", GainSetting::Fixed(0.5)),
+            format!("{:?}", Gain::Fixed(0.5)),
         ),
         (
             &["--gain", "1"],
             |e| format!("{:?}", e.gain),
-            format!("{:?}", GainSetting::Fixed(1.0)),
+            format!("{:?}", Gain::Fixed(1.0)),
         ),
         (
             &["--history", "buffer"],
             |e| e.history.to_string(),
-            HistorySetting::Buffer.to_string(),
+            HistoryMode::Buffer.to_string(),
         ),
         (
             &["--history", "requery"],
             |e| e.history.to_string(),
-            HistorySetting::Requery.to_string(),
+            HistoryMode::Requery.to_string(),
         ),
         (
             &["--densify", "standard"],
@@ -79,22 +80,22 @@ fn each_switch_reaches_the_config() {
         (
             &["--buffer", "f32"],
             |e| e.buffer.to_string(),
-            Bits::F32.to_string(),
+            Storage::F32.to_string(),
         ),
         (
             &["--buffer", "f16"],
             |e| e.buffer.to_string(),
-            Bits::F16.to_string(),
+            Storage::F16.to_string(),
         ),
         (
             &["--net-precision", "f32"],
             |e| e.net_precision.to_string(),
-            Bits::F32.to_string(),
+            Precision::F32.to_string(),
         ),
         (
             &["--net-precision", "f16"],
             |e| e.net_precision.to_string(),
-            Bits::F16.to_string(),
+            Precision::F16.to_string(),
         ),
         (
             &["--components", "pos,rot,scale"],
@@ -116,7 +117,7 @@ fn each_switch_reaches_the_config() {
             |e| format!("{:?}", e.components),
             format!(
                 "{:?}",
-                Components {
+                Layout {
                     opacity: true,
                     colour: true,
                     ..comps(true, true, true)
@@ -148,15 +149,45 @@ fn each_switch_reaches_the_config() {
 
 #[test]
 fn bad_switch_values_name_the_setting() {
+    // Parsed by clap into the library types: the message names the flag, the value and what the
+    // flag accepts, on one line.
+    for (flags, expected) in [
+        (&["--gain", "2"][..], "a number in [0, 1]"),
+        (&["--gain", "fast"][..], "a number in [0, 1]"),
+        (&["--history", "cache"][..], "buffer, requery"),
+        (
+            &["--densify", "deform"][..],
+            "standard, trigger, trigger+deform",
+        ),
+        (&["--buffer", "f8"][..], "f32, f16"),
+        (&["--net-precision", "bf16"][..], "f32, f16"),
+        (&["--components", "pos,pos"][..], "listed twice"),
+        (
+            &["--components", "velocity"][..],
+            "pos, rot, scale, opacity, colour",
+        ),
+        (&["--preset", "huge"][..], "paper, cpu, tiny or dnerf"),
+        (&["--method", "evo"][..], "baseline or evogs"),
+        (&["--background", "grey"][..], "white or black"),
+    ] {
+        let e = config(flags).unwrap_err();
+        let e = e
+            .downcast_ref::<clap::Error>()
+            .unwrap_or_else(|| panic!("{flags:?}: not refused by clap: {e:#}"));
+        assert_eq!(
+            e.kind(),
+            clap::error::ErrorKind::ValueValidation,
+            "{flags:?}"
+        );
+        let message = e.to_string();
+        let first = message.lines().next().unwrap();
+        assert!(
+            first.contains(flags[0]) && first.contains(flags[1]) && first.contains(expected),
+            "{flags:?}: {message}"
+        );
+    }
+    // Ranges that depend on the setting are checked with the whole config, naming its field.
     for (flags, field) in [
-        (&["--gain", "2"][..], "gain"),
-        (&["--gain", "fast"][..], "gain"),
-        (&["--history", "cache"][..], "history"),
-        (&["--densify", "deform"][..], "densify"),
-        (&["--buffer", "f8"][..], "precision"),
-        (&["--net-precision", "bf16"][..], "precision"),
-        (&["--components", "pos,pos"][..], "components"),
-        (&["--components", "velocity"][..], "components"),
         (&["--motion-floor", "-1"][..], "evogs.motion_floor"),
         (&["--grid-lr-scale", "0"][..], "evogs.grid_lr_scale"),
     ] {

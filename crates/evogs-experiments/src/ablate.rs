@@ -13,7 +13,9 @@ use crate::error::ExperimentError;
 use crate::write::{write_bytes, write_json, write_png};
 use evogs_train::config::{Method, TrainConfig};
 use evogs_train::eval::{EvalLpips, evaluate};
-use evogs_train::evo_settings::{Bits, DensifyPolicy, EvoSettings, GainSetting, HistorySetting};
+use evogs_train::evo_settings::{
+    DensifyPolicy, EvoSettings, Gain, HistoryMode, Precision, Storage,
+};
 use evogs_train::run::{LoadedRun, TrainRequest, train};
 
 /// One row of the ladder: a name and the switches it sets.
@@ -85,7 +87,7 @@ pub fn ladder() -> Vec<LadderRow> {
             "evo-requery",
             "evolution, history re-queried from Φ",
             EvoSettings {
-                history: HistorySetting::Requery,
+                history: HistoryMode::Requery,
                 ..standard.clone()
             },
         ),
@@ -107,7 +109,7 @@ pub fn ladder() -> Vec<LadderRow> {
             "k0",
             "K fixed at 0 (prior only)",
             EvoSettings {
-                gain: GainSetting::Fixed(0.0),
+                gain: Gain::Fixed(0.0),
                 ..full.clone()
             },
         ),
@@ -115,7 +117,7 @@ pub fn ladder() -> Vec<LadderRow> {
             "k0.5",
             "K fixed at 0.5",
             EvoSettings {
-                gain: GainSetting::Fixed(0.5),
+                gain: Gain::Fixed(0.5),
                 ..full.clone()
             },
         ),
@@ -123,7 +125,7 @@ pub fn ladder() -> Vec<LadderRow> {
             "k1",
             "K fixed at 1 (observation only)",
             EvoSettings {
-                gain: GainSetting::Fixed(1.0),
+                gain: Gain::Fixed(1.0),
                 ..full.clone()
             },
         ),
@@ -131,7 +133,7 @@ pub fn ladder() -> Vec<LadderRow> {
             "net-f16",
             "Φ in f16",
             EvoSettings {
-                net_precision: Bits::F16,
+                net_precision: Precision::F16,
                 ..full.clone()
             },
         ),
@@ -139,7 +141,7 @@ pub fn ladder() -> Vec<LadderRow> {
             "buffer-f16",
             "buffer in f16",
             EvoSettings {
-                buffer: Bits::F16,
+                buffer: Storage::F16,
                 ..full
             },
         ),
@@ -428,10 +430,11 @@ mod tests {
     /// buffer).
     #[test]
     fn rows_map_to_their_switches() {
-        use Bits::*;
         use DensifyPolicy::*;
-        use GainSetting::*;
-        use HistorySetting::*;
+        use Gain::*;
+        use HistoryMode::*;
+        use Precision as P;
+        use Storage as S;
         let expected = [
             (
                 "baseline",
@@ -440,8 +443,8 @@ mod tests {
                 Buffer,
                 TriggerDeform,
                 Learned,
-                F32,
-                F32,
+                P::F32,
+                S::F32,
             ),
             (
                 "phi",
@@ -450,8 +453,8 @@ mod tests {
                 Buffer,
                 Standard,
                 Learned,
-                F32,
-                F32,
+                P::F32,
+                S::F32,
             ),
             (
                 "evo-requery",
@@ -460,8 +463,8 @@ mod tests {
                 Requery,
                 Standard,
                 Learned,
-                F32,
-                F32,
+                P::F32,
+                S::F32,
             ),
             (
                 "evo-buffer",
@@ -470,8 +473,8 @@ mod tests {
                 Buffer,
                 Standard,
                 Learned,
-                F32,
-                F32,
+                P::F32,
+                S::F32,
             ),
             (
                 "trigger",
@@ -480,8 +483,8 @@ mod tests {
                 Buffer,
                 Trigger,
                 Learned,
-                F32,
-                F32,
+                P::F32,
+                S::F32,
             ),
             (
                 "full",
@@ -490,8 +493,8 @@ mod tests {
                 Buffer,
                 TriggerDeform,
                 Learned,
-                F32,
-                F32,
+                P::F32,
+                S::F32,
             ),
             (
                 "k0",
@@ -500,8 +503,8 @@ mod tests {
                 Buffer,
                 TriggerDeform,
                 Fixed(0.0),
-                F32,
-                F32,
+                P::F32,
+                S::F32,
             ),
             (
                 "k0.5",
@@ -510,8 +513,8 @@ mod tests {
                 Buffer,
                 TriggerDeform,
                 Fixed(0.5),
-                F32,
-                F32,
+                P::F32,
+                S::F32,
             ),
             (
                 "k1",
@@ -520,8 +523,8 @@ mod tests {
                 Buffer,
                 TriggerDeform,
                 Fixed(1.0),
-                F32,
-                F32,
+                P::F32,
+                S::F32,
             ),
             (
                 "net-f16",
@@ -530,8 +533,8 @@ mod tests {
                 Buffer,
                 TriggerDeform,
                 Learned,
-                F16,
-                F32,
+                P::F16,
+                S::F32,
             ),
             (
                 "buffer-f16",
@@ -540,8 +543,8 @@ mod tests {
                 Buffer,
                 TriggerDeform,
                 Learned,
-                F32,
-                F16,
+                P::F32,
+                S::F16,
             ),
         ];
         let rows = ladder();
@@ -563,8 +566,8 @@ mod tests {
                 history: Buffer,
                 densify: TriggerDeform,
                 gain: Learned,
-                net_precision: F32,
-                buffer: F32,
+                net_precision: P::F32,
+                buffer: S::F32,
                 ..row.evo.clone()
             };
             assert_eq!(rest, EvoSettings::default(), "{name}");

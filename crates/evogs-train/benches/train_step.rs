@@ -8,15 +8,15 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use evogs_io::Split;
 use evogs_synth::{embedded_scene, write_dnerf};
 use evogs_train::data::load_split;
-use evogs_train::{Components, Method, Preset, TrainConfig, Trainer};
+use evogs_train::{Layout, Method, Preset, TrainConfig, Trainer};
 
-fn trainer(method: Method, components: Components, data: &std::path::Path) -> Trainer {
+fn trainer(method: Method, components: Layout, data: &std::path::Path) -> Trainer {
     let mut c = TrainConfig::preset(Preset::Tiny).with_iterations(1_000_000);
     c.method = method;
     c.evogs.components = components;
     c.warm_up = 50;
-    c.densify.from = 999_999;
-    c.densify.until = 1_000_000;
+    c.densify.schedule.from = 999_999;
+    c.densify.schedule.until = 1_000_000;
     let views = load_split(
         data,
         Split::Train,
@@ -37,8 +37,8 @@ fn bench(c: &mut Criterion) {
     let data = dir.path().join("scene");
     write_dnerf(&embedded_scene().unwrap(), &data).unwrap();
     let mut group = c.benchmark_group("train_step_embedded_64x64");
-    let geometry = Components::default();
-    let every: Components = "pos,rot,scale,opacity,colour".parse().unwrap();
+    let geometry = Layout::default();
+    let every: Layout = "pos,rot,scale,opacity,colour".parse().unwrap();
     for (method, components, label) in [
         (Method::Baseline, geometry, ""),
         (Method::Evogs, geometry, ""),

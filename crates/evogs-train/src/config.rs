@@ -32,6 +32,7 @@
 use std::fmt;
 use std::str::FromStr;
 
+use densify::{DensifyConfig, Schedule};
 use serde::{Deserialize, Serialize};
 
 use crate::error::TrainError;
@@ -282,47 +283,23 @@ impl Default for LrSettings {
     }
 }
 
-/// Densification (3DGS adaptive density control) schedule and thresholds.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct DensifySettings {
-    /// Densification starts after this iteration (500).
-    pub from: u64,
-    /// ... and stops before this one (15 000).
-    pub until: u64,
-    /// Every this many iterations (100).
-    pub interval: u64,
-    /// Opacity reset interval (3 000).
-    pub opacity_reset_interval: u64,
-    /// Mean NDC gradient threshold (2e-4).
-    pub grad_threshold: f32,
-    /// Clone/split boundary as a fraction of the extent (0.01).
-    pub percent_dense: f32,
-    /// Prune below this opacity (0.005).
-    pub min_opacity: f32,
-    /// Prune above this screen radius in pixels, after the first reset (20).
-    pub max_screen_radius: f32,
-    /// Prune above this fraction of the extent in world size, after the first reset (0.1).
-    pub max_world_fraction: f32,
-    /// Densification never grows the Gaussians past this count (`--max-gaussians`; brush's
-    /// `max_splats`); none by default. Runs written before it existed read as none.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub max_gaussians: Option<usize>,
-}
-
-impl Default for DensifySettings {
-    fn default() -> Self {
-        Self {
-            from: 500,
-            until: 15_000,
-            interval: 100,
-            opacity_reset_interval: 3_000,
-            grad_threshold: 0.0002,
-            percent_dense: 0.01,
-            min_opacity: 0.005,
-            max_screen_radius: 20.0,
-            max_world_fraction: 0.1,
-            max_gaussians: None,
-        }
+/// 3DGS's densification thresholds with the window `from..until`, every `interval` iterations,
+/// opacity reset every `opacity_reset_interval`.
+fn densify_window(
+    from: u64,
+    until: u64,
+    interval: u64,
+    opacity_reset_interval: u64,
+) -> DensifyConfig {
+    DensifyConfig {
+        schedule: Schedule {
+            from,
+            until,
+            interval,
+            opacity_reset_interval,
+            white_background: false,
+        },
+        ..DensifyConfig::default()
     }
 }
 
@@ -363,8 +340,12 @@ pub struct TrainConfig {
     pub net: NetSettings,
     /// Learning rates.
     pub lr: LrSettings,
-    /// Densification.
-    pub densify: DensifySettings,
+    /// Densification: densify's own configuration (recorded flat: the schedule's iteration
+    /// counts, the thresholds and `max_gaussians`). Its `seed`, `schedule.white_background`,
+    /// `trigger` and `deformation_alpha` are the run's to set (from `seed`, `background`,
+    /// `method` and `evogs.densify`: see [`crate::trainer::densify_config`]) and stay at their
+    /// defaults here ([`TrainConfig::validate`] refuses them).
+    pub densify: DensifyConfig,
     /// A checkpoint is written every this many iterations (and at the end).
     pub checkpoint_every: u64,
     /// A line of `train_log.jsonl` is written every this many iterations (and at the end);
@@ -422,7 +403,7 @@ impl TrainConfig {
             init_half_extent: 1.3,
             net: d3dgs_net,
             lr: LrSettings::default(),
-            densify: DensifySettings::default(),
+            densify: DensifyConfig::default(),
             checkpoint_every: 5_000,
             log_every: default_log_every(),
             evogs: crate::evo_settings::EvoSettings::default(),
@@ -448,13 +429,7 @@ impl TrainConfig {
                     deform_max_steps: 3_000,
                     ..LrSettings::default()
                 },
-                densify: DensifySettings {
-                    from: 250,
-                    until: 2_000,
-                    interval: 100,
-                    opacity_reset_interval: 1_000,
-                    ..DensifySettings::default()
-                },
+                densify: densify_window(250, 2_000, 100, 1_000),
                 checkpoint_every: 500,
                 ..paper
             },
@@ -475,14 +450,8 @@ impl TrainConfig {
                     deform_max_steps: 300,
                     ..LrSettings::default()
                 },
-                densify: DensifySettings {
-                    from: 50,
-                    until: 250,
-                    interval: 25,
-                    // No opacity reset (nor large-Gaussian pruning) in so short a run.
-                    opacity_reset_interval: 100_000,
-                    ..DensifySettings::default()
-                },
+                // No opacity reset (nor large-Gaussian pruning) in so short a run.
+                densify: densify_window(50, 250, 25, 100_000),
                 checkpoint_every: 100,
                 ..paper
             },
@@ -507,14 +476,8 @@ impl TrainConfig {
                     deform_max_steps: 40_000,
                     ..LrSettings::default()
                 },
-                densify: DensifySettings {
-                    // D-3DGS's 500..15 000 of 40 000; interval and reset per step as D-3DGS.
-                    from: 150,
-                    until: 4_500,
-                    interval: 100,
-                    opacity_reset_interval: 3_000,
-                    ..DensifySettings::default()
-                },
+                // D-3DGS's 500..15 000 of 40 000; interval and reset per step as D-3DGS.
+                densify: densify_window(150, 4_500, 100, 3_000),
                 checkpoint_every: 1_000,
                 ..paper
             },
@@ -532,10 +495,11 @@ impl TrainConfig {
         self.sh_interval = scale(self.sh_interval);
         self.lr.position_max_steps = scale(self.lr.position_max_steps);
         self.lr.deform_max_steps = scale(self.lr.deform_max_steps);
-        self.densify.from = scale(self.densify.from);
-        self.densify.until = scale(self.densify.until);
-        self.densify.interval = scale(self.densify.interval);
-        self.densify.opacity_reset_interval = scale(self.densify.opacity_reset_interval);
+        let schedule = &mut self.densify.schedule;
+        schedule.from = scale(schedule.from);
+        schedule.until = scale(schedule.until);
+        schedule.interval = scale(schedule.interval);
+        schedule.opacity_reset_interval = scale(schedule.opacity_reset_interval);
         self.checkpoint_every = scale(self.checkpoint_every);
         self.iterations = iterations;
         self
@@ -552,7 +516,7 @@ impl TrainConfig {
         }
         if self.sh_interval == 0
             || self.checkpoint_every == 0
-            || self.densify.interval == 0
+            || self.densify.schedule.interval == 0
             || self.log_every == 0
         {
             return bad(
@@ -581,6 +545,32 @@ impl TrainConfig {
                         "EvoGS({}) is not implemented yet; --method evogs needs --backbone d3dgs",
                         self.backbone
                     ),
+                ));
+            }
+        }
+        let d = &self.densify;
+        for (field, set_by, is_set) in [
+            ("densify.seed", "seed", d.seed != 0),
+            (
+                "densify.white_background",
+                "background",
+                d.schedule.white_background,
+            ),
+            (
+                "densify.trigger",
+                "method and evogs.densify",
+                d.trigger.is_some(),
+            ),
+            (
+                "densify.deformation_alpha",
+                "method and evogs.densify",
+                d.deformation_alpha.is_some(),
+            ),
+        ] {
+            if is_set {
+                return Err(TrainError::config(
+                    field,
+                    format!("is set by the run from `{set_by}`; leave it out"),
                 ));
             }
         }
@@ -622,7 +612,7 @@ mod tests {
         let c = TrainConfig::preset(Preset::Paper);
         assert_eq!((c.iterations, c.warm_up, c.net.width), (40_000, 3_000, 256));
         assert_eq!(c.lr.position_max_steps, 30_000);
-        assert_eq!(c.densify.until, 15_000);
+        assert_eq!(c.densify.schedule.until, 15_000);
         c.validate().unwrap();
     }
 
@@ -631,9 +621,9 @@ mod tests {
         let c = TrainConfig::preset(Preset::Paper).with_iterations(4_000);
         assert_eq!(c.warm_up, 300);
         assert_eq!(c.sh_interval, 100);
-        assert_eq!(c.densify.from, 50);
-        assert_eq!(c.densify.until, 1_500);
-        assert_eq!(c.densify.interval, 10);
+        assert_eq!(c.densify.schedule.from, 50);
+        assert_eq!(c.densify.schedule.until, 1_500);
+        assert_eq!(c.densify.schedule.interval, 10);
         assert_eq!(c.lr.deform_max_steps, 4_000);
         for p in Preset::ALL {
             TrainConfig::preset(p).validate().unwrap();

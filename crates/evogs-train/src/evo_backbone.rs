@@ -47,12 +47,12 @@ fn evo_err(e: EvoError) -> TrainError {
 /// evo-state's configuration for `settings` in a scene of the given extent.
 pub fn evo_config(settings: &EvoSettings, extent: f32) -> EvoConfig {
     EvoConfig {
-        layout: settings.components.layout(),
-        storage: settings.buffer.storage(),
+        layout: settings.components,
+        storage: settings.buffer,
         extent,
         evolution: settings.evolution,
-        gain: settings.gain.to_gain(),
-        history: settings.history.to_mode(),
+        gain: settings.gain,
+        history: settings.history,
         lambda_sup: settings.lambda_sup,
         lambda_prior: settings.lambda_prior,
         motion_floor: settings.motion_floor,
@@ -77,8 +77,8 @@ pub fn observation_config(config: &TrainConfig) -> ObservationConfig {
         bspline: BSplineConfig::new(s.bspline_controls, s.bspline_width),
         width: (config.net.width / 2).max(1),
         hidden_layers: s.hidden_layers,
-        output: s.components.layout().dim(),
-        precision: s.net_precision.precision(),
+        output: s.components.dim(),
+        precision: s.net_precision,
         seed: config.seed ^ 0xE70_6500,
     }
 }
@@ -125,7 +125,7 @@ impl EvoBackbone {
             config.seed ^ 0x9A1_0000,
         )
         .map_err(evo_err)?;
-        let layout = settings.components.layout();
+        let layout = settings.components;
         let mut deform_from_evo = Vec::with_capacity(layout.dim());
         for (component, range) in layout.components() {
             let base = match component {
@@ -201,10 +201,8 @@ impl EvoBackbone {
     ) -> Result<Vec<(f32, ObservationCache)>, TrainError> {
         let mut caches = Vec::new();
         let result = match self.settings.history {
-            crate::evo_settings::HistorySetting::Buffer => {
-                self.evo.forward_into(time, z, None, step)
-            }
-            crate::evo_settings::HistorySetting::Requery => {
+            evo_state::HistoryMode::Buffer => self.evo.forward_into(time, z, None, step),
+            evo_state::HistoryMode::Requery => {
                 let (phi, positions) = (&self.phi, &self.positions);
                 let n = positions.len() / 3;
                 let mut source =
@@ -480,7 +478,7 @@ impl PerGaussianState for EvoBackbone {
         let Some(t) = &self.training else {
             return Ok(DensifyCues::default());
         };
-        let layout = self.settings.components.layout();
+        let layout = self.settings.components;
         Ok(DensifyCues {
             residual_norm: residual_norms(&t.step, &t.z, &layout, extent)?,
             theta: thetas(&t.step),
@@ -498,7 +496,7 @@ impl PerGaussianState for EvoBackbone {
     fn latest_deformation(&self) -> Option<Deformation<'_>> {
         self.training.as_ref().map(|t| Deformation {
             corrected: t.step.corrected(),
-            layout: self.settings.components.layout(),
+            layout: self.settings.components,
         })
     }
 

@@ -3,11 +3,12 @@
 //!
 //! | setting | spellings | meaning |
 //! |---|---|---|
-//! | [`GainSetting`] | `learned`, or a number in \[0, 1\] (`0`, `0.5`, `1`) | K = Ψ(·), or fixed |
-//! | [`HistorySetting`] | `buffer`, `requery` | history from the buffer, or re-queried from Φ |
+//! | [`Gain`] | `learned`, or a number in \[0, 1\] (`0`, `0.5`, `1`) | K = Ψ(·), or fixed |
+//! | [`HistoryMode`] | `buffer`, `requery` | history from the buffer, or re-queried from Φ |
 //! | [`DensifyPolicy`] | `standard`, `trigger`, `trigger+deform` | 3DGS ADC, + EvoGS trigger, + deformation-aware clone/split |
-//! | [`Bits`] | `f32`, `f16` | buffer storage (`--buffer`) and Φ's storage (`--net-precision`) |
-//! | [`Components`] | `pos,rot,scale[,opacity,colour]` | the deformation components |
+//! | [`Storage`] | `f32`, `f16` | buffer storage (`--buffer`) |
+//! | [`Precision`] | `f32`, `f16` | Φ's storage (`--net-precision`) |
+//! | [`Layout`] | `pos,rot,scale[,opacity,colour]` | the deformation components |
 //!
 //! The motion floor ([`EvoSettings::motion_floor`], `--motion-floor`) is the trainer's own,
 //! 1e-3 of the scene extent per frame spacing instead of evo-state's default 1e-6 (DESIGN §4.7): see
@@ -24,117 +25,15 @@
 use std::fmt;
 use std::str::FromStr;
 
-use evo_state::{Gain, HistoryMode, Layout, Storage};
 use serde::{Deserialize, Serialize};
-use tiny_nn::Precision;
+
+/// The switches' types are the libraries' own, recorded in `config.json` through their `serde`
+/// features: evo-state's gain, history mode and buffer storage, tiny-nn's precision and
+/// splat-core's deformation layout.
+pub use evo_state::{Gain, HistoryMode, Layout, Storage};
+pub use tiny_nn::Precision;
 
 use crate::error::TrainError;
-
-/// How the gain K is chosen once three history frames exist.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum GainSetting {
-    /// K = Ψ([m, |v2|, |v1|, θ]), the method.
-    Learned,
-    /// K fixed (0 = prior only, 1 = observation only).
-    Fixed(f32),
-}
-
-impl GainSetting {
-    /// evo-state's value.
-    pub fn to_gain(self) -> Gain {
-        match self {
-            Self::Learned => Gain::Learned,
-            Self::Fixed(k) => Gain::Fixed(k),
-        }
-    }
-}
-
-impl FromStr for GainSetting {
-    type Err = TrainError;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        if s == "learned" {
-            return Ok(Self::Learned);
-        }
-        match s.parse::<f32>() {
-            Ok(k) if (0.0..=1.0).contains(&k) => Ok(Self::Fixed(k)),
-            _ => Err(TrainError::config(
-                "gain",
-                format!("`{s}`: expected `learned` or a number in [0, 1] such as 0, 0.5 or 1"),
-            )),
-        }
-    }
-}
-
-impl fmt::Display for GainSetting {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::Learned => f.write_str("learned"),
-            Self::Fixed(k) => write!(f, "{k}"),
-        }
-    }
-}
-
-macro_rules! named_enum {
-    ($ty:ident, $field:literal, $( $variant:ident = $name:literal ),+ $(,)?) => {
-        impl $ty {
-            /// Every value, in declaration order.
-            pub const ALL: &'static [$ty] = &[$($ty::$variant),+];
-
-            /// The command-line spelling.
-            pub fn name(self) -> &'static str {
-                match self { $($ty::$variant => $name),+ }
-            }
-        }
-
-        impl FromStr for $ty {
-            type Err = TrainError;
-
-            fn from_str(s: &str) -> Result<Self, Self::Err> {
-                Self::ALL.iter().copied().find(|v| v.name() == s).ok_or_else(|| {
-                    let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
-                    TrainError::config(
-                        $field,
-                        format!("unknown value `{s}`; expected one of {}", names.join(", ")),
-                    )
-                })
-            }
-        }
-
-        impl fmt::Display for $ty {
-            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-                f.write_str(self.name())
-            }
-        }
-    };
-}
-
-/// Where the history states come from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum HistorySetting {
-    /// The persistent buffer of corrected states (EvoGS).
-    Buffer,
-    /// Re-queried from Φ at the history times ("without buffer").
-    Requery,
-}
-named_enum!(
-    HistorySetting,
-    "history",
-    Buffer = "buffer",
-    Requery = "requery"
-);
-
-impl HistorySetting {
-    /// evo-state's value.
-    pub fn to_mode(self) -> HistoryMode {
-        match self {
-            Self::Buffer => HistoryMode::Buffer,
-            Self::Requery => HistoryMode::Requery,
-        }
-    }
-}
 
 /// Densification policy (DESIGN §6).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -149,142 +48,43 @@ pub enum DensifyPolicy {
     #[serde(rename = "trigger+deform")]
     TriggerDeform,
 }
-named_enum!(
-    DensifyPolicy,
-    "densify",
-    Standard = "standard",
-    Trigger = "trigger",
-    TriggerDeform = "trigger+deform",
-);
 
-/// A storage precision.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Bits {
-    /// 32-bit floats.
-    F32,
-    /// 16-bit floats (saturating at ±65504, counted).
-    F16,
-}
-named_enum!(Bits, "precision", F32 = "f32", F16 = "f16");
+impl DensifyPolicy {
+    /// Every value, in declaration order.
+    pub const ALL: &'static [DensifyPolicy] = &[Self::Standard, Self::Trigger, Self::TriggerDeform];
 
-impl Bits {
-    /// As evo-state's buffer storage.
-    pub fn storage(self) -> Storage {
+    /// The command-line spelling (also the file spelling).
+    pub fn name(self) -> &'static str {
         match self {
-            Self::F32 => Storage::F32,
-            Self::F16 => Storage::F16,
-        }
-    }
-
-    /// As tiny-nn's network precision.
-    pub fn precision(self) -> Precision {
-        match self {
-            Self::F32 => Precision::F32,
-            Self::F16 => Precision::F16,
+            Self::Standard => "standard",
+            Self::Trigger => "trigger",
+            Self::TriggerDeform => "trigger+deform",
         }
     }
 }
 
-/// Which deformation components exist.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct Components {
-    /// Mean offset (3).
-    pub position: bool,
-    /// Raw quaternion offset (4).
-    pub rotation: bool,
-    /// Log-scale offset (3).
-    pub scale: bool,
-    /// Opacity logit offset (1).
-    pub opacity: bool,
-    /// SH DC offset (3).
-    pub colour: bool,
-}
-
-impl Default for Components {
-    /// Position, rotation, scale (as D-3DGS).
-    fn default() -> Self {
-        Self::from_layout(Layout::default())
-    }
-}
-
-impl Components {
-    /// evo-state's layout.
-    pub fn layout(self) -> Layout {
-        Layout {
-            position: self.position,
-            rotation: self.rotation,
-            scale: self.scale,
-            opacity: self.opacity,
-            colour: self.colour,
-        }
-    }
-
-    /// From evo-state's layout.
-    pub fn from_layout(l: Layout) -> Self {
-        Self {
-            position: l.position,
-            rotation: l.rotation,
-            scale: l.scale,
-            opacity: l.opacity,
-            colour: l.colour,
-        }
-    }
-}
-
-impl FromStr for Components {
+impl FromStr for DensifyPolicy {
     type Err = TrainError;
 
-    /// A comma-separated list of `pos`/`position`, `rot`/`rotation`, `scale`, `opacity`,
-    /// `colour`/`color`; at least one, none twice.
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let mut c = Self {
-            position: false,
-            rotation: false,
-            scale: false,
-            opacity: false,
-            colour: false,
-        };
-        for part in s.split(',').map(str::trim) {
-            let slot = match part {
-                "pos" | "position" => &mut c.position,
-                "rot" | "rotation" => &mut c.rotation,
-                "scale" => &mut c.scale,
-                "opacity" => &mut c.opacity,
-                "colour" | "color" => &mut c.colour,
-                other => {
-                    return Err(TrainError::config(
-                        "components",
-                        format!(
-                            "unknown component `{other}`; expected a list of pos, rot, scale, \
-                             opacity, colour"
-                        ),
-                    ));
-                }
-            };
-            if *slot {
-                return Err(TrainError::config(
-                    "components",
-                    format!("`{part}` is listed twice"),
-                ));
-            }
-            *slot = true;
-        }
-        Ok(c)
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|v| v.name() == s)
+            .ok_or_else(|| {
+                TrainError::config(
+                    "densify",
+                    format!(
+                        "unknown value `{s}`; expected one of standard, trigger, trigger+deform"
+                    ),
+                )
+            })
     }
 }
 
-impl fmt::Display for Components {
+impl fmt::Display for DensifyPolicy {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let names = [
-            (self.position, "pos"),
-            (self.rotation, "rot"),
-            (self.scale, "scale"),
-            (self.opacity, "opacity"),
-            (self.colour, "colour"),
-        ];
-        let on: Vec<&str> = names.iter().filter(|(b, _)| *b).map(|(_, n)| *n).collect();
-        f.write_str(&on.join(","))
+        f.write_str(self.name())
     }
 }
 
@@ -296,17 +96,17 @@ pub struct EvoSettings {
     #[serde(default = "evolution_on")]
     pub evolution: bool,
     /// `--gain`.
-    pub gain: GainSetting,
+    pub gain: Gain,
     /// `--history`.
-    pub history: HistorySetting,
+    pub history: HistoryMode,
     /// `--densify`.
     pub densify: DensifyPolicy,
     /// `--buffer`: storage of the buffer of corrected states.
-    pub buffer: Bits,
+    pub buffer: Storage,
     /// `--net-precision`: storage of Φ's parameters and activations.
-    pub net_precision: Bits,
+    pub net_precision: Precision,
     /// `--components`.
-    pub components: Components,
+    pub components: Layout,
     /// Φ's tri-plane channels per plane.
     pub triplane_channels: usize,
     /// Φ's tri-plane resolutions.
@@ -395,12 +195,12 @@ impl Default for EvoSettings {
     fn default() -> Self {
         Self {
             evolution: true,
-            gain: GainSetting::Learned,
-            history: HistorySetting::Buffer,
+            gain: Gain::Learned,
+            history: HistoryMode::Buffer,
             densify: DensifyPolicy::TriggerDeform,
-            buffer: Bits::F32,
-            net_precision: Bits::F32,
-            components: Components::default(),
+            buffer: Storage::F32,
+            net_precision: Precision::F32,
+            components: Layout::default(),
             triplane_channels: 8,
             triplane_resolutions: vec![32, 64],
             bspline_controls: 16,
@@ -425,7 +225,7 @@ impl EvoSettings {
                 "at least one component is needed",
             ));
         }
-        if let GainSetting::Fixed(k) = self.gain
+        if let Gain::Fixed(k) = self.gain
             && !(0.0..=1.0).contains(&k)
         {
             return Err(TrainError::config(

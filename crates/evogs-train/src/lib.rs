@@ -53,7 +53,7 @@ pub use backbone::{Backbone, D3dgsBackbone, DEFORM_DIM, DensifyCues, PerGaussian
 pub use config::{BackboneKind, Background, Method, Preset, TrainConfig};
 pub use error::TrainError;
 pub use evo_backbone::EvoBackbone;
-pub use evo_settings::{Bits, Components, DensifyPolicy, EvoSettings, GainSetting, HistorySetting};
+pub use evo_settings::{DensifyPolicy, EvoSettings, Gain, HistoryMode, Layout, Precision, Storage};
 pub use hex_backbone::HexBackbone;
 pub use run::{LoadedRun, RunPaths, TrainRequest, TrainSummary, train};
 pub use trainer::{StepReport, Trainer};

@@ -141,7 +141,7 @@ fn per_row_network(config: &TrainConfig, frames: usize) -> (u64, u64) {
         }
         (Method::Evogs, _) => {
             let s = &config.evogs;
-            let dim = s.components.layout().dim();
+            let dim = s.components.dim();
             let width = (net.width / 2).max(1);
             let planes = 3 * s.triplane_channels * s.triplane_resolutions.len();
             let input = planes + s.bspline_width;
@@ -149,13 +149,10 @@ fn per_row_network(config: &TrainConfig, frames: usize) -> (u64, u64) {
             // The step (prediction, observation, gain, corrected state and their gradients).
             let step = 8 * dim;
             let blocks = match s.history {
-                crate::HistorySetting::Buffer => 2,
-                crate::HistorySetting::Requery => 1,
+                evo_state::HistoryMode::Buffer => 2,
+                evo_state::HistoryMode::Requery => 1,
             };
-            let storage = match s.buffer {
-                crate::Bits::F32 => 4,
-                crate::Bits::F16 => 2,
-            };
+            let storage = s.buffer.bytes();
             let evolution = if s.evolution {
                 (blocks * frames * dim * storage) as u64
             } else {
@@ -214,7 +211,7 @@ pub fn parse_bytes(text: &str) -> Result<u64, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{Bits, HistorySetting, Preset};
+    use crate::{HistoryMode, Preset, Storage};
 
     fn inputs() -> MemoryInputs {
         MemoryInputs {
@@ -247,15 +244,15 @@ mod tests {
     fn the_evolution_buffer_and_memory_grow_with_frames_and_storage() {
         let mut c = TrainConfig::preset(Preset::Cpu);
         c.method = Method::Evogs;
-        let dim = c.evogs.components.layout().dim() as u64;
+        let dim = c.evogs.components.dim() as u64;
         let e = MemoryEstimate::new(&c, &inputs());
         assert_eq!(e.evolution_per_gaussian, 2 * 50 * dim * 4);
-        c.evogs.buffer = Bits::F16;
+        c.evogs.buffer = Storage::F16;
         assert_eq!(
             MemoryEstimate::new(&c, &inputs()).evolution_per_gaussian,
             2 * 50 * dim * 2
         );
-        c.evogs.history = HistorySetting::Requery;
+        c.evogs.history = HistoryMode::Requery;
         assert_eq!(
             MemoryEstimate::new(&c, &inputs()).evolution_per_gaussian,
             50 * dim * 2

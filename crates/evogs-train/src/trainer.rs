@@ -79,7 +79,6 @@ pub fn make_backbone(config: &TrainConfig) -> Result<Box<dyn Backbone>, TrainErr
 /// EvoGS the policy of `evogs.densify` (trigger with densify's default τ_r, τ_θ; deformation-aware
 /// clone/split with α = 0.5, as [`DensifyConfig::evogs`]).
 pub fn densify_config(config: &TrainConfig) -> DensifyConfig {
-    let d = &config.densify;
     let evogs = DensifyConfig::evogs();
     let (trigger, deformation_alpha) = match (config.method, config.evogs.densify) {
         (Method::Baseline, _) | (_, DensifyPolicy::Standard) => (None, None),
@@ -88,22 +87,13 @@ pub fn densify_config(config: &TrainConfig) -> DensifyConfig {
     };
     DensifyConfig {
         schedule: Schedule {
-            from: d.from,
-            until: d.until,
-            interval: d.interval,
-            opacity_reset_interval: d.opacity_reset_interval,
             white_background: config.background == crate::config::Background::White,
+            ..config.densify.schedule
         },
-        grad_threshold: d.grad_threshold,
-        percent_dense: d.percent_dense,
-        min_opacity: d.min_opacity,
-        max_screen_radius: d.max_screen_radius,
-        max_world_fraction: d.max_world_fraction,
-        max_gaussians: d.max_gaussians,
         seed: config.seed,
         trigger,
         deformation_alpha,
-        ..DensifyConfig::default()
+        ..config.densify
     }
 }
 

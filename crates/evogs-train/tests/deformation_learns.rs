@@ -86,9 +86,9 @@ fn config(iterations: u64) -> TrainConfig {
     c.net.init = NetInit::He;
     // Deform from the first iteration, no densification: only the network can move things.
     c.warm_up = 1;
-    c.densify.from = iterations + 1;
-    c.densify.until = iterations + 1;
-    c.densify.opacity_reset_interval = 100 * iterations;
+    c.densify.schedule.from = iterations + 1;
+    c.densify.schedule.until = iterations + 1;
+    c.densify.schedule.opacity_reset_interval = 100 * iterations;
     c
 }
 

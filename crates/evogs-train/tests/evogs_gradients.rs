@@ -8,9 +8,7 @@
 //! stop-gradient).
 
 use evogs_train::backbone::{Backbone, DEFORM_DIM, PerGaussianState};
-use evogs_train::{
-    Components, EvoBackbone, GainSetting, HistorySetting, Method, Preset, TrainConfig,
-};
+use evogs_train::{EvoBackbone, Gain, HistoryMode, Layout, Method, Preset, TrainConfig};
 use splat_raster::Gaussians;
 
 const TIMES: [f32; 5] = [0.0, 0.25, 0.5, 0.75, 1.0];
@@ -40,7 +38,7 @@ fn gaussians(rng: &mut Lcg) -> Gaussians {
     g
 }
 
-fn backbone(gain: GainSetting, components: Components, history: HistorySetting) -> EvoBackbone {
+fn backbone(gain: Gain, components: Layout, history: HistoryMode) -> EvoBackbone {
     let mut c = TrainConfig::preset(Preset::Tiny);
     c.evogs.history = history;
     c.method = Method::Evogs;
@@ -103,9 +101,9 @@ fn loss_with_prior(
 
 /// Randomises Φ's parameters (its output layer starts at zero) and commits frames 0..3.
 fn setup(
-    gain: GainSetting,
-    components: Components,
-    history: HistorySetting,
+    gain: Gain,
+    components: Layout,
+    history: HistoryMode,
     seed: u64,
 ) -> (EvoBackbone, Gaussians, Vec<f32>) {
     let mut rng = Lcg(seed);
@@ -128,14 +126,14 @@ fn setup(
     (b, g, w)
 }
 
-fn check(gain: GainSetting, components: Components, buffers: &dyn Fn(&str) -> bool) {
-    check_history(gain, components, HistorySetting::Buffer, buffers);
+fn check(gain: Gain, components: Layout, buffers: &dyn Fn(&str) -> bool) {
+    check_history(gain, components, HistoryMode::Buffer, buffers);
 }
 
 fn check_history(
-    gain: GainSetting,
-    components: Components,
-    history: HistorySetting,
+    gain: Gain,
+    components: Layout,
+    history: HistoryMode,
     buffers: &dyn Fn(&str) -> bool,
 ) {
     let t = TIMES[3];
@@ -186,49 +184,49 @@ fn check_history(
 
 #[test]
 fn phi_gradients_match_finite_differences_with_a_fixed_gain() {
-    check(GainSetting::Fixed(0.3), Components::default(), &|n| {
+    check(Gain::Fixed(0.3), Layout::default(), &|n| {
         n.starts_with("phi.")
     });
 }
 
 #[test]
 fn psi_gradients_match_finite_differences_with_the_learned_gain() {
-    check(GainSetting::Learned, Components::default(), &|n| n == "psi");
+    check(Gain::Learned, Layout::default(), &|n| n == "psi");
 }
 
 /// "Without buffer": Φ's gradients include the paths through the re-queried prior.
 #[test]
 fn phi_gradients_through_the_requeried_history_match_finite_differences() {
     check_history(
-        GainSetting::Fixed(0.3),
-        Components::default(),
-        HistorySetting::Requery,
+        Gain::Fixed(0.3),
+        Layout::default(),
+        HistoryMode::Requery,
         &|n| n.starts_with("phi."),
     );
 }
 
-fn every_component() -> Components {
+fn every_component() -> Layout {
     "pos,rot,scale,opacity,colour".parse().unwrap()
 }
 
 #[test]
 fn phi_gradients_through_opacity_and_colour_match_finite_differences() {
-    check(GainSetting::Fixed(0.3), every_component(), &|n| {
+    check(Gain::Fixed(0.3), every_component(), &|n| {
         n.starts_with("phi.")
     });
 }
 
 #[test]
 fn psi_gradients_with_opacity_and_colour_match_finite_differences() {
-    check(GainSetting::Learned, every_component(), &|n| n == "psi");
+    check(Gain::Learned, every_component(), &|n| n == "psi");
 }
 
 #[test]
 fn appearance_only_components_fill_their_columns_and_nothing_else() {
     // Opacity and colour alone: D = 4; the geometric columns stay zero, the appearance ones
     // carry Φ's output (Φ randomised by `setup`).
-    let comps: Components = "opacity,colour".parse().unwrap();
-    let (mut b, g, _) = setup(GainSetting::Fixed(0.3), comps, HistorySetting::Buffer, 5);
+    let comps: Layout = "opacity,colour".parse().unwrap();
+    let (mut b, g, _) = setup(Gain::Fixed(0.3), comps, HistoryMode::Buffer, 5);
     assert_eq!(b.evo().dim(), 4);
     let d = b.forward(g.view(), TIMES[3], false).unwrap();
     assert_eq!(d.len(), N * DEFORM_DIM);
@@ -242,11 +240,6 @@ fn appearance_only_components_fill_their_columns_and_nothing_else() {
     let a = b.appearance();
     assert!(a.opacity && a.colour);
     // Geometry only: no appearance column is used.
-    let (b, _, _) = setup(
-        GainSetting::Fixed(0.3),
-        Components::default(),
-        HistorySetting::Buffer,
-        5,
-    );
+    let (b, _, _) = setup(Gain::Fixed(0.3), Layout::default(), HistoryMode::Buffer, 5);
     assert_eq!(b.appearance(), Default::default());
 }

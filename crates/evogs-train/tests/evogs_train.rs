@@ -240,7 +240,7 @@ fn a_kill_between_checkpoint_and_evolution_state_resumes_bit_for_bit() {
 
 #[test]
 fn every_switch_combination_trains_finitely_and_stays_aligned() {
-    use evogs_train::{Bits, DensifyPolicy, GainSetting, HistorySetting};
+    use evogs_train::{DensifyPolicy, Gain, HistoryMode, Precision, Storage};
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("scene");
     common::write_scene(&data);
@@ -255,15 +255,15 @@ fn every_switch_combination_trains_finitely_and_stays_aligned() {
     .unwrap();
     type Edit = fn(&mut TrainConfig);
     let cases: [(&str, Edit); 6] = [
-        ("requery", |c| c.evogs.history = HistorySetting::Requery),
-        ("gain 0", |c| c.evogs.gain = GainSetting::Fixed(0.0)),
+        ("requery", |c| c.evogs.history = HistoryMode::Requery),
+        ("gain 0", |c| c.evogs.gain = Gain::Fixed(0.0)),
         ("gain 1, standard densify", |c| {
-            c.evogs.gain = GainSetting::Fixed(1.0);
+            c.evogs.gain = Gain::Fixed(1.0);
             c.evogs.densify = DensifyPolicy::Standard;
         }),
         ("f16 buffer and network", |c| {
-            c.evogs.buffer = Bits::F16;
-            c.evogs.net_precision = Bits::F16;
+            c.evogs.buffer = Storage::F16;
+            c.evogs.net_precision = Precision::F16;
         }),
         ("position only", |c| {
             c.evogs.components = "pos".parse().unwrap()
@@ -285,16 +285,16 @@ fn every_switch_combination_trains_finitely_and_stays_aligned() {
                 "{name}"
             );
         }
-        let dim = c.evogs.components.layout().dim();
+        let dim = c.evogs.components.dim();
         // The per-frame memory always; the buffer beside it, in the same storage, unless the
         // history is re-queried.
         let bytes_per = match c.evogs.buffer {
-            Bits::F32 => 4,
-            Bits::F16 => 2,
+            Storage::F32 => 4,
+            Storage::F16 => 2,
         };
         let blocks = match c.evogs.history {
-            HistorySetting::Requery => 1,
-            HistorySetting::Buffer => 2,
+            HistoryMode::Requery => 1,
+            HistoryMode::Buffer => 2,
         };
         assert_eq!(
             trainer.backbone.state_bytes(),

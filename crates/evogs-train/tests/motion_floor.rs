@@ -59,7 +59,7 @@ fn trigger(
     let (_, step) = step_at_frame_3(&settings, positions);
     let theta = thetas(&step).expect("three history frames give statistics");
     let n = positions.len();
-    let layout = settings.components.layout();
+    let layout = settings.components;
     let z = {
         // The same z the step was made with: the prior, so every residual is zero.
         step.prior().unwrap().to_vec()

@@ -4,6 +4,9 @@
 //!
 //! It is not a deformation model: nothing here computes a deformation.
 
+use std::fmt;
+use std::str::FromStr;
+
 /// One deformation component. In the deformation vector the enabled components appear in this
 /// order: position, rotation, scale, opacity, colour.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -40,7 +43,12 @@ impl Component {
 }
 
 /// Which components the deformation vector holds. Disabled components cost nothing.
+///
+/// Its command-line spelling ([`FromStr`], [`fmt::Display`]) is a comma-separated list of
+/// `pos`/`position`, `rot`/`rotation`, `scale`, `opacity`, `colour`/`color`; with the `serde`
+/// feature it is recorded as an object of five booleans named as its fields.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Layout {
     /// [`Component::Position`] is held.
     pub position: bool,
@@ -132,5 +140,88 @@ impl Layout {
             opacity: on(3),
             colour: on(4),
         })
+    }
+}
+
+/// A [`Layout`] spelling that names an unknown component or one component twice.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum LayoutParseError {
+    /// A name that is no component.
+    #[error("unknown component `{0}`; expected a list of pos, rot, scale, opacity, colour")]
+    Unknown(String),
+    /// A component named twice.
+    #[error("`{0}` is listed twice")]
+    Twice(String),
+}
+
+impl FromStr for Layout {
+    type Err = LayoutParseError;
+
+    /// A comma-separated list of `pos`/`position`, `rot`/`rotation`, `scale`, `opacity`,
+    /// `colour`/`color`, none twice. An empty list is accepted here (it enables nothing;
+    /// users of a layout refuse D = 0).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let mut layout = Self::from_bits(0).expect("0 is a layout code");
+        for part in s.split(',').map(str::trim) {
+            let slot = match part {
+                "pos" | "position" => &mut layout.position,
+                "rot" | "rotation" => &mut layout.rotation,
+                "scale" => &mut layout.scale,
+                "opacity" => &mut layout.opacity,
+                "colour" | "color" => &mut layout.colour,
+                other => return Err(LayoutParseError::Unknown(other.to_string())),
+            };
+            if *slot {
+                return Err(LayoutParseError::Twice(part.to_string()));
+            }
+            *slot = true;
+        }
+        Ok(layout)
+    }
+}
+
+impl fmt::Display for Layout {
+    /// The enabled components' short names, comma-separated (`pos,rot,scale`).
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let names = [
+            (self.position, "pos"),
+            (self.rotation, "rot"),
+            (self.scale, "scale"),
+            (self.opacity, "opacity"),
+            (self.colour, "colour"),
+        ];
+        let on: Vec<&str> = names.iter().filter(|(b, _)| *b).map(|(_, n)| *n).collect();
+        f.write_str(&on.join(","))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn layout_spellings_parse_and_print() {
+        let all: Layout = "pos, rotation,scale,opacity,color".parse().unwrap();
+        assert_eq!(all.bits(), 31);
+        assert_eq!(all.to_string(), "pos,rot,scale,opacity,colour");
+        assert_eq!(
+            "pos,rot,scale".parse::<Layout>().unwrap(),
+            Layout::default()
+        );
+        assert_eq!(Layout::default().to_string(), "pos,rot,scale");
+        for bits in 1..32u8 {
+            let l = Layout::from_bits(bits).unwrap();
+            assert_eq!(l.to_string().parse::<Layout>().unwrap(), l);
+        }
+        assert_eq!(
+            "pos,pos".parse::<Layout>().unwrap_err(),
+            LayoutParseError::Twice("pos".into())
+        );
+        let e = "pos,velocity".parse::<Layout>().unwrap_err().to_string();
+        assert!(
+            e.contains("`velocity`") && e.contains("opacity, colour"),
+            "{e}"
+        );
+        assert!("".parse::<Layout>().is_err());
     }
 }

@@ -19,6 +19,6 @@ pub mod sh;
 
 pub use activation::{logit, sigmoid};
 pub use camera::Camera;
-pub use deform::{Component, Layout};
+pub use deform::{Component, Layout, LayoutParseError};
 pub use gaussians::{Gaussians, GaussiansView, ShapeError, sh_coeff_count};
 pub use rows::{NewRows, RowPlan, RowPlanError};

@@ -114,5 +114,5 @@ pub use nets::{
     DeformCache, DeformConfig, DeformGrads, DeformNet, ObservationCache, ObservationConfig,
     ObservationGrads, ObservationNet,
 };
-pub use precision::{F16_MAX, Precision, Store, StoreMut, StoreRef};
+pub use precision::{F16_MAX, Precision, PrecisionParseError, Store, StoreMut, StoreRef};
 pub use weights::Parameters;

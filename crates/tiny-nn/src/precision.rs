@@ -4,6 +4,9 @@
 //! into f16 storage saturates at ±65504 ([`F16_MAX`]) instead of overflowing to infinity, and the
 //! number of saturated values is returned so that networks can count them. NaN stays NaN.
 
+use std::fmt;
+use std::str::FromStr;
+
 use half::f16;
 use half::slice::HalfFloatSliceExt;
 
@@ -11,12 +14,53 @@ use half::slice::HalfFloatSliceExt;
 pub const F16_MAX: f32 = 65504.0;
 
 /// Storage precision of one network (parameters and cached activations).
+///
+/// Spelled `f32` / `f16` on the command line ([`FromStr`], [`fmt::Display`]) and, with the
+/// `serde` feature, in files.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "lowercase")
+)]
 pub enum Precision {
     /// IEEE binary32 storage.
     F32,
     /// IEEE binary16 storage (`half::f16`), f32 arithmetic.
     F16,
+}
+
+impl Precision {
+    /// The spelling: `f32` or `f16`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::F32 => "f32",
+            Self::F16 => "f16",
+        }
+    }
+}
+
+/// A precision spelling other than `f32` and `f16`.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown value `{0}`; expected one of f32, f16")]
+pub struct PrecisionParseError(pub String);
+
+impl FromStr for Precision {
+    type Err = PrecisionParseError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "f32" => Ok(Self::F32),
+            "f16" => Ok(Self::F16),
+            other => Err(PrecisionParseError(other.to_string())),
+        }
+    }
+}
+
+impl fmt::Display for Precision {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
 }
 
 /// An owned buffer in one precision (`Store::default()` is an empty f32 buffer).
@@ -267,5 +311,19 @@ impl StoreMut<'_> {
             StoreMut::F32(v) => StoreMut::F32(&mut v[start..start + len]).write_from(src),
             StoreMut::F16(v) => StoreMut::F16(&mut v[start..start + len]).write_from(src),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn precision_spellings() {
+        for p in [Precision::F32, Precision::F16] {
+            assert_eq!(p.to_string().parse::<Precision>().unwrap(), p);
+        }
+        let e = "f64".parse::<Precision>().unwrap_err().to_string();
+        assert_eq!(e, "unknown value `f64`; expected one of f32, f16");
     }
 }
