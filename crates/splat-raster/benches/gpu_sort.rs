@@ -7,7 +7,7 @@
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use splat_raster::SortHarness;
+use splat_raster::test_support::SortHarness;
 
 fn bench(c: &mut Criterion) {
     let mut h = SortHarness::new().unwrap_or_else(|e| panic!("gpu_sort bench: {e}"));

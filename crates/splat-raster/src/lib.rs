@@ -49,12 +49,16 @@ pub use constants::{
 pub use cpu::{CpuKernel, CpuRasterizer};
 pub use error::RasterError;
 #[cfg(feature = "wgpu")]
-#[doc(hidden)]
-pub use gpu::sort::SortHarness;
-#[cfg(feature = "wgpu")]
 pub use gpu::{AdapterSummary, AtomicMode, GpuContext, WgpuRasterizer};
 pub use options::{CullStats, RenderOptions};
 pub use output::{ForwardOutput, Gradients};
+/// Hooks for this crate's own benches, not part of the API: compiled only with the cargo
+/// feature `test-support`, which only the crate's dev-dependency on itself turns on.
+#[cfg(all(feature = "wgpu", feature = "test-support"))]
+#[doc(hidden)]
+pub mod test_support {
+    pub use crate::gpu::sort::SortHarness;
+}
 /// The plain types of `splat-core` the rasterizer reads, re-exported for convenience (defined
 /// there, once).
 pub use splat_core::{Camera, Gaussians, GaussiansView, camera, gaussians, sh_coeff_count};

@@ -1,4 +1,5 @@
-//! The forward pass on the GPU: projection, depth sort, tile counts and their prefix sum,
+//! The forward pass on the GPU: projection, depth sort, tile counts and their prefix sum
+//! (the backend's one scan, [`super::scan`]),
 //! intersection emission, sort by tile, tile ranges, compositing; then the read-back of the
 //! images, radii and counters.
 
@@ -12,12 +13,11 @@ use crate::validate::validate;
 use super::buffers::{read_back, storage, storage_init, uniform};
 use super::frame::{FrameUniform, pack_params};
 use super::pipelines::{bind, dispatch, groups_1d};
+use super::scan::level_lengths;
 use super::{GpuState, WgpuRasterizer};
 
 /// Bytes of one WGSL `Splat` record.
 const SPLAT_BYTES: u64 = 64;
-/// Elements per scan block (`BLOCK` in scan.wgsl).
-const SCAN_BLOCK: u32 = 1024;
 
 fn u32s(bytes: &[u8]) -> Vec<u32> {
     bytemuck::pod_collect_to_vec(bytes)
@@ -57,13 +57,13 @@ impl WgpuRasterizer {
         let tile_counts = storage(device, "tile_counts", n64 * 4)?;
         let stats = storage(device, "stats", 32)?;
         let offsets = storage(device, "offsets", n64 * 4)?;
-        let n_blocks = n32.div_ceil(SCAN_BLOCK);
-        let block_sums = storage(device, "block_sums", (u64::from(n_blocks) + 1) * 4)?;
-        let scan_params = uniform(
-            device,
-            "scan_params",
-            bytemuck::cast_slice(&[n32, n_blocks, 0, 0]),
-        );
+        // The scan's upper levels (chunk totals); the last one ends as the grand total.
+        let scan_lens = level_lengths(n32);
+        let scan_sums = scan_lens[1..]
+            .iter()
+            .map(|&len| storage(device, "scan_sums", u64::from(len) * 4))
+            .collect::<Result<Vec<_>, _>>()?;
+        let total = scan_sums.last().expect("at least one upper level");
 
         // Stage 1: project, sort by depth, count tiles in depth order and scan the counts.
         let p = &self.pipelines;
@@ -98,25 +98,16 @@ impl WgpuRasterizer {
                 ],
             );
             dispatch(&mut enc, &p.gather_counts, &bg, per_gaussian);
-            let scan_entries = [(0, &scan_params), (1, &offsets), (2, &block_sums)];
-            let bg = bind(device, &p.scan_blocks, &scan_entries);
-            dispatch(
-                &mut enc,
-                &p.scan_blocks,
-                &bg,
-                groups_1d(n_blocks * 256, max_dim),
-            );
-            let bg = bind(device, &p.scan_sums, &[(0, &scan_params), (2, &block_sums)]);
-            dispatch(&mut enc, &p.scan_sums, &bg, (1, 1));
-            let bg = bind(device, &p.scan_add, &scan_entries);
-            dispatch(&mut enc, &p.scan_add, &bg, per_gaussian);
+            let scan = self.sorter.prefix_sum();
+            let levels: Vec<&wgpu::Buffer> = std::iter::once(&offsets).chain(&scan_sums).collect();
+            let plan = scan.plan(device, &levels, &scan_lens);
+            let mut cpass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("tile count scan"),
+                timestamp_writes: None,
+            });
+            scan.record(&mut cpass, &plan);
         }
-        let head = read_back(
-            device,
-            queue,
-            enc,
-            &[(&stats, 0, 32), (&block_sums, u64::from(n_blocks) * 4, 4)],
-        )?;
+        let head = read_back(device, queue, enc, &[(&stats, 0, 32), (total, 0, 4)])?;
         let counts = u32s(&head[0]);
         let n_isect = if n > 0 { u32s(&head[1])[0] } else { 0 };
         let stats = CullStats {

@@ -7,7 +7,8 @@
 //! 1. `project` (one thread per Gaussian): culling in the CPU's order, counted per reason with
 //!    atomics; the compositing record, screen radius, number of touched tiles, depth key;
 //! 2. depth sort ([`sort::RadixSorter`], 32-bit keys `z.to_bits()`, values the Gaussian index);
-//! 3. tile counts gathered in depth order and scanned (`scan.wgsl`); the total number of
+//! 3. tile counts gathered in depth order and scanned ([`scan::PrefixSum`], the backend's one
+//!    prefix sum, also the sort's); the total number of
 //!    (tile, Gaussian) pairs is read back (4 bytes, with the 32 bytes of cull counts) to size
 //!    the intersection buffers;
 //! 4. `emit`: each Gaussian writes its pairs at its scanned offset, so pairs are in depth order;
@@ -61,6 +62,7 @@ mod context;
 mod forward;
 mod frame;
 mod pipelines;
+mod scan;
 pub(crate) mod sort;
 
 use std::sync::Arc;

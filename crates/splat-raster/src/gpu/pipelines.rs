@@ -5,7 +5,6 @@ use crate::error::RasterError;
 
 const COMMON: &str = include_str!("shaders/common.wgsl");
 const PROJECT: &str = include_str!("shaders/project.wgsl");
-const SCAN: &str = include_str!("shaders/scan.wgsl");
 const EMIT: &str = include_str!("shaders/emit.wgsl");
 const RANGES: &str = include_str!("shaders/ranges.wgsl");
 const RASTER_FWD: &str = include_str!("shaders/raster_fwd.wgsl");
@@ -26,9 +25,6 @@ pub enum AtomicMode {
 #[derive(Debug)]
 pub(crate) struct Pipelines {
     pub project: wgpu::ComputePipeline,
-    pub scan_blocks: wgpu::ComputePipeline,
-    pub scan_sums: wgpu::ComputePipeline,
-    pub scan_add: wgpu::ComputePipeline,
     pub gather_counts: wgpu::ComputePipeline,
     pub emit: wgpu::ComputePipeline,
     pub tile_ranges: wgpu::ComputePipeline,
@@ -63,7 +59,6 @@ impl Pipelines {
             })
         };
         let project = module("project", &[COMMON, PROJECT]);
-        let scan = module("scan", &[SCAN]);
         let emit = module("emit", &[COMMON, EMIT]);
         let ranges = module("ranges", &[COMMON, RANGES]);
         let raster_fwd = module("rasterize", &[COMMON, RASTER_FWD]);
@@ -75,9 +70,6 @@ impl Pipelines {
         let project_bwd = module("project_backward", &[COMMON, PROJECT_BWD]);
         let out = Self {
             project: pipeline(device, &project, "project"),
-            scan_blocks: pipeline(device, &scan, "scan_blocks"),
-            scan_sums: pipeline(device, &scan, "scan_sums"),
-            scan_add: pipeline(device, &scan, "scan_add"),
             gather_counts: pipeline(device, &emit, "gather_counts"),
             emit: pipeline(device, &emit, "emit"),
             tile_ranges: pipeline(device, &ranges, "tile_ranges"),

@@ -5,9 +5,9 @@
 //! blocks (256 invocations × 4 elements):
 //! 1. `count`: each block's 16-bin digit histogram, stored bin-major (`counts[bin · blocks +
 //!    block]`);
-//! 2. `scan_chunks` / `add_chunk_offsets`: an exclusive prefix sum of `counts`, hierarchical in
-//!    1024-element chunks (2 levels up to 2^26 keys, 3 up to 2^36), after which `counts[bin ·
-//!    blocks + block]` is where that block's first element of that bin goes;
+//! 2. the backend's prefix sum ([`super::scan`]) of `counts` (2 levels up to 2^26 keys, 3 up to
+//!    2^36), after which `counts[bin · blocks + block]` is where that block's first element of
+//!    that bin goes;
 //! 3. `scatter`: each block ranks its elements stably within their digit (a workgroup prefix sum
 //!    of per-invocation digit counts, 16 counters packed two per u32) and writes them to their
 //!    global places.
@@ -19,6 +19,7 @@
 //!
 //! No subgroup operations are used, so it runs on every adapter (lavapipe included).
 
+#[cfg(any(test, feature = "test-support"))]
 mod harness;
 
 use std::num::NonZeroU64;
@@ -26,8 +27,10 @@ use std::sync::Mutex;
 
 use wgpu::util::DeviceExt;
 
-#[doc(hidden)]
+#[cfg(any(test, feature = "test-support"))]
 pub use harness::SortHarness;
+
+use super::scan::{self, PrefixSum, ScanPlan, dispatch_grid, words};
 
 /// Elements per workgroup (block) in every kernel.
 const BLOCK: u32 = 1024;
@@ -35,25 +38,27 @@ const BLOCK: u32 = 1024;
 const DIGIT_BITS: u32 = 4;
 /// Histogram bins per block.
 const BINS: u32 = 1 << DIGIT_BITS;
-/// Bytes of one `Params` record (the WGSL struct: 8 u32).
-const PARAMS_SIZE: u64 = 32;
 
 const COMMON_WGSL: &str = include_str!("shaders/sort_common.wgsl");
 const COUNT_WGSL: &str = include_str!("shaders/sort_count.wgsl");
-const SCAN_WGSL: &str = include_str!("shaders/sort_scan.wgsl");
 const SCATTER_WGSL: &str = include_str!("shaders/sort_scatter.wgsl");
 
-/// Per-dispatch parameters, as the WGSL `Params` struct.
+/// Per-pass parameters, as the WGSL `Params` struct of `shaders/sort_common.wgsl`.
 #[repr(C)]
-#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
-struct Params {
-    n: u32,
-    shift: u32,
-    bits: u32,
-    num_blocks: u32,
-    len: u32,
-    pad: [u32; 3],
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct Params {
+    /// Number of (key, value) pairs.
+    pub n: u32,
+    /// Lowest key bit of this pass's digit.
+    pub shift: u32,
+    /// Width of this pass's digit, 1..=4.
+    pub bits: u32,
+    /// Number of 1024-element blocks of the keys.
+    pub num_blocks: u32,
 }
+
+/// Bytes of one [`Params`] record.
+const PARAMS_SIZE: u64 = std::mem::size_of::<Params>() as u64;
 
 /// Buffers the sorter owns, sized for `capacity` pairs.
 struct Scratch {
@@ -68,28 +73,22 @@ struct Scratch {
 /// A stable LSD radix sorter of (u32 key, u32 value) pairs on the GPU.
 pub(crate) struct RadixSorter {
     count: wgpu::ComputePipeline,
-    scan_chunks: wgpu::ComputePipeline,
-    add_chunk_offsets: wgpu::ComputePipeline,
     scatter: wgpu::ComputePipeline,
     count_layout: wgpu::BindGroupLayout,
-    scan_layout: wgpu::BindGroupLayout,
     scatter_layout: wgpu::BindGroupLayout,
     /// Byte stride between `Params` records (the uniform dynamic-offset alignment).
     params_stride: u64,
     /// Largest workgroup count per dispatch dimension.
     max_groups_per_dim: u32,
+    /// The prefix sum of the digit counts (shared with the forward pass's tile counts).
+    scan: PrefixSum,
     scratch: Mutex<Option<Scratch>>,
 }
 
 /// Lengths of the scan levels for `n` pairs: the digit counts, then each level's chunk totals,
 /// down to a single element.
 fn level_lengths(n: u32) -> Vec<u32> {
-    let mut lens = vec![BINS * n.div_ceil(BLOCK).max(1)];
-    while *lens.last().expect("non-empty") > 1 {
-        let next = lens.last().expect("non-empty").div_ceil(BLOCK);
-        lens.push(next);
-    }
-    lens
+    scan::level_lengths(BINS * n.div_ceil(BLOCK).max(1))
 }
 
 fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
@@ -116,15 +115,6 @@ fn params_entry() -> wgpu::BindGroupLayoutEntry {
         },
         count: None,
     }
-}
-
-/// The first `words` u32 of `buffer` as a binding.
-fn words(buffer: &wgpu::Buffer, words: u32) -> wgpu::BindingResource<'_> {
-    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-        buffer,
-        offset: 0,
-        size: NonZeroU64::new(4 * u64::from(words.max(1))),
-    })
 }
 
 fn storage_buffer(device: &wgpu::Device, label: &str, words: u32) -> wgpu::Buffer {
@@ -179,14 +169,6 @@ impl RadixSorter {
                 storage_entry(2, false),
             ],
         );
-        let scan_layout = layout(
-            "radix sort scan",
-            &[
-                params_entry(),
-                storage_entry(1, false),
-                storage_entry(2, false),
-            ],
-        );
         let scatter_layout = layout(
             "radix sort scatter",
             &[
@@ -201,13 +183,6 @@ impl RadixSorter {
         let align = u64::from(device.limits().min_uniform_buffer_offset_alignment);
         Self {
             count: pipeline(&count_layout, COUNT_WGSL, "count", "radix sort count"),
-            scan_chunks: pipeline(&scan_layout, SCAN_WGSL, "scan_chunks", "radix sort scan"),
-            add_chunk_offsets: pipeline(
-                &scan_layout,
-                SCAN_WGSL,
-                "add_chunk_offsets",
-                "radix sort add",
-            ),
             scatter: pipeline(
                 &scatter_layout,
                 SCATTER_WGSL,
@@ -215,10 +190,10 @@ impl RadixSorter {
                 "radix sort scatter",
             ),
             count_layout,
-            scan_layout,
             scatter_layout,
             params_stride: PARAMS_SIZE.div_ceil(align) * align,
             max_groups_per_dim: max_groups_per_dim.max(1),
+            scan: PrefixSum::new(device, max_groups_per_dim),
             scratch: Mutex::new(None),
         }
     }
@@ -277,7 +252,7 @@ impl RadixSorter {
         let passes = key_bits.div_ceil(DIGIT_BITS);
         let lens = level_lengths(n);
 
-        // One Params record per digit pass, then one per scan level.
+        // One Params record per digit pass.
         let mut records = Vec::new();
         for pass in 0..passes {
             let shift = pass * DIGIT_BITS;
@@ -286,13 +261,6 @@ impl RadixSorter {
                 shift,
                 bits: (key_bits - shift).min(DIGIT_BITS),
                 num_blocks,
-                ..Params::default()
-            });
-        }
-        for &len in &lens {
-            records.push(Params {
-                len,
-                ..Params::default()
             });
         }
         let stride = self.params_stride as usize;
@@ -312,7 +280,6 @@ impl RadixSorter {
             size: NonZeroU64::new(PARAMS_SIZE),
         });
         let pass_offset = |pass: u32| (u64::from(pass) * self.params_stride) as u32;
-        let level_offset = |level: usize| ((passes as usize + level) * stride) as u32;
 
         // Ping-pong: even passes read the caller's buffers, odd passes the scratch pair.
         let pairs = [(keys, values), (&scratch.keys, &scratch.values)];
@@ -361,18 +328,8 @@ impl RadixSorter {
                 )
             })
             .collect();
-        let scan_groups: Vec<_> = (0..lens.len() - 1)
-            .map(|level| {
-                bind(
-                    &self.scan_layout,
-                    &[
-                        params_binding.clone(),
-                        words(&scratch.levels[level], lens[level]),
-                        words(&scratch.levels[level + 1], lens[level + 1]),
-                    ],
-                )
-            })
-            .collect();
+        let levels: Vec<&wgpu::Buffer> = scratch.levels.iter().take(lens.len()).collect();
+        let scan_plan: ScanPlan = self.scan.plan(device, &levels, &lens);
 
         {
             let mut cpass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -385,20 +342,7 @@ impl RadixSorter {
                 cpass.set_bind_group(0, &count_groups[from], &[pass_offset(pass)]);
                 self.dispatch(&mut cpass, num_blocks);
 
-                // Scan down the levels, then add the scanned chunk totals back up.
-                for (level, group) in scan_groups.iter().enumerate() {
-                    cpass.set_pipeline(&self.scan_chunks);
-                    cpass.set_bind_group(0, group, &[level_offset(level)]);
-                    self.dispatch(&mut cpass, lens[level + 1]);
-                }
-                for (level, group) in scan_groups.iter().enumerate().rev() {
-                    // The top level is a single chunk: its total is not an offset.
-                    if lens[level + 1] > 1 {
-                        cpass.set_pipeline(&self.add_chunk_offsets);
-                        cpass.set_bind_group(0, group, &[level_offset(level)]);
-                        self.dispatch(&mut cpass, lens[level + 1]);
-                    }
-                }
+                self.scan.record(&mut cpass, &scan_plan);
 
                 cpass.set_pipeline(&self.scatter);
                 cpass.set_bind_group(0, &scatter_groups[from], &[pass_offset(pass)]);
@@ -411,10 +355,14 @@ impl RadixSorter {
         }
     }
 
+    /// The prefix sum the sorter runs, for the other scans of the backend.
+    pub(crate) fn prefix_sum(&self) -> &PrefixSum {
+        &self.scan
+    }
+
     /// Dispatches `groups` workgroups on a 2D grid; the kernels skip the ones past `groups`.
     fn dispatch(&self, cpass: &mut wgpu::ComputePass<'_>, groups: u32) {
-        let x = groups.min(self.max_groups_per_dim);
-        cpass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+        dispatch_grid(cpass, groups, self.max_groups_per_dim);
     }
 }
 

@@ -1,96 +1,103 @@
-// Exclusive prefix sum of `data[0..count]` in place, in three dispatches: each workgroup scans a
-// block of 1024 values and records the block's total; one workgroup scans the block totals
-// (writing the grand total at `block_sums[n_blocks]`); every value then adds its block's offset.
+// The backend's one device-wide prefix sum (gpu/scan.rs): exclusive, of `data[0..params.len]`
+// in place, hierarchical in 1024-element chunks (256 invocations x 4 consecutive elements).
+// `scan_chunks` scans each chunk and writes its total to `sums[chunk]`; once `sums` is scanned
+// (recursively, by the same kernels), `add_chunk_offsets` adds `sums[chunk]` to the chunk.
+// Workgroups are laid out on a 2D grid (x then y) so that more than 65535 chunks can be
+// dispatched; the linear chunk index is `id.x + id.y * grid.x`, and a workgroup past the last
+// chunk returns at once.
 
+// Mirrored by `ScanParams` in gpu/scan.rs (a test checks the layouts agree).
 struct ScanParams {
-    count: u32,
-    n_blocks: u32,
+    // Number of elements of `data`.
+    len: u32,
     pad0: u32,
     pad1: u32,
+    pad2: u32,
 }
 
-@group(0) @binding(0) var<uniform> scan: ScanParams;
+@group(0) @binding(0) var<uniform> params: ScanParams;
 @group(0) @binding(1) var<storage, read_write> data: array<u32>;
-@group(0) @binding(2) var<storage, read_write> block_sums: array<u32>;
+@group(0) @binding(2) var<storage, read_write> sums: array<u32>;
 
-const PER_THREAD: u32 = 4u;
+const WG: u32 = 256u;
+const PER: u32 = 4u;
 const BLOCK: u32 = 1024u;
 
-var<workgroup> partial: array<u32, 256>;
+var<workgroup> s_scan: array<u32, WG>;
 
-// Inclusive Hillis-Steele scan of `partial` over the workgroup; returns this lane's value.
-fn workgroup_inclusive_scan(lid: u32, value: u32) -> u32 {
-    partial[lid] = value;
+// Exclusive prefix sum of `v` over the workgroup's invocations (Hillis-Steele). Returns
+// (sum of `v` over invocations before `lid`, sum over all). Call from uniform control flow.
+fn workgroup_exclusive_scan(lid: u32, v: u32) -> vec2<u32> {
+    s_scan[lid] = v;
     workgroupBarrier();
-    for (var off = 1u; off < 256u; off = off * 2u) {
-        var add = 0u;
-        if lid >= off {
-            add = partial[lid - off];
+    for (var off = 1u; off < WG; off = off << 1u) {
+        var t = 0u;
+        if (lid >= off) {
+            t = s_scan[lid - off];
         }
         workgroupBarrier();
-        partial[lid] += add;
+        s_scan[lid] = s_scan[lid] + t;
         workgroupBarrier();
     }
-    return partial[lid];
+    let inclusive = s_scan[lid];
+    let total = s_scan[WG - 1u];
+    workgroupBarrier();
+    return vec2<u32>(inclusive - v, total);
+}
+
+fn chunk_index(id: vec3<u32>, grid: vec3<u32>) -> u32 {
+    return id.x + id.y * grid.x;
 }
 
 @compute @workgroup_size(256)
-fn scan_blocks(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wg: vec3<u32>,
-               @builtin(num_workgroups) nwg: vec3<u32>) {
-    let block = wg.x + wg.y * nwg.x;
-    let base = block * BLOCK + lid * PER_THREAD;
-    var vals: array<u32, 4>;
-    var sum = 0u;
-    for (var k = 0u; k < PER_THREAD; k++) {
-        let idx = base + k;
-        var v = 0u;
-        if idx < scan.count {
-            v = data[idx];
-        }
-        vals[k] = v;
-        sum += v;
+fn scan_chunks(
+    @builtin(workgroup_id) id: vec3<u32>,
+    @builtin(num_workgroups) grid: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let chunk = chunk_index(id, grid);
+    if (chunk >= (params.len + BLOCK - 1u) / BLOCK) {
+        return;
     }
-    let inclusive = workgroup_inclusive_scan(lid, sum);
-    var run = inclusive - sum;
-    for (var k = 0u; k < PER_THREAD; k++) {
-        let idx = base + k;
-        if idx < scan.count {
-            data[idx] = run;
+    let base = chunk * BLOCK + lid * PER;
+    var v: array<u32, 4>;
+    var own = 0u;
+    for (var j = 0u; j < PER; j++) {
+        v[j] = 0u;
+        if (base + j < params.len) {
+            v[j] = data[base + j];
         }
-        run += vals[k];
+        own += v[j];
     }
-    if lid == 255u && block < scan.n_blocks {
-        block_sums[block] = inclusive;
-    }
-}
-
-@compute @workgroup_size(256)
-fn scan_sums(@builtin(local_invocation_index) lid: u32) {
-    var carry = 0u;
-    let chunks = (scan.n_blocks + 255u) / 256u;
-    for (var ch = 0u; ch < chunks; ch++) {
-        let idx = ch * 256u + lid;
-        var v = 0u;
-        if idx < scan.n_blocks {
-            v = block_sums[idx];
+    let scan = workgroup_exclusive_scan(lid, own);
+    var run = scan.x;
+    for (var j = 0u; j < PER; j++) {
+        if (base + j < params.len) {
+            data[base + j] = run;
         }
-        let inclusive = workgroup_inclusive_scan(lid, v);
-        if idx < scan.n_blocks {
-            block_sums[idx] = carry + inclusive - v;
-        }
-        workgroupBarrier();
-        carry += partial[255];
-        workgroupBarrier();
+        run += v[j];
     }
-    if lid == 0u {
-        block_sums[scan.n_blocks] = carry;
+    if (lid == 0u) {
+        sums[chunk] = scan.y;
     }
 }
 
 @compute @workgroup_size(256)
-fn scan_add(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
-    let idx = gid.x + gid.y * nwg.x * 256u;
-    if idx < scan.count {
-        data[idx] += block_sums[idx / BLOCK];
+fn add_chunk_offsets(
+    @builtin(workgroup_id) id: vec3<u32>,
+    @builtin(num_workgroups) grid: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let chunk = chunk_index(id, grid);
+    if (chunk >= (params.len + BLOCK - 1u) / BLOCK) {
+        return;
+    }
+    let add = sums[chunk];
+    let base = chunk * BLOCK;
+    for (var j = 0u; j < PER; j++) {
+        let i = base + j * WG + lid;
+        if (i < params.len) {
+            data[i] += add;
+        }
     }
 }

@@ -1,11 +1,13 @@
-//! A self-contained way to run [`RadixSorter`] from the tests and the `gpu_sort` bench, which
-//! cannot see the crate-private sorter: its own device, upload, sort, read back.
+//! A self-contained way to run [`RadixSorter`] (and the prefix sum it runs) from the unit tests
+//! and the `gpu_sort` bench, which cannot see the crate-private sorter: its own device, upload,
+//! sort, read back. Compiled for the tests and with the cargo feature `test-support` only.
 
 use wgpu::util::DeviceExt;
 
 use super::RadixSorter;
 use crate::error::RasterError;
 use crate::gpu::GpuContext;
+use crate::gpu::scan::level_lengths;
 
 /// Pairs resident on the device for repeated sorting (the bench).
 struct Loaded {
@@ -121,6 +123,34 @@ impl SortHarness {
             self.read_back(&k, keys.len()),
             self.read_back(&v, keys.len()),
         )
+    }
+
+    /// The exclusive prefix sum of `data` by the backend's scan on the GPU, and the total.
+    pub fn prefix_sum(&self, data: &[u32]) -> (Vec<u32>, u32) {
+        let len = u32::try_from(data.len()).expect("at most u32::MAX values");
+        let lens = level_lengths(len);
+        let buffers: Vec<wgpu::Buffer> = lens
+            .iter()
+            .enumerate()
+            .map(|(level, &n)| match level {
+                0 => self.upload("scan data", data),
+                _ => self.upload("scan sums", &vec![0; n as usize]),
+            })
+            .collect();
+        let levels: Vec<&wgpu::Buffer> = buffers.iter().collect();
+        let scan = self.sorter.prefix_sum();
+        let plan = scan.plan(&self.ctx.device, &levels, &lens);
+        let mut encoder = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        {
+            let mut cpass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+            scan.record(&mut cpass, &plan);
+        }
+        self.ctx.queue.submit([encoder.finish()]);
+        let total = self.read_back(buffers.last().expect("two levels"), 1)[0];
+        (self.read_back(&buffers[0], data.len()), total)
     }
 
     /// Keeps `keys`/`values` on the device for [`SortHarness::sort_loaded`].

@@ -1,0 +1,278 @@
+//! The backend's one device-wide prefix sum: an exclusive scan of `u32`s in place, used by the
+//! radix sort (its digit counts, [`super::sort`]) and by the forward pass (the tile counts in
+//! depth order, whose total is the number of tile-Gaussian pairs).
+//!
+//! Hierarchical in 1024-element chunks (256 invocations × 4 elements, `shaders/scan.wgsl`):
+//! level 0 is the data; `scan_chunks` scans each chunk of level `i` and writes the chunk totals
+//! to level `i + 1`, down to a level of one element, the grand total; then `add_chunk_offsets`
+//! adds the scanned totals back up, level by level. Two levels cover up to 2^20 elements, three
+//! up to 2^30. Workgroups are dispatched on a 2D grid, so the 65535-per-dimension limit does not
+//! bound the length.
+//!
+//! What it is not: a workgroup-level scan for other kernels (the sort's scatter ranks its digits
+//! with its own packed scan).
+
+use std::num::NonZeroU64;
+
+use wgpu::util::DeviceExt;
+
+/// Elements per chunk (one workgroup).
+pub(crate) const BLOCK: u32 = 1024;
+
+const SCAN_WGSL: &str = include_str!("shaders/scan.wgsl");
+
+/// The uniform of one scan level (`ScanParams` in `shaders/scan.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct ScanParams {
+    /// Number of elements of the level.
+    pub len: u32,
+    pub pad0: u32,
+    pub pad1: u32,
+    pub pad2: u32,
+}
+
+/// Bytes of one [`ScanParams`] record.
+const PARAMS_SIZE: u64 = std::mem::size_of::<ScanParams>() as u64;
+
+/// Lengths of the levels of a scan of `len` elements: `len`, then each level's chunk totals,
+/// down to a single element (at least two levels; the last holds the grand total).
+pub(crate) fn level_lengths(len: u32) -> Vec<u32> {
+    let mut lens = vec![len.max(1)];
+    loop {
+        let next = lens.last().expect("non-empty").div_ceil(BLOCK);
+        lens.push(next);
+        if next == 1 {
+            return lens;
+        }
+    }
+}
+
+/// Dispatches `groups` workgroups on a 2D grid at most `max_per_dim` wide; kernels recover the
+/// linear index as `id.x + id.y * grid.x` and skip the ones past `groups`.
+pub(crate) fn dispatch_grid(cpass: &mut wgpu::ComputePass<'_>, groups: u32, max_per_dim: u32) {
+    let x = groups.min(max_per_dim).max(1);
+    cpass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+}
+
+/// The scan's pipelines, compiled once.
+pub(crate) struct PrefixSum {
+    scan_chunks: wgpu::ComputePipeline,
+    add_chunk_offsets: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+    /// Byte stride between [`ScanParams`] records (the uniform dynamic-offset alignment).
+    params_stride: u64,
+    /// Largest workgroup count per dispatch dimension.
+    max_groups_per_dim: u32,
+}
+
+/// One scan's bind groups and parameters, ready to be recorded (any number of times).
+pub(crate) struct ScanPlan {
+    lens: Vec<u32>,
+    /// Level `i` scanned into level `i + 1`.
+    groups: Vec<wgpu::BindGroup>,
+}
+
+fn storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only: false },
+            has_dynamic_offset: false,
+            min_binding_size: NonZeroU64::new(4),
+        },
+        count: None,
+    }
+}
+
+/// The first `words` u32 of `buffer` as a binding.
+pub(crate) fn words(buffer: &wgpu::Buffer, words: u32) -> wgpu::BindingResource<'_> {
+    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+        buffer,
+        offset: 0,
+        size: NonZeroU64::new(4 * u64::from(words.max(1))),
+    })
+}
+
+impl PrefixSum {
+    /// Compiles the scan, dispatching at most `max_groups_per_dim` workgroups along x.
+    pub(crate) fn new(device: &wgpu::Device, max_groups_per_dim: u32) -> Self {
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("prefix sum"),
+            source: wgpu::ShaderSource::Wgsl(SCAN_WGSL.into()),
+        });
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("prefix sum"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: true,
+                        min_binding_size: NonZeroU64::new(PARAMS_SIZE),
+                    },
+                    count: None,
+                },
+                storage_entry(1),
+                storage_entry(2),
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("prefix sum"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = |entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&pipeline_layout),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let align = u64::from(device.limits().min_uniform_buffer_offset_alignment);
+        Self {
+            scan_chunks: pipeline("scan_chunks"),
+            add_chunk_offsets: pipeline("add_chunk_offsets"),
+            layout,
+            params_stride: PARAMS_SIZE.div_ceil(align) * align,
+            max_groups_per_dim: max_groups_per_dim.max(1),
+        }
+    }
+
+    /// A scan of `levels[0]` over the lengths `lens` (from [`level_lengths`]): `levels[i]` holds
+    /// at least `lens[i]` u32 (STORAGE buffers); the upper levels are scratch, and after the scan
+    /// the last one's single element is the grand total.
+    ///
+    /// # Panics
+    /// If `levels` and `lens` differ in length or there are fewer than two levels (caller bugs).
+    pub(crate) fn plan(
+        &self,
+        device: &wgpu::Device,
+        levels: &[&wgpu::Buffer],
+        lens: &[u32],
+    ) -> ScanPlan {
+        assert!(
+            levels.len() == lens.len() && lens.len() >= 2,
+            "PrefixSum::plan: {} buffers for {} levels",
+            levels.len(),
+            lens.len()
+        );
+        let stride = self.params_stride as usize;
+        let mut bytes = vec![0u8; stride * lens.len()];
+        for (i, &len) in lens.iter().enumerate() {
+            let record = ScanParams {
+                len,
+                ..ScanParams::default()
+            };
+            bytes[i * stride..i * stride + PARAMS_SIZE as usize]
+                .copy_from_slice(bytemuck::bytes_of(&record));
+        }
+        let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("prefix sum params"),
+            contents: &bytes,
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let groups = (0..lens.len() - 1)
+            .map(|level| {
+                device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("prefix sum"),
+                    layout: &self.layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                                buffer: &params,
+                                offset: 0,
+                                size: NonZeroU64::new(PARAMS_SIZE),
+                            }),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: words(levels[level], lens[level]),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: words(levels[level + 1], lens[level + 1]),
+                        },
+                    ],
+                })
+            })
+            .collect();
+        ScanPlan {
+            lens: lens.to_vec(),
+            groups,
+        }
+    }
+
+    /// Records `plan` into a compute pass: scan down the levels, then add the scanned chunk
+    /// totals back up.
+    pub(crate) fn record(&self, cpass: &mut wgpu::ComputePass<'_>, plan: &ScanPlan) {
+        let offset = |level: usize| (level as u64 * self.params_stride) as u32;
+        for (level, group) in plan.groups.iter().enumerate() {
+            cpass.set_pipeline(&self.scan_chunks);
+            cpass.set_bind_group(0, group, &[offset(level)]);
+            dispatch_grid(cpass, plan.lens[level + 1], self.max_groups_per_dim);
+        }
+        for (level, group) in plan.groups.iter().enumerate().rev() {
+            // The top level is a single chunk: its total is not an offset.
+            if plan.lens[level + 1] > 1 {
+                cpass.set_pipeline(&self.add_chunk_offsets);
+                cpass.set_bind_group(0, group, &[offset(level)]);
+                dispatch_grid(cpass, plan.lens[level + 1], self.max_groups_per_dim);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    use super::level_lengths;
+    use crate::gpu::sort::SortHarness;
+
+    /// The exclusive prefix sum on the CPU, and the total.
+    fn reference(data: &[u32]) -> (Vec<u32>, u32) {
+        let mut run = 0u32;
+        let scanned = data
+            .iter()
+            .map(|&v| {
+                let before = run;
+                run += v;
+                before
+            })
+            .collect();
+        (scanned, run)
+    }
+
+    #[test]
+    fn matches_the_cpu_scan_at_chunk_edges_and_on_a_2d_grid() {
+        // A grid at most 3 wide: 70 000 values are 69 chunks, 3 x 23 workgroups, two levels.
+        let narrow = SortHarness::with_max_groups_per_dim(3)
+            .unwrap_or_else(|e| panic!("GPU scan tests need a wgpu adapter: {e}"));
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        for n in [0, 1, 2, 255, 1023, 1024, 1025, 4097, 70_000, (1 << 20) + 1] {
+            let data: Vec<u32> = (0..n).map(|_| rng.random_range(0..300u32)).collect();
+            assert_eq!(narrow.prefix_sum(&data), reference(&data), "n = {n}");
+        }
+    }
+
+    #[test]
+    fn levels_end_in_one_total() {
+        assert_eq!(level_lengths(0), vec![1, 1]);
+        assert_eq!(level_lengths(1), vec![1, 1]);
+        assert_eq!(level_lengths(1024), vec![1024, 1]);
+        assert_eq!(level_lengths(1025), vec![1025, 2, 1]);
+        assert_eq!(level_lengths(1 << 20), vec![1 << 20, 1024, 1]);
+        assert_eq!(
+            level_lengths(u32::MAX),
+            vec![u32::MAX, 1 << 22, 1 << 12, 4, 1]
+        );
+    }
+}
