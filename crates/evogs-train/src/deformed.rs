@@ -8,7 +8,7 @@
 //! `pc.get_scaling + d_scaling`). Here both are added to the raw parameters, for every backbone
 //! alike (DESIGN §11): a scale offset then stays relative and can never make a scale negative.
 
-use splat_raster::{Gaussians, GaussiansView, Gradients};
+use splat_raster::{GaussianGrads, Gaussians, GaussiansView};
 
 use crate::backbone::DEFORM_DIM;
 
@@ -130,7 +130,7 @@ impl DeformedGeometry {
 /// dL/d(deformation) rows (N × [`DEFORM_DIM`]) from the rasterizer's gradients of the deformed
 /// parameters (the deformation is added, so these are the same gradients): mean, quaternion,
 /// log-scale, opacity logit and the SH DC coefficients (`sh_stride` values per Gaussian).
-pub fn deformation_gradient(grads: &Gradients, sh_stride: usize) -> Vec<f32> {
+pub fn deformation_gradient(grads: &GaussianGrads, sh_stride: usize) -> Vec<f32> {
     let n = grads.means.len();
     let mut out = Vec::with_capacity(n * DEFORM_DIM);
     for i in 0..n {
@@ -179,13 +179,13 @@ mod tests {
                 if !opacity { row[OPACITY_COLUMN] = 0.0; }
                 if !colour { row[COLOUR_COLUMN..].fill(0.0); }
             }
-            let grads = Gradients {
+            let grads = GaussianGrads {
                 means: (0..n).map(|_| [r(), r(), r()]).collect(),
                 rotations: (0..n).map(|_| [r(), r(), r(), r()]).collect(),
                 log_scales: (0..n).map(|_| [r(), r(), r()]).collect(),
                 opacity_logits: (0..n).map(|_| r()).collect(),
                 sh: (0..n * 12).map(|_| r()).collect(),
-                ..Gradients::default()
+                ..GaussianGrads::default()
             };
             let deformed = DeformedGeometry::new(&canonical, Some(&delta), appearance);
             let view = deformed.view(&canonical);

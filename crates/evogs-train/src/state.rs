@@ -8,7 +8,7 @@
 //! back to them around each Adam step, so their moments are rows of 3 and `3·((deg+1)²−1)`.
 
 use densify::{DensifyPlan, DensifyStats, Moments, PerGaussian, apply_plan};
-use splat_raster::{Gaussians, Gradients};
+use splat_raster::{GaussianGrads, Gaussians};
 use tiny_nn::adam::AdamGroup;
 use tiny_nn::{Adam, ExponentialLr, GroupId, LrSchedule, StoreMut};
 
@@ -205,7 +205,7 @@ impl SceneState {
     /// this iteration, as 3DGS's `replace_tensor_to_optimizer` leaves it without gradient).
     pub fn step_gaussians(
         &mut self,
-        grads: &Gradients,
+        grads: &GaussianGrads,
         lr_step: i64,
         skip_opacity: bool,
     ) -> Result<(), TrainError> {

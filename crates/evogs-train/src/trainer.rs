@@ -27,7 +27,9 @@ use densify::{DensifyConfig, Schedule, make_plan};
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
-use splat_raster::{BackendInfo, DynRasterizer, Gaussians, RenderOptions, select_rasterizer};
+use splat_raster::{
+    BackendInfo, DynRasterizer, Gaussians, PixelGrads, RenderOptions, select_rasterizer,
+};
 
 use crate::backbone::{Backbone, D3dgsBackbone};
 use crate::config::{BackboneKind, Method, TrainConfig};
@@ -291,15 +293,16 @@ impl Trainer {
         let loss = photometric_loss(size, &fwd.color, &view.image.pixels)?;
         let train_psnr = psnr(size, &fwd.color, &view.image.pixels)?;
         t = self.times.lap(Phase::Loss, t);
-        let grads = self.raster.backward(
-            gview,
-            &view.camera,
-            &opts,
-            &fwd,
-            &loss.d_rendered,
-            None,
-            None,
-        )?;
+        let grads = self
+            .raster
+            .backward(
+                gview,
+                &view.camera,
+                &opts,
+                &fwd,
+                PixelGrads::from_color(&loss.d_rendered),
+            )?
+            .grads;
         t = self.times.lap(Phase::RasterBackward, t);
         let net_grads = if deforms {
             let dd = deformation_gradient(&grads, self.state.gaussians.sh_stride());
@@ -314,7 +317,7 @@ impl Trainer {
         if schedule.accumulates(i) {
             self.state
                 .stats
-                .add_view(&grads.means2d, &grads.radii, w, h)?;
+                .add_view(&grads.means2d, fwd.radii(), w, h)?;
             if deforms {
                 let cues = self.backbone.densify_cues(self.extent)?;
                 self.state

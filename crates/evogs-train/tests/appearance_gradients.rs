@@ -8,7 +8,7 @@
 use evogs_train::backbone::DEFORM_DIM;
 use evogs_train::deformed::{Appearance, DeformedGeometry, deformation_gradient};
 use glam::Vec3;
-use splat_raster::{Camera, CpuRasterizer, Gaussians, Rasterizer, RenderOptions};
+use splat_raster::{Camera, CpuRasterizer, Gaussians, PixelGrads, Rasterizer, RenderOptions};
 
 const N: usize = 4;
 
@@ -95,8 +95,15 @@ fn appearance_columns_match_finite_differences() {
     );
     let w = weights(fwd.color.len());
     let grads = raster
-        .backward(geometry.view(&g), &cam, &opts, &fwd, &w, None, None)
-        .unwrap();
+        .backward(
+            geometry.view(&g),
+            &cam,
+            &opts,
+            &fwd,
+            PixelGrads::from_color(&w),
+        )
+        .unwrap()
+        .grads;
     let rows = deformation_gradient(&grads, g.sh_stride());
     assert_eq!(rows.len(), N * DEFORM_DIM);
     for (i, row) in rows.chunks_exact(DEFORM_DIM).enumerate() {

@@ -8,7 +8,7 @@ mod common;
 use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use splat_raster::{Rasterizer, RenderOptions, WgpuRasterizer};
+use splat_raster::{PixelGrads, Rasterizer, RenderOptions, WgpuRasterizer};
 
 fn bench(c: &mut Criterion) {
     let r = WgpuRasterizer::new().expect("the wgpu bench needs an adapter");
@@ -36,8 +36,14 @@ fn bench(c: &mut Criterion) {
         group.bench_function("forward_backward", |b| {
             b.iter(|| {
                 let f = r.forward(black_box(g.view()), &cam, &opts).unwrap();
-                r.backward(g.view(), &cam, &opts, &f, &d_color, Some(&d_alpha), None)
-                    .unwrap()
+                r.backward(
+                    g.view(),
+                    &cam,
+                    &opts,
+                    &f,
+                    PixelGrads::from_color(&d_color).with_alpha(&d_alpha),
+                )
+                .unwrap()
             })
         });
         group.finish();

@@ -19,7 +19,7 @@ use std::hint::black_box;
 use bench_support::CpuTime;
 use criterion::measurement::{Measurement, WallTime};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use splat_raster::{CpuKernel, CpuRasterizer, Rasterizer, RenderOptions};
+use splat_raster::{CpuKernel, CpuRasterizer, PixelGrads, Rasterizer, RenderOptions};
 
 fn bench_wall(c: &mut Criterion<WallTime>) {
     bench(c, "wall");
@@ -59,8 +59,14 @@ fn bench<M: Measurement>(c: &mut Criterion<M>, clock: &str) {
             group.bench_function(format!("{prefix}forward_backward"), |b| {
                 b.iter(|| {
                     let f = r.forward(black_box(g.view()), &cam, &opts).unwrap();
-                    r.backward(g.view(), &cam, &opts, &f, &d_color, Some(&d_alpha), None)
-                        .unwrap()
+                    r.backward(
+                        g.view(),
+                        &cam,
+                        &opts,
+                        &f,
+                        PixelGrads::from_color(&d_color).with_alpha(&d_alpha),
+                    )
+                    .unwrap()
                 })
             });
         }

@@ -7,7 +7,7 @@ mod common;
 
 use std::hash::{DefaultHasher, Hasher};
 
-use splat_raster::{CpuRasterizer, Rasterizer, RenderOptions};
+use splat_raster::{CpuRasterizer, PixelGrads, Rasterizer, RenderOptions};
 
 fn main() {
     let r = CpuRasterizer::new();
@@ -30,11 +30,12 @@ fn main() {
                 &cam,
                 &opts,
                 &fwd,
-                &d_color,
-                Some(&d_alpha),
-                Some(&d_depth),
+                PixelGrads::from_color(&d_color)
+                    .with_alpha(&d_alpha)
+                    .with_depth(&d_depth),
             )
-            .unwrap();
+            .unwrap()
+            .grads;
         let mut image = DefaultHasher::new();
         for v in fwd
             .color
@@ -55,7 +56,7 @@ fn main() {
             .chain(&grads.opacity_logits)
             .chain(&grads.sh)
             .chain(grads.means2d.as_flattened())
-            .chain(&grads.radii)
+            .chain(fwd.radii())
         {
             grad.write_u32(v.to_bits());
         }

@@ -51,7 +51,7 @@ pub use error::RasterError;
 #[cfg(feature = "wgpu")]
 pub use gpu::{AdapterSummary, AtomicMode, GpuContext, WgpuRasterizer};
 pub use options::{CullStats, RenderOptions};
-pub use output::{ForwardOutput, Gradients};
+pub use output::{BackwardOutput, ForwardOutput, GaussianGrads, PixelGrads};
 /// Hooks for this crate's own benches, not part of the API: compiled only with the cargo
 /// feature `test-support`, which only the crate's dev-dependency on itself turns on.
 #[cfg(all(feature = "wgpu", feature = "test-support"))]
@@ -74,17 +74,14 @@ pub trait Rasterizer {
     ) -> Result<ForwardOutput, RasterError>;
 
     /// Gradients of a loss with respect to every raw parameter, given the loss gradients of the
-    /// forward outputs (`d_alpha`, `d_depth` may be omitted when the loss does not use them).
+    /// forward outputs (`d.alpha`, `d.depth` may be omitted when the loss does not use them).
     /// `fwd` must be the output of `forward` on the same inputs.
-    #[allow(clippy::too_many_arguments)]
     fn backward(
         &self,
         g: GaussiansView<'_>,
         cam: &Camera,
         opts: &RenderOptions,
         fwd: &ForwardOutput,
-        d_color: &[[f32; 3]],
-        d_alpha: Option<&[f32]>,
-        d_depth: Option<&[f32]>,
-    ) -> Result<Gradients, RasterError>;
+        d: PixelGrads<'_>,
+    ) -> Result<BackwardOutput, RasterError>;
 }

@@ -83,9 +83,51 @@ impl ForwardOutput {
     }
 }
 
-/// Loss gradients with respect to every raw Gaussian parameter (zero for culled Gaussians).
+/// The loss gradients of a forward pass's per-pixel outputs, row-major as its images, as
+/// [`Rasterizer::backward`](crate::Rasterizer::backward) takes them. `alpha` and `depth` are
+/// `None` when the loss does not use those outputs (the same as all zeros, without the work).
+#[derive(Clone, Copy, Debug)]
+pub struct PixelGrads<'a> {
+    /// dL/d colour, one RGB triple per pixel.
+    pub color: &'a [[f32; 3]],
+    /// dL/d alpha (accumulated opacity), one per pixel.
+    pub alpha: Option<&'a [f32]>,
+    /// dL/d depth (the un-normalised expected depth), one per pixel.
+    pub depth: Option<&'a [f32]>,
+}
+
+impl<'a> PixelGrads<'a> {
+    /// Gradients of the colour only.
+    pub fn from_color(color: &'a [[f32; 3]]) -> Self {
+        Self {
+            color,
+            alpha: None,
+            depth: None,
+        }
+    }
+
+    /// The same with dL/d alpha.
+    pub fn with_alpha(self, alpha: &'a [f32]) -> Self {
+        Self {
+            alpha: Some(alpha),
+            ..self
+        }
+    }
+
+    /// The same with dL/d depth.
+    pub fn with_depth(self, depth: &'a [f32]) -> Self {
+        Self {
+            depth: Some(depth),
+            ..self
+        }
+    }
+}
+
+/// Loss gradients with respect to every raw Gaussian parameter (zero for culled Gaussians), and
+/// to the projected means. Gradients only: the screen radii are [`ForwardOutput::radii`], the
+/// count of zeroed Gaussians is in [`BackwardOutput`].
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct Gradients {
+pub struct GaussianGrads {
     /// dL/d mean.
     pub means: Vec<[f32; 3]>,
     /// dL/d log-scale.
@@ -96,11 +138,16 @@ pub struct Gradients {
     pub opacity_logits: Vec<f32>,
     /// dL/d SH coefficients, same layout as the input (zero outside the active bands).
     pub sh: Vec<f32>,
-    /// dL/d projected mean `(u, v)`, in pixels (densification statistic).
+    /// dL/d projected mean `(u, v)`, in pixels (densification statistic, with
+    /// [`ForwardOutput::radii`]).
     pub means2d: Vec<[f32; 2]>,
-    /// Screen radius per Gaussian in pixels, 3σ of the major axis (0 when culled); callers keep
-    /// the maximum over views for densification.
-    pub radii: Vec<f32>,
+}
+
+/// What a backward pass returns: the gradients and what became of them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BackwardOutput {
+    /// The gradients.
+    pub grads: GaussianGrads,
     /// Gaussians whose gradient overflowed `f32` and was set to zero instead of NaN/Inf.
     pub zeroed_non_finite: usize,
 }

@@ -5,7 +5,7 @@ use crate::camera::Camera;
 use crate::error::RasterError;
 use crate::gaussians::GaussiansView;
 use crate::options::RenderOptions;
-use crate::output::ForwardOutput;
+use crate::output::{ForwardOutput, PixelGrads};
 
 /// Checks the inputs and returns the active SH degree.
 pub(crate) fn validate(
@@ -108,15 +108,12 @@ pub(crate) fn check_pixels<T: Copy>(
 /// pass on the same Gaussians, camera size, SH degrees and background, and the pixel gradient
 /// images (length and finiteness). Returns the active SH degree. Which backend ran the forward
 /// pass is for the caller to check.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn validate_backward(
     g: &GaussiansView<'_>,
     cam: &Camera,
     opts: &RenderOptions,
     fwd: &ForwardOutput,
-    d_color: &[[f32; 3]],
-    d_alpha: Option<&[f32]>,
-    d_depth: Option<&[f32]>,
+    d: PixelGrads<'_>,
 ) -> Result<u32, RasterError> {
     let active = validate(g, cam, opts)?;
     let st = &fwd.state;
@@ -141,14 +138,14 @@ pub(crate) fn validate_backward(
         return mismatch("background differs".into());
     }
     let npix = cam.pixel_count();
-    check_pixels("d_color", d_color, npix, |c: [f32; 3]| {
+    check_pixels("d_color", d.color, npix, |c: [f32; 3]| {
         c.iter().all(|v| v.is_finite())
     })?;
-    if let Some(d) = d_alpha {
-        check_pixels("d_alpha", d, npix, f32::is_finite)?;
+    if let Some(alpha) = d.alpha {
+        check_pixels("d_alpha", alpha, npix, f32::is_finite)?;
     }
-    if let Some(d) = d_depth {
-        check_pixels("d_depth", d, npix, f32::is_finite)?;
+    if let Some(depth) = d.depth {
+        check_pixels("d_depth", depth, npix, f32::is_finite)?;
     }
     Ok(active)
 }

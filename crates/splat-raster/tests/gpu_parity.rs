@@ -28,8 +28,8 @@ use std::sync::{Arc, OnceLock};
 use glam::{Mat3, Vec3};
 use rand::RngExt;
 use splat_raster::{
-    AtomicMode, Camera, CpuRasterizer, ForwardOutput, GpuContext, Gradients, RasterError,
-    Rasterizer, RenderOptions, WgpuRasterizer,
+    AtomicMode, BackwardOutput, Camera, CpuRasterizer, ForwardOutput, GaussianGrads, GpuContext,
+    PixelGrads, RasterError, Rasterizer, RenderOptions, WgpuRasterizer,
 };
 
 struct Backends {
@@ -139,7 +139,7 @@ fn rms(v: &[f32]) -> f32 {
     (v.iter().map(|x| f64::from(*x).powi(2)).sum::<f64>() / v.len().max(1) as f64).sqrt() as f32
 }
 
-fn kinds(g: &Gradients) -> [(&'static str, &[f32]); 6] {
+fn kinds(g: &GaussianGrads) -> [(&'static str, &[f32]); 6] {
     [
         ("means", g.means.as_flattened()),
         ("log_scales", g.log_scales.as_flattened()),
@@ -152,9 +152,9 @@ fn kinds(g: &Gradients) -> [(&'static str, &[f32]); 6] {
 
 /// Gradient parity; `skip` lists Gaussians whose gradients are not compared (documented per
 /// call).
-fn assert_gradient_parity(gpu: &Gradients, cpu: &Gradients, skip: &[usize], floor: f32) {
+fn assert_gradient_parity(gpu: &BackwardOutput, cpu: &BackwardOutput, skip: &[usize], floor: f32) {
     assert_eq!(gpu.zeroed_non_finite, cpu.zeroed_non_finite, "zeroed");
-    assert_eq!(gpu.radii.len(), cpu.radii.len());
+    let (gpu, cpu) = (&gpu.grads, &cpu.grads);
     let n = cpu.opacity_logits.len();
     for ((kind, g), (_, c)) in kinds(gpu).into_iter().zip(kinds(cpu)) {
         assert_eq!(g.len(), c.len(), "{kind} length");
@@ -219,20 +219,32 @@ fn check_scene(
     let fc = cpu.forward(g.view(), cam, opts).unwrap();
     let (dc, da, dd) = pixel_grads(cam.pixel_count(), seed);
     let gc = cpu
-        .backward(g.view(), cam, opts, &fc, &dc, Some(&da), Some(&dd))
+        .backward(
+            g.view(),
+            cam,
+            opts,
+            &fc,
+            PixelGrads::from_color(&dc).with_alpha(&da).with_depth(&dd),
+        )
         .unwrap();
     let gc_color_only = cpu
-        .backward(g.view(), cam, opts, &fc, &dc, None, None)
+        .backward(g.view(), cam, opts, &fc, PixelGrads::from_color(&dc))
         .unwrap();
     for r in both() {
         let fg = r.forward(g.view(), cam, opts).unwrap();
         assert_forward_parity(&fg, &fc, image_tol);
         let gg = r
-            .backward(g.view(), cam, opts, &fg, &dc, Some(&da), Some(&dd))
+            .backward(
+                g.view(),
+                cam,
+                opts,
+                &fg,
+                PixelGrads::from_color(&dc).with_alpha(&da).with_depth(&dd),
+            )
             .unwrap();
         assert_gradient_parity(&gg, &gc, skip, floor);
         let gg = r
-            .backward(g.view(), cam, opts, &fg, &dc, None, None)
+            .backward(g.view(), cam, opts, &fg, PixelGrads::from_color(&dc))
             .unwrap();
         assert_gradient_parity(&gg, &gc_color_only, skip, floor);
     }
@@ -404,9 +416,9 @@ fn zero_gaussians_give_the_background_and_empty_gradients() {
         assert_eq!((f.stats.total, f.stats.drawn, f.tile_pairs()), (0, 0, 0));
         let dc = vec![[1.0f32; 3]; cam.pixel_count()];
         let grads = r
-            .backward(g.view(), &cam, &opts, &f, &dc, None, None)
+            .backward(g.view(), &cam, &opts, &f, PixelGrads::from_color(&dc))
             .unwrap();
-        assert_eq!(grads, Gradients::default());
+        assert_eq!(grads, BackwardOutput::default());
     }
 }
 
@@ -422,13 +434,25 @@ fn repeated_runs_agree() {
         assert_eq!(f1.alpha, f2.alpha);
         assert_eq!(f1.depth, f2.depth);
         let g1 = r
-            .backward(g.view(), &cam, &opts, &f1, &dc, Some(&da), None)
+            .backward(
+                g.view(),
+                &cam,
+                &opts,
+                &f1,
+                PixelGrads::from_color(&dc).with_alpha(&da),
+            )
             .unwrap();
         let g2 = r
-            .backward(g.view(), &cam, &opts, &f2, &dc, Some(&da), None)
+            .backward(
+                g.view(),
+                &cam,
+                &opts,
+                &f2,
+                PixelGrads::from_color(&dc).with_alpha(&da),
+            )
             .unwrap();
         // Atomic accumulation order may differ: equal up to rounding.
-        for ((kind, a), (_, b)) in kinds(&g1).into_iter().zip(kinds(&g2)) {
+        for ((kind, a), (_, b)) in kinds(&g1.grads).into_iter().zip(kinds(&g2.grads)) {
             let scale = rms(b);
             for (k, (x, y)) in a.iter().zip(b).enumerate() {
                 close(&format!("{kind}[{k}]"), *x, *y, 1e-5 * y.abs().max(scale));
@@ -454,7 +478,7 @@ fn bad_input_and_foreign_forward_outputs_are_errors() {
     let fc = CpuRasterizer::new().forward(g.view(), &cam, &opts).unwrap();
     let dc = vec![[0.0f32; 3]; cam.pixel_count()];
     let err = r
-        .backward(g.view(), &cam, &opts, &fc, &dc, None, None)
+        .backward(g.view(), &cam, &opts, &fc, PixelGrads::from_color(&dc))
         .unwrap_err();
     assert!(
         matches!(err, RasterError::ForwardMismatch(ref m) if m.contains("another backend")),
@@ -462,13 +486,13 @@ fn bad_input_and_foreign_forward_outputs_are_errors() {
     );
     let fg = r.forward(g.view(), &cam, &opts).unwrap();
     let err = CpuRasterizer::new()
-        .backward(g.view(), &cam, &opts, &fg, &dc, None, None)
+        .backward(g.view(), &cam, &opts, &fg, PixelGrads::from_color(&dc))
         .unwrap_err();
     assert!(matches!(err, RasterError::ForwardMismatch(_)), "{err}");
     let mut bad = dc.clone();
     bad[3][1] = f32::NAN;
     assert_eq!(
-        r.backward(g.view(), &cam, &opts, &fg, &bad, None, None)
+        r.backward(g.view(), &cam, &opts, &fg, PixelGrads::from_color(&bad))
             .unwrap_err(),
         RasterError::NonFiniteGradient {
             field: "d_color",

@@ -6,7 +6,9 @@ mod common;
 
 use glam::Vec3;
 use rand::RngExt;
-use splat_raster::{Camera, CpuRasterizer, Gaussians, Rasterizer, RenderOptions, sh_coeff_count};
+use splat_raster::{
+    Camera, CpuRasterizer, Gaussians, PixelGrads, Rasterizer, RenderOptions, sh_coeff_count,
+};
 use splat_reference::{Params, RefCam};
 
 /// Loss weights per pixel for colour, alpha and depth.
@@ -128,11 +130,12 @@ fn check_gradients(seed0: u64, width: u32, height: u32, degree: u32, n: usize, e
             &cam,
             &opts,
             &fwd,
-            &w.color,
-            Some(&w.alpha),
-            Some(&w.depth),
+            PixelGrads::from_color(&w.color)
+                .with_alpha(&w.alpha)
+                .with_depth(&w.depth),
         )
-        .unwrap();
+        .unwrap()
+        .grads;
     let params = Params::from(&g);
     let rcam = RefCam::from(&cam);
     let bg = background.map(f64::from);

@@ -9,7 +9,8 @@ use common::{Q, concat, one};
 use glam::{Mat3, Vec3};
 use proptest::prelude::*;
 use splat_raster::{
-    Camera, CpuRasterizer, CullStats, Gaussians, Gradients, RasterError, Rasterizer, RenderOptions,
+    Camera, CpuRasterizer, CullStats, GaussianGrads, Gaussians, PixelGrads, RasterError,
+    Rasterizer, RenderOptions,
 };
 
 fn camera() -> Camera {
@@ -18,7 +19,8 @@ fn camera() -> Camera {
 }
 
 /// Forward and backward with a dense upstream gradient; asserts everything out is finite.
-fn render_all_finite(g: &Gaussians, cam: &Camera) -> (CullStats, Gradients) {
+/// Returns the cull counts, the gradients and the screen radii.
+fn render_all_finite(g: &Gaussians, cam: &Camera) -> (CullStats, GaussianGrads, Vec<f32>) {
     let r = CpuRasterizer::new();
     let opts = RenderOptions {
         background: [0.2, 0.4, 0.6],
@@ -40,8 +42,15 @@ fn render_all_finite(g: &Gaussians, cam: &Camera) -> (CullStats, Gradients) {
     let da = vec![0.5f32; npix];
     let dd = vec![-0.1f32; npix];
     let grads = r
-        .backward(g.view(), cam, &opts, &fwd, &dc, Some(&da), Some(&dd))
-        .unwrap();
+        .backward(
+            g.view(),
+            cam,
+            &opts,
+            &fwd,
+            PixelGrads::from_color(&dc).with_alpha(&da).with_depth(&dd),
+        )
+        .unwrap()
+        .grads;
     let finite = grads
         .means
         .as_flattened()
@@ -51,10 +60,10 @@ fn render_all_finite(g: &Gaussians, cam: &Camera) -> (CullStats, Gradients) {
         .chain(&grads.opacity_logits)
         .chain(&grads.sh)
         .chain(grads.means2d.as_flattened())
-        .chain(&grads.radii)
+        .chain(fwd.radii())
         .all(|v| v.is_finite());
     assert!(finite, "gradients must be finite");
-    (s, grads)
+    (s, grads, fwd.radii().to_vec())
 }
 
 #[test]
@@ -74,18 +83,18 @@ fn needle_thin_and_huge_gaussians_render_finitely() {
         1,
     );
     let huge = one([0.0, 0.0, 5.0], [8.0, 8.0, 8.0], Q, 0.0, 1);
-    let (s, grads) = render_all_finite(&concat(&[needle, flat, huge]), &camera());
+    let (s, _, radii) = render_all_finite(&concat(&[needle, flat, huge]), &camera());
     assert_eq!(s.drawn, 3, "{s}");
-    assert!(grads.radii.iter().all(|&r| r > 0.0));
+    assert!(radii.iter().all(|&r| r > 0.0));
     // Scales far beyond f32 squares still render (as a flat wash over the image) ...
     let vast = one([0.0, 0.0, 5.0], [60.0, 0.0, 0.0], Q, 0.0, 1);
-    let (s, _) = render_all_finite(&vast, &camera());
+    let (s, _, _) = render_all_finite(&vast, &camera());
     assert_eq!(s.drawn, 1, "{s}");
     // ... and a covariance that overflows even f64 is culled, not rendered as NaN.
     let overflow = one([0.0, 0.0, 5.0], [400.0, 0.0, 0.0], Q, 0.0, 1);
-    let (s, grads) = render_all_finite(&overflow, &camera());
+    let (s, _, radii) = render_all_finite(&overflow, &camera());
     assert_eq!(s.degenerate_covariance, 1, "{s}");
-    assert_eq!(grads.radii[0], 0.0);
+    assert_eq!(radii[0], 0.0);
 }
 
 #[test]
@@ -94,7 +103,7 @@ fn behind_camera_and_near_plane_are_culled_and_counted() {
     let at_near = one([0.0, 0.0, 0.01], [-2.0; 3], Q, 1.0, 0);
     let at_camera = one([0.0, 0.0, 0.0], [-2.0; 3], Q, 1.0, 0);
     let just_beyond = one([0.0, 0.0, 0.0101], [-2.0; 3], Q, 1.0, 0);
-    let (s, _) = render_all_finite(
+    let (s, _, _) = render_all_finite(
         &concat(&[behind, at_near, at_camera, just_beyond]),
         &camera(),
     );
@@ -108,7 +117,7 @@ fn zero_quaternion_and_low_opacity_are_culled_and_counted() {
     let tiny = one([0.0, 0.0, 3.0], [-1.0; 3], [1e-7, 0.0, 0.0, 0.0], 1.0, 2);
     let faint = one([0.0, 0.0, 3.0], [-1.0; 3], Q, -6.0, 2);
     let large_q = one([0.0, 0.0, 3.0], [-1.0; 3], [3e30, 1e30, 0.0, 0.0], 1.0, 2);
-    let (s, _) = render_all_finite(&concat(&[zero, tiny, faint, large_q]), &camera());
+    let (s, _, _) = render_all_finite(&concat(&[zero, tiny, faint, large_q]), &camera());
     assert_eq!(s.zero_quaternion, 2, "{s}");
     assert_eq!(s.low_opacity, 1, "{s}");
     assert_eq!(s.drawn, 1, "{s}");
@@ -120,7 +129,7 @@ fn nan_or_inf_in_any_field_is_culled_and_counted() {
     let mut parts = Vec::new();
     parts.extend(common::poisoned_copies(&good));
     parts.push(good);
-    let (s, grads) = render_all_finite(&concat(&parts), &camera());
+    let (s, grads, _) = render_all_finite(&concat(&parts), &camera());
     assert_eq!(s.non_finite, 15, "{s}");
     assert_eq!(s.drawn, 1, "{s}");
     assert!(grads.means[15].iter().any(|&v| v != 0.0));
@@ -134,10 +143,10 @@ fn extreme_colours_are_culled_and_empty_scenes_give_the_background() {
     for _ in 0..4 {
         stack.push(bright.clone());
     }
-    let (s, _) = render_all_finite(&concat(&stack), &camera());
+    let (s, _, _) = render_all_finite(&concat(&stack), &camera());
     assert_eq!(s.non_finite, 4, "{s}");
     let empty = Gaussians::with_degree(1);
-    let (s, grads) = render_all_finite(&empty, &camera());
+    let (s, grads, _) = render_all_finite(&empty, &camera());
     assert_eq!((s.total, s.drawn), (0, 0));
     assert!(grads.means.is_empty());
     let out = CpuRasterizer::new()
@@ -282,13 +291,19 @@ fn bad_input_is_rejected_with_the_field_named() {
     let npix = cam.pixel_count();
     let dc = vec![[0.0f32; 3]; npix];
     let e = r
-        .backward(g.view(), &cam, &opts, &fwd, &dc[1..], None, None)
+        .backward(
+            g.view(),
+            &cam,
+            &opts,
+            &fwd,
+            PixelGrads::from_color(&dc[1..]),
+        )
         .unwrap_err();
     assert!(e.to_string().contains("d_color"), "{e}");
     let mut nan = dc.clone();
     nan[7][2] = f32::NAN;
     let e = r
-        .backward(g.view(), &cam, &opts, &fwd, &nan, None, None)
+        .backward(g.view(), &cam, &opts, &fwd, PixelGrads::from_color(&nan))
         .unwrap_err();
     assert!(
         matches!(
@@ -301,12 +316,18 @@ fn bad_input_is_rejected_with_the_field_named() {
         "{e}"
     );
     let e = r
-        .backward(g.view(), &cam, &opts, &fwd, &dc, Some(&[0.0; 3]), None)
+        .backward(
+            g.view(),
+            &cam,
+            &opts,
+            &fwd,
+            PixelGrads::from_color(&dc).with_alpha(&[0.0; 3]),
+        )
         .unwrap_err();
     assert!(e.to_string().contains("d_alpha"), "{e}");
     let two = concat(&[g.clone(), g.clone()]);
     let e = r
-        .backward(two.view(), &cam, &opts, &fwd, &dc, None, None)
+        .backward(two.view(), &cam, &opts, &fwd, PixelGrads::from_color(&dc))
         .unwrap_err();
     assert!(matches!(e, RasterError::ForwardMismatch(_)), "{e}");
     let other_bg = RenderOptions {
@@ -314,7 +335,7 @@ fn bad_input_is_rejected_with_the_field_named() {
         ..opts
     };
     let e = r
-        .backward(g.view(), &cam, &other_bg, &fwd, &dc, None, None)
+        .backward(g.view(), &cam, &other_bg, &fwd, PixelGrads::from_color(&dc))
         .unwrap_err();
     assert!(matches!(e, RasterError::ForwardMismatch(_)), "{e}");
 }

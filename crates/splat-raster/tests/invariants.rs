@@ -4,7 +4,9 @@
 mod common;
 
 use rand::RngExt;
-use splat_raster::{Camera, CpuRasterizer, Gaussians, Gradients, Rasterizer, RenderOptions};
+use splat_raster::{
+    Camera, CpuRasterizer, GaussianGrads, Gaussians, PixelGrads, Rasterizer, RenderOptions,
+};
 
 /// One way of making a Gaussian culled.
 type Edit = Box<dyn Fn(&mut Gaussians)>;
@@ -36,12 +38,19 @@ fn run(
     g: &Gaussians,
     cam: &Camera,
     opts: &RenderOptions,
-) -> (splat_raster::ForwardOutput, Gradients) {
+) -> (splat_raster::ForwardOutput, GaussianGrads) {
     let fwd = r.forward(g.view(), cam, opts).unwrap();
     let (dc, da, dd) = d_images(cam.pixel_count(), 7);
     let grads = r
-        .backward(g.view(), cam, opts, &fwd, &dc, Some(&da), Some(&dd))
-        .unwrap();
+        .backward(
+            g.view(),
+            cam,
+            opts,
+            &fwd,
+            PixelGrads::from_color(&dc).with_alpha(&da).with_depth(&dd),
+        )
+        .unwrap()
+        .grads;
     (fwd, grads)
 }
 
@@ -136,7 +145,7 @@ fn culled_gaussians_change_nothing() {
     for &at in positions.iter().rev() {
         assert_eq!(grads.means[at], [0.0; 3]);
         assert_eq!(grads.opacity_logits[at], 0.0);
-        assert_eq!(grads.radii[at], 0.0);
+        assert_eq!(out.radii()[at], 0.0);
         means = remove_row(&means, at, 1);
         logits = remove_row(&logits, at, 1);
         sh = remove_row(&sh, at, g.sh_stride());

@@ -18,7 +18,7 @@ use std::sync::Arc;
 
 use rayon::prelude::*;
 
-use self::composite::{LANES, PixelGrads, TileOut, lanes, scalar};
+use self::composite::{LANES, TileOut, lanes, scalar};
 use self::project::{CullReason, Splat, SplatGrad};
 use self::simd::Isa;
 use self::tiles::TileLists;
@@ -29,7 +29,9 @@ use crate::error::RasterError;
 use crate::frame::Frame;
 use crate::gaussians::GaussiansView;
 use crate::options::{CullStats, RenderOptions};
-use crate::output::{BackendState, BackwardState, Counters, ForwardOutput, Gradients};
+use crate::output::{
+    BackendState, BackwardOutput, BackwardState, Counters, ForwardOutput, GaussianGrads, PixelGrads,
+};
 use crate::validate::{validate, validate_backward};
 
 /// Which compositing kernels [`CpuRasterizer`] runs.
@@ -292,18 +294,15 @@ impl CpuRasterizer {
         })
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn backward_impl(
         &self,
         g: GaussiansView<'_>,
         cam: &Camera,
         opts: &RenderOptions,
         fwd: &ForwardOutput,
-        d_color: &[[f32; 3]],
-        d_alpha: Option<&[f32]>,
-        d_depth: Option<&[f32]>,
-    ) -> Result<Gradients, RasterError> {
-        let active = validate_backward(&g, cam, opts, fwd, d_color, d_alpha, d_depth)?;
+        pixel_grads: PixelGrads<'_>,
+    ) -> Result<BackwardOutput, RasterError> {
+        let active = validate_backward(&g, cam, opts, fwd, pixel_grads)?;
         let st = &fwd.state;
         let mismatch = |what: &str| Err(RasterError::ForwardMismatch(what.into()));
         #[allow(unreachable_patterns)]
@@ -312,11 +311,6 @@ impl CpuRasterizer {
             _ => return mismatch("the forward pass ran on another backend"),
         };
         let frame = Frame::new(cam);
-        let pixel_grads = PixelGrads {
-            color: d_color,
-            alpha: d_alpha,
-            depth: d_depth,
-        };
 
         // Per list entry gradients, each tile writing its own slots.
         let lists = &cpu.lists;
@@ -398,26 +392,28 @@ impl CpuRasterizer {
                 }
             })
             .collect();
-        let mut out = Gradients {
-            means: vec![[0.0; 3]; n],
-            log_scales: vec![[0.0; 3]; n],
-            rotations: vec![[0.0; 4]; n],
-            opacity_logits: vec![0.0; n],
-            sh,
-            means2d: vec![[0.0; 2]; n],
-            radii: st.radii.clone(),
+        let mut out = BackwardOutput {
+            grads: GaussianGrads {
+                means: vec![[0.0; 3]; n],
+                log_scales: vec![[0.0; 3]; n],
+                rotations: vec![[0.0; 4]; n],
+                opacity_logits: vec![0.0; n],
+                sh,
+                means2d: vec![[0.0; 2]; n],
+            },
             zeroed_non_finite: 0,
         };
+        let grads = &mut out.grads;
         for (i, outcome) in outcomes.into_iter().enumerate() {
             match outcome {
                 Outcome::Culled => {}
                 Outcome::Zeroed => out.zeroed_non_finite += 1,
                 Outcome::Drawn(grad, uv) => {
-                    out.means[i] = grad.mean;
-                    out.log_scales[i] = grad.log_scale;
-                    out.rotations[i] = grad.q;
-                    out.opacity_logits[i] = grad.logit;
-                    out.means2d[i] = uv;
+                    grads.means[i] = grad.mean;
+                    grads.log_scales[i] = grad.log_scale;
+                    grads.rotations[i] = grad.q;
+                    grads.opacity_logits[i] = grad.logit;
+                    grads.means2d[i] = uv;
                 }
             }
         }
@@ -441,11 +437,9 @@ impl Rasterizer for CpuRasterizer {
         cam: &Camera,
         opts: &RenderOptions,
         fwd: &ForwardOutput,
-        d_color: &[[f32; 3]],
-        d_alpha: Option<&[f32]>,
-        d_depth: Option<&[f32]>,
-    ) -> Result<Gradients, RasterError> {
-        self.install(|| self.backward_impl(g, cam, opts, fwd, d_color, d_alpha, d_depth))
+        d: PixelGrads<'_>,
+    ) -> Result<BackwardOutput, RasterError> {
+        self.install(|| self.backward_impl(g, cam, opts, fwd, d))
     }
 }
 
@@ -556,12 +550,13 @@ mod tests {
             let run = |kernels: Kernels| {
                 let r = CpuRasterizer::new().with_kernels(kernels);
                 let fwd = r.forward(g.view(), &cam, &opts).unwrap();
-                let grads = r.backward(g.view(), &cam, &opts, &fwd, &dc, Some(&da), Some(&dd)).unwrap();
+                let d = PixelGrads::from_color(&dc).with_alpha(&da).with_depth(&dd);
+                let grads = r.backward(g.view(), &cam, &opts, &fwd, d).unwrap().grads;
                 (fwd, grads)
             };
             let (rf, rg) = run(Kernels::Scalar { exp: approx_exp });
             let rs = cpu_state(&rf);
-            let mut first: Option<Gradients> = None;
+            let mut first: Option<GaussianGrads> = None;
             for isa in isas() {
                 let (f, gr) = run(Kernels::Lanes(isa));
                 let fs = cpu_state(&f);

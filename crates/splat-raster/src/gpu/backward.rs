@@ -5,7 +5,7 @@ use crate::camera::Camera;
 use crate::error::RasterError;
 use crate::gaussians::GaussiansView;
 use crate::options::RenderOptions;
-use crate::output::{BackendState, ForwardOutput, Gradients};
+use crate::output::{BackendState, BackwardOutput, ForwardOutput, GaussianGrads, PixelGrads};
 use crate::validate::validate_backward;
 
 use super::WgpuRasterizer;
@@ -18,18 +18,15 @@ const RECORD_GRAD: u64 = 10;
 const OUT_STRIDE: usize = 14;
 
 impl WgpuRasterizer {
-    #[allow(clippy::too_many_arguments)]
     pub(crate) fn backward_impl(
         &self,
         g: GaussiansView<'_>,
         cam: &Camera,
         opts: &RenderOptions,
         fwd: &ForwardOutput,
-        d_color: &[[f32; 3]],
-        d_alpha: Option<&[f32]>,
-        d_depth: Option<&[f32]>,
-    ) -> Result<Gradients, RasterError> {
-        validate_backward(&g, cam, opts, fwd, d_color, d_alpha, d_depth)?;
+        d: PixelGrads<'_>,
+    ) -> Result<BackwardOutput, RasterError> {
+        validate_backward(&g, cam, opts, fwd, d)?;
         let st = &fwd.state;
         let mismatch = |what: &str| Err(RasterError::ForwardMismatch(what.into()));
         let gpu = match &st.backend {
@@ -48,19 +45,19 @@ impl WgpuRasterizer {
         let n = g.len();
         let stride = g.sh_stride();
         let mut frame = gpu.frame;
-        frame.use_d_alpha = u32::from(d_alpha.is_some());
-        frame.use_d_depth = u32::from(d_depth.is_some());
+        frame.use_d_alpha = u32::from(d.alpha.is_some());
+        frame.use_d_depth = u32::from(d.depth.is_some());
         let frame_buf = uniform(device, "frame", bytemuck::bytes_of(&frame));
-        let d_color_buf = storage_init(device, "d_color", bytemuck::cast_slice(d_color))?;
+        let d_color_buf = storage_init(device, "d_color", bytemuck::cast_slice(d.color))?;
         let d_alpha_buf = storage_init(
             device,
             "d_alpha",
-            bytemuck::cast_slice(d_alpha.unwrap_or(&[])),
+            bytemuck::cast_slice(d.alpha.unwrap_or(&[])),
         )?;
         let d_depth_buf = storage_init(
             device,
             "d_depth",
-            bytemuck::cast_slice(d_depth.unwrap_or(&[])),
+            bytemuck::cast_slice(d.depth.unwrap_or(&[])),
         )?;
         let n64 = n as u64;
         let grads = storage(device, "record_grads", n64 * RECORD_GRAD * 4)?;
@@ -122,16 +119,15 @@ impl WgpuRasterizer {
         )?;
         let raw: Vec<f32> = bytemuck::pod_collect_to_vec(&back[0]);
         let sh: Vec<f32> = bytemuck::pod_collect_to_vec(&back[1]);
-        let mut grads = Gradients {
+        let mut grads = GaussianGrads {
             means: Vec::with_capacity(n),
             log_scales: Vec::with_capacity(n),
             rotations: Vec::with_capacity(n),
             opacity_logits: Vec::with_capacity(n),
             sh,
             means2d: Vec::with_capacity(n),
-            radii: st.radii.clone(),
-            zeroed_non_finite: 0,
         };
+        let mut zeroed_non_finite = 0;
         for r in raw.chunks_exact(OUT_STRIDE) {
             grads.means.push([r[0], r[1], r[2]]);
             grads.log_scales.push([r[3], r[4], r[5]]);
@@ -139,9 +135,12 @@ impl WgpuRasterizer {
             grads.opacity_logits.push(r[10]);
             grads.means2d.push([r[11], r[12]]);
             if r[13] != 0.0 {
-                grads.zeroed_non_finite += 1;
+                zeroed_non_finite += 1;
             }
         }
-        Ok(grads)
+        Ok(BackwardOutput {
+            grads,
+            zeroed_non_finite,
+        })
     }
 }

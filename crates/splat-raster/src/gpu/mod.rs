@@ -1,7 +1,7 @@
 //! The wgpu backend: [`WgpuRasterizer`] runs the forward and backward passes of DESIGN §3 in WGSL
 //! compute kernels and gives the results of [`crate::CpuRasterizer`] (same culling and
 //! [`CullStats`](crate::CullStats), same opacity-aware tile test, compositing constants, depth
-//! convention and [`Gradients`] fields), to f32 rounding.
+//! convention and [`GaussianGrads`](crate::GaussianGrads) fields), to f32 rounding.
 //!
 //! Pipeline (kernels in `shaders/`):
 //! 1. `project` (one thread per Gaussian): culling in the CPU's order, counted per reason with
@@ -75,7 +75,7 @@ use crate::camera::Camera;
 use crate::error::RasterError;
 use crate::gaussians::GaussiansView;
 use crate::options::RenderOptions;
-use crate::output::{ForwardOutput, Gradients};
+use crate::output::{BackwardOutput, ForwardOutput, PixelGrads};
 
 use frame::FrameUniform;
 use pipelines::Pipelines;
@@ -201,10 +201,8 @@ impl Rasterizer for WgpuRasterizer {
         cam: &Camera,
         opts: &RenderOptions,
         fwd: &ForwardOutput,
-        d_color: &[[f32; 3]],
-        d_alpha: Option<&[f32]>,
-        d_depth: Option<&[f32]>,
-    ) -> Result<Gradients, RasterError> {
-        self.checked(|| self.backward_impl(g, cam, opts, fwd, d_color, d_alpha, d_depth))
+        d: PixelGrads<'_>,
+    ) -> Result<BackwardOutput, RasterError> {
+        self.checked(|| self.backward_impl(g, cam, opts, fwd, d))
     }
 }

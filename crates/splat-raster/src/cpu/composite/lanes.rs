@@ -15,10 +15,11 @@
 
 use super::super::project::{Splat, SplatGrad};
 use super::super::simd::{Kernel, Simd, W, exp};
-use super::{LANES, PixelGrads, TileOut, TileRect};
+use super::{LANES, TileOut, TileRect};
 use crate::constants::{ALPHA_MAX, ALPHA_MIN, T_MIN, TILE};
 use crate::frame::Frame;
 use crate::output::Counters;
+use crate::output::PixelGrads;
 
 /// Blocks of [`W`] pixels per tile.
 const BLOCKS: usize = LANES / W;

@@ -67,11 +67,3 @@ pub(crate) struct TileOut<'a> {
     /// One past the list position of the last blended Gaussian, per lane (0 = none).
     pub last: &'a mut [u32],
 }
-
-/// Per-pixel loss gradients of the three outputs, row-major.
-#[derive(Clone, Copy)]
-pub(crate) struct PixelGrads<'a> {
-    pub color: &'a [[f32; 3]],
-    pub alpha: Option<&'a [f32]>,
-    pub depth: Option<&'a [f32]>,
-}

@@ -5,10 +5,11 @@
 //! decisions as the fast ones, pixel for pixel, which the tests compare.
 
 use super::super::project::{Splat, SplatGrad};
-use super::{LANES, PixelGrads, TileOut, TileRect};
+use super::{LANES, TileOut, TileRect};
 use crate::constants::{ALPHA_MAX, ALPHA_MIN, T_MIN};
 use crate::frame::Frame;
 use crate::output::Counters;
+use crate::output::PixelGrads;
 
 /// `σ = 0.5 (a dx² + c dy²) + b dx dy` with `d = pixel centre − projected mean`.
 #[inline(always)]
