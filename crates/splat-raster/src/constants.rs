@@ -23,33 +23,13 @@ pub const TILE: u32 = 16;
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::wgsl_text::const_value;
 
     /// The kernels' declarations (read as text: no GPU or `wgpu` feature needed).
     const COMMON_WGSL: &str = include_str!("gpu/shaders/common.wgsl");
 
-    /// The value of `const NAME: TYPE = EXPR;` in `common.wgsl`, where EXPR is a literal or
-    /// `a / b` (WGSL evaluates constant expressions exactly, then converts to the type).
     fn wgsl_const(name: &str) -> f64 {
-        let prefix = format!("const {name}:");
-        let line = COMMON_WGSL
-            .lines()
-            .find(|l| l.trim_start().starts_with(&prefix))
-            .unwrap_or_else(|| panic!("common.wgsl declares no `{name}`"));
-        let expr = line
-            .split_once('=')
-            .and_then(|(_, e)| e.trim().strip_suffix(';'))
-            .unwrap_or_else(|| panic!("`{line}` is not `const {name}: T = EXPR;`"));
-        let literal = |s: &str| -> f64 {
-            let s = s.trim();
-            s.strip_suffix('u')
-                .unwrap_or(s)
-                .parse()
-                .unwrap_or_else(|e| panic!("{name}: `{s}`: {e}"))
-        };
-        match expr.split_once('/') {
-            Some((a, b)) => literal(a) / literal(b),
-            None => literal(expr),
-        }
+        const_value(COMMON_WGSL, name)
     }
 
     #[test]
@@ -67,11 +47,5 @@ mod tests {
             assert_eq!(wgsl_const(name) as f32, value, "{name}");
         }
         assert_eq!(wgsl_const("TILE"), f64::from(TILE), "TILE");
-    }
-
-    #[test]
-    fn the_reader_refuses_a_missing_constant() {
-        let missing = std::panic::catch_unwind(|| wgsl_const("NO_SUCH_CONSTANT"));
-        assert!(missing.is_err());
     }
 }

@@ -41,6 +41,8 @@ mod options;
 mod output;
 pub mod sh;
 mod validate;
+#[cfg(test)]
+mod wgsl_text;
 
 pub use backend::{BackendChoice, BackendInfo, BackendKind, DynRasterizer, select_rasterizer};
 pub use constants::{

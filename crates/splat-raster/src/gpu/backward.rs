@@ -15,7 +15,7 @@ use super::pipelines::{bind, dispatch, groups_1d};
 /// Floats per Gaussian of the record gradient (u, v, a, b, c, opacity, r, g, b, z).
 const RECORD_GRAD: u64 = 10;
 /// Floats per Gaussian of the projection backward's output (see project_bwd.wgsl).
-const OUT_STRIDE: usize = 14;
+pub(crate) const OUT_STRIDE: usize = 14;
 
 impl WgpuRasterizer {
     pub(crate) fn backward_impl(

@@ -17,7 +17,7 @@ use super::scan::level_lengths;
 use super::{GpuState, WgpuRasterizer};
 
 /// Bytes of one WGSL `Splat` record.
-const SPLAT_BYTES: u64 = 64;
+pub(crate) const SPLAT_BYTES: u64 = 64;
 
 fn u32s(bytes: &[u8]) -> Vec<u32> {
     bytemuck::pod_collect_to_vec(bytes)

@@ -61,6 +61,7 @@ mod buffers;
 mod context;
 mod forward;
 mod frame;
+mod layout;
 mod pipelines;
 mod scan;
 pub(crate) mod sort;

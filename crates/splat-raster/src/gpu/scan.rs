@@ -16,20 +16,24 @@ use std::num::NonZeroU64;
 
 use wgpu::util::DeviceExt;
 
+use super::layout::wgsl_mirror;
+
 /// Elements per chunk (one workgroup).
 pub(crate) const BLOCK: u32 = 1024;
 
 const SCAN_WGSL: &str = include_str!("shaders/scan.wgsl");
 
-/// The uniform of one scan level (`ScanParams` in `shaders/scan.wgsl`).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub(crate) struct ScanParams {
-    /// Number of elements of the level.
-    pub len: u32,
-    pub pad0: u32,
-    pub pad1: u32,
-    pub pad2: u32,
+wgsl_mirror! {
+    /// The uniform of one scan level (`ScanParams` in `shaders/scan.wgsl`).
+    #[repr(C)]
+    #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+    pub(crate) struct ScanParams {
+        /// Number of elements of the level.
+        pub len: u32,
+        pub pad0: u32,
+        pub pad1: u32,
+        pub pad2: u32,
+    }
 }
 
 /// Bytes of one [`ScanParams`] record.

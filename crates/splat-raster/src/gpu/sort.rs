@@ -30,6 +30,7 @@ use wgpu::util::DeviceExt;
 #[cfg(any(test, feature = "test-support"))]
 pub use harness::SortHarness;
 
+use super::layout::wgsl_mirror;
 use super::scan::{self, PrefixSum, ScanPlan, dispatch_grid, words};
 
 /// Elements per workgroup (block) in every kernel.
@@ -43,18 +44,20 @@ const COMMON_WGSL: &str = include_str!("shaders/sort_common.wgsl");
 const COUNT_WGSL: &str = include_str!("shaders/sort_count.wgsl");
 const SCATTER_WGSL: &str = include_str!("shaders/sort_scatter.wgsl");
 
-/// Per-pass parameters, as the WGSL `Params` struct of `shaders/sort_common.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub(crate) struct Params {
-    /// Number of (key, value) pairs.
-    pub n: u32,
-    /// Lowest key bit of this pass's digit.
-    pub shift: u32,
-    /// Width of this pass's digit, 1..=4.
-    pub bits: u32,
-    /// Number of 1024-element blocks of the keys.
-    pub num_blocks: u32,
+wgsl_mirror! {
+    /// Per-pass parameters, as the WGSL `Params` struct of `shaders/sort_common.wgsl`.
+    #[repr(C)]
+    #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+    pub(crate) struct Params {
+        /// Number of (key, value) pairs.
+        pub n: u32,
+        /// Lowest key bit of this pass's digit.
+        pub shift: u32,
+        /// Width of this pass's digit, 1..=4.
+        pub bits: u32,
+        /// Number of 1024-element blocks of the keys.
+        pub num_blocks: u32,
+    }
 }
 
 /// Bytes of one [`Params`] record.

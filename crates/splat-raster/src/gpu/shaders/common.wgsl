@@ -1,6 +1,7 @@
 // Shared by every kernel (prepended by gpu/pipelines.rs): the frame uniform, the compositing
 // record, the constants of DESIGN §3, and the per-Gaussian geometry (f32, cancellation-safe).
 
+// Mirrored by `FrameUniform` in gpu/frame.rs (gpu/layout.rs checks that the layouts agree).
 struct Frame {
     fx: f32, fy: f32, cx: f32, cy: f32,
     lim_x0: f32, lim_x1: f32, lim_y0: f32, lim_y1: f32,

@@ -6,7 +6,7 @@
 // dispatched; the linear chunk index is `id.x + id.y * grid.x`, and a workgroup past the last
 // chunk returns at once.
 
-// Mirrored by `ScanParams` in gpu/scan.rs (a test checks the layouts agree).
+// Mirrored by `ScanParams` in gpu/scan.rs (gpu/layout.rs checks that the layouts agree).
 struct ScanParams {
     // Number of elements of `data`.
     len: u32,

@@ -4,7 +4,7 @@
 // on a 2D grid (x then y) so that more than 65535 blocks can be dispatched; the linear block index
 // is `id.x + id.y * grid.x`, and a workgroup past the last block returns at once.
 
-// Mirrored by `Params` in gpu/sort.rs (a test checks the layouts agree).
+// Mirrored by `Params` in gpu/sort.rs (gpu/layout.rs checks that the layouts agree).
 struct Params {
     // Number of (key, value) pairs.
     n: u32,
