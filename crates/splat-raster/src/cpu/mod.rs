@@ -19,7 +19,7 @@ use std::sync::Arc;
 use rayon::prelude::*;
 
 use self::composite::{LANES, TileOut, lanes, scalar};
-use self::project::{CullReason, Splat, SplatGrad};
+use self::project::{CullReason, Splat, SplatGrads};
 use self::simd::Isa;
 use self::tiles::TileLists;
 use crate::Rasterizer;
@@ -155,7 +155,7 @@ enum Outcome {
     /// Its gradient overflowed `f32`: set to zero and counted.
     Zeroed,
     /// Its raw-parameter gradient and dL/d(u, v).
-    Drawn(project::RawGrad, [f32; 2]),
+    Drawn(project::RawGrads, [f32; 2]),
 }
 
 /// Row-major pixel index → (tile, lane).
@@ -231,7 +231,7 @@ impl CpuRasterizer {
                 let (ids, background) = (lists.tile(tile), opts.background);
                 match self.kernels {
                     Kernels::Scalar { exp } => {
-                        scalar::forward_tile(&frame, tile, ids, &splats, background, out, exp)
+                        scalar::forward_tile_into(&frame, tile, ids, &splats, background, out, exp)
                     }
                     Kernels::Lanes(isa) => simd::dispatch(
                         isa,
@@ -314,8 +314,8 @@ impl CpuRasterizer {
 
         // Per list entry gradients, each tile writing its own slots.
         let lists = &cpu.lists;
-        let mut entries = vec![SplatGrad::default(); lists.ids.len()];
-        let mut slots: Vec<&mut [SplatGrad]> = Vec::with_capacity(lists.offsets.len());
+        let mut entries = vec![SplatGrads::default(); lists.ids.len()];
+        let mut slots: Vec<&mut [SplatGrads]> = Vec::with_capacity(lists.offsets.len());
         let mut rest = entries.as_mut_slice();
         for t in 0..lists.offsets.len() - 1 {
             let (head, tail) = rest.split_at_mut(lists.offsets[t + 1] - lists.offsets[t]);
@@ -327,7 +327,7 @@ impl CpuRasterizer {
             let (final_t, last) = (&cpu.final_t[range.clone()], &cpu.last[range]);
             let ids = lists.tile(tile);
             match cpu.kernels {
-                Kernels::Scalar { exp } => scalar::backward_tile(
+                Kernels::Scalar { exp } => scalar::backward_tile_into(
                     &frame,
                     tile,
                     ids,
@@ -369,11 +369,11 @@ impl CpuRasterizer {
                 if lists.entries_of(i).is_empty() {
                     return Outcome::Culled;
                 }
-                let mut d = SplatGrad::default();
+                let mut d = SplatGrads::default();
                 for &e in lists.entries_of(i) {
                     d.add(&entries[e as usize]);
                 }
-                let Some(grad) = project::project_backward(&frame, &g, active, i, &d, sh_out)
+                let Some(grad) = project::project_backward_into(&frame, &g, active, i, &d, sh_out)
                 else {
                     return Outcome::Culled;
                 };

@@ -330,7 +330,7 @@ fn color(frame: &Frame, mean: Vec3, sh: &[f32], degree: u32) -> ([f32; 3], [f32;
 
 /// Loss gradients with respect to one Gaussian's compositing record.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub(crate) struct SplatGrad {
+pub(crate) struct SplatGrads {
     pub u: f32,
     pub v: f32,
     pub a: f32,
@@ -341,8 +341,8 @@ pub(crate) struct SplatGrad {
     pub z: f32,
 }
 
-impl SplatGrad {
-    pub fn add(&mut self, o: &SplatGrad) {
+impl SplatGrads {
+    pub fn add(&mut self, o: &SplatGrads) {
         self.u += o.u;
         self.v += o.v;
         self.a += o.a;
@@ -358,7 +358,7 @@ impl SplatGrad {
 
 /// Gradients of one Gaussian's raw parameters.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub(crate) struct RawGrad {
+pub(crate) struct RawGrads {
     pub mean: [f32; 3],
     pub log_scale: [f32; 3],
     pub q: [f32; 4],
@@ -376,14 +376,14 @@ fn outer(a: DVec3, b: DVec3) -> DMat3 {
 /// Backward of [`project`]: chains the record's gradient to the raw parameters of Gaussian `i`.
 /// SH gradients are written to `sh_grad` (`sh_stride` floats, zero outside the active bands).
 /// Returns `None` for a culled Gaussian (its gradient is zero and `sh_grad` is left untouched).
-pub(crate) fn project_backward(
+pub(crate) fn project_backward_into(
     frame: &Frame,
     g: &GaussiansView<'_>,
     active_degree: u32,
     i: usize,
-    d: &SplatGrad,
+    d: &SplatGrads,
     sh_grad: &mut [f32],
-) -> Option<RawGrad> {
+) -> Option<RawGrads> {
     let r = raw(g, i);
     let geo = geometry(frame, &r).ok()?;
     let (fx, fy) = (frame.fx, frame.fy);
@@ -493,7 +493,7 @@ pub(crate) fn project_backward(
     }
     let d_mean = d_mean64.as_vec3() + (d_dir - dir * dir.dot(d_dir)) / len;
 
-    Some(RawGrad {
+    Some(RawGrads {
         mean: d_mean.to_array(),
         log_scale,
         q,

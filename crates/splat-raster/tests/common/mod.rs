@@ -1,5 +1,6 @@
-//! Test support: one-Gaussian builders, deterministic random scenes, and the exact f64 reference
-//! renderer of DESIGN §3 (crate `splat-reference`, re-exported).
+//! Test support: one-Gaussian builders and deterministic random scenes. The exact f64 reference
+//! renderer of DESIGN §3 is the crate `splat-reference`, which the tests use directly (as does
+//! the CLI's agreement test); there is no other copy.
 #![allow(dead_code)]
 
 use glam::Vec3;

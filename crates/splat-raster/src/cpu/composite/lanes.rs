@@ -13,7 +13,7 @@
 //! over the pixels per lane and then across the lanes in a fixed order, so its sums differ from
 //! the reference's pixel-by-pixel order by rounding only, and never depend on the thread count.
 
-use super::super::project::{Splat, SplatGrad};
+use super::super::project::{Splat, SplatGrads};
 use super::super::simd::{Kernel, Simd, W, exp};
 use super::{LANES, TileOut, TileRect};
 use crate::constants::{ALPHA_MAX, ALPHA_MIN, T_MIN, TILE};
@@ -82,7 +82,7 @@ fn sigma<V: Simd>(v: V, col: &Column<V>, cdy2: f32, dy: f32) -> V::F {
     (col.adx2 + v.splat(cdy2)) * v.splat(0.5) + col.bdx * v.splat(dy)
 }
 
-/// [`forward_tile`] as a [`Kernel`], to be compiled for the CPU's instruction set.
+/// [`forward_tile_into`] as a [`Kernel`], to be compiled for the CPU's instruction set.
 pub(crate) struct Forward<'a> {
     pub frame: &'a Frame,
     pub tile: usize,
@@ -97,7 +97,7 @@ impl Kernel for Forward<'_> {
 
     #[inline(always)]
     fn run<V: Simd>(self, v: V) -> Counters {
-        forward_tile(
+        forward_tile_into(
             v,
             self.frame,
             self.tile,
@@ -109,9 +109,9 @@ impl Kernel for Forward<'_> {
     }
 }
 
-/// Composites one tile front to back, as [`super::scalar::forward_tile`] with [`exp`].
+/// Composites one tile front to back, as [`super::scalar::forward_tile_into`] with [`exp`].
 #[inline(always)]
-fn forward_tile<V: Simd>(
+fn forward_tile_into<V: Simd>(
     v: V,
     frame: &Frame,
     tile: usize,
@@ -200,7 +200,7 @@ fn forward_tile<V: Simd>(
     counters
 }
 
-/// [`backward_tile`] as a [`Kernel`], to be compiled for the CPU's instruction set.
+/// [`backward_tile_into`] as a [`Kernel`], to be compiled for the CPU's instruction set.
 pub(crate) struct Backward<'a> {
     pub frame: &'a Frame,
     pub tile: usize,
@@ -210,7 +210,7 @@ pub(crate) struct Backward<'a> {
     pub final_t: &'a [f32],
     pub last: &'a [u32],
     pub grads: PixelGrads<'a>,
-    pub out: &'a mut [SplatGrad],
+    pub out: &'a mut [SplatGrads],
 }
 
 impl Kernel for Backward<'_> {
@@ -218,15 +218,15 @@ impl Kernel for Backward<'_> {
 
     #[inline(always)]
     fn run<V: Simd>(self, v: V) {
-        backward_tile(v, self);
+        backward_tile_into(v, self);
     }
 }
 
-/// Backward of [`forward_tile`], as [`super::scalar::backward_tile`] with [`exp`]: writes the
+/// Backward of [`forward_tile_into`], as [`super::scalar::backward_tile_into`] with [`exp`]: writes the
 /// gradient of each list entry's record into `out` (entries past the tile's last contributor
 /// are left as they are).
 #[inline(always)]
-fn backward_tile<V: Simd>(v: V, k: Backward<'_>) {
+fn backward_tile_into<V: Simd>(v: V, k: Backward<'_>) {
     let rect = TileRect::new(k.frame, k.tile);
     let width = k.frame.width as usize;
     let (zero, one) = (v.splat(0.0), v.splat(1.0));
@@ -336,7 +336,7 @@ fn backward_tile<V: Simd>(v: V, k: Backward<'_>) {
             }
         }
         let sums = acc.map(|a| v.sum(a));
-        k.out[j] = SplatGrad {
+        k.out[j] = SplatGrads {
             u: sums[8],
             v: sums[9],
             a: sums[5],

@@ -4,7 +4,7 @@
 //! kernels of [`super::lanes`] against; with [`crate::cpu::simd::exp`] they make the same blending
 //! decisions as the fast ones, pixel for pixel, which the tests compare.
 
-use super::super::project::{Splat, SplatGrad};
+use super::super::project::{Splat, SplatGrads};
 use super::{LANES, TileOut, TileRect};
 use crate::constants::{ALPHA_MAX, ALPHA_MIN, T_MIN};
 use crate::frame::Frame;
@@ -34,7 +34,7 @@ fn alpha_at(s: &Splat, sig: f32, exp: impl Fn(f32) -> f32) -> (f32, f32, bool) {
 /// Gaussian-major: for each list entry in depth order, the pixels of the tile inside the
 /// Gaussian's bounding box are updated (pixels outside it cannot reach α >= 1/255); a pixel that
 /// stops keeps its state; the tile ends when all its pixels have stopped.
-pub(crate) fn forward_tile(
+pub(crate) fn forward_tile_into(
     frame: &Frame,
     tile: usize,
     ids: &[u32],
@@ -110,14 +110,14 @@ pub(crate) fn forward_tile(
     counters
 }
 
-/// Backward of [`forward_tile`]: writes the gradient of each list entry's record into `out`
+/// Backward of [`forward_tile_into`]: writes the gradient of each list entry's record into `out`
 /// (same length as `ids`; entries past the tile's last contributor are left zero).
 ///
 /// Back to front per pixel: `T` is recovered by division, `T_j = T_{j+1} / (1 - α_j)`, and the
 /// normalised colour (and alpha, depth) behind entry `j` is carried along, so that
 /// `dL/dα_j = T_j Σ_k (f_k - behind_k) dL/dout_k` over the five outputs (r, g, b, alpha, depth).
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn backward_tile(
+pub(crate) fn backward_tile_into(
     frame: &Frame,
     tile: usize,
     ids: &[u32],
@@ -126,7 +126,7 @@ pub(crate) fn backward_tile(
     final_t: &[f32],
     last: &[u32],
     grads: PixelGrads<'_>,
-    out: &mut [SplatGrad],
+    out: &mut [SplatGrads],
     exp: impl Fn(f32) -> f32 + Copy,
 ) {
     let rect = TileRect::new(frame, tile);
@@ -158,7 +158,7 @@ pub(crate) fn backward_tile(
             continue;
         };
         let feat = [s.rgb[0], s.rgb[1], s.rgb[2], 1.0, s.z];
-        let mut acc = SplatGrad::default();
+        let mut acc = SplatGrads::default();
         for y in y0..=y1 {
             let py = y as f32 + 0.5;
             for x in x0..=x1 {
