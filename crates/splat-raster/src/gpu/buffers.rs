@@ -1,6 +1,8 @@
 //! Buffer helpers: storage buffers sized against the device limits (a too large scene is an
 //! error, not a panic), uploads, and blocking read-backs through a staging buffer.
 
+use std::num::NonZeroU64;
+
 use wgpu::util::DeviceExt;
 
 use crate::error::RasterError;
@@ -135,4 +137,42 @@ pub(crate) fn read_back(
     drop(view);
     staging.unmap();
     Ok(out)
+}
+
+/// A compute bind-group layout entry for a storage buffer of u32/f32 words.
+pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: NonZeroU64::new(4),
+        },
+        count: None,
+    }
+}
+
+/// A compute bind-group layout entry for binding 0, a uniform of `size` bytes read at a dynamic
+/// offset (one record per dispatch in one buffer).
+pub(crate) fn dynamic_uniform_entry(size: u64) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding: 0,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: true,
+            min_binding_size: NonZeroU64::new(size),
+        },
+        count: None,
+    }
+}
+
+/// The first `words` u32 of `buffer` as a binding (at least one).
+pub(crate) fn words(buffer: &wgpu::Buffer, words: u32) -> wgpu::BindingResource<'_> {
+    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+        buffer,
+        offset: 0,
+        size: NonZeroU64::new(4 * u64::from(words.max(1))),
+    })
 }

@@ -16,6 +16,7 @@ use std::num::NonZeroU64;
 
 use wgpu::util::DeviceExt;
 
+use super::buffers::{dynamic_uniform_entry, storage_entry, words};
 use super::layout::wgsl_mirror;
 
 /// Elements per chunk (one workgroup).
@@ -77,28 +78,6 @@ pub(crate) struct ScanPlan {
     groups: Vec<wgpu::BindGroup>,
 }
 
-fn storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only: false },
-            has_dynamic_offset: false,
-            min_binding_size: NonZeroU64::new(4),
-        },
-        count: None,
-    }
-}
-
-/// The first `words` u32 of `buffer` as a binding.
-pub(crate) fn words(buffer: &wgpu::Buffer, words: u32) -> wgpu::BindingResource<'_> {
-    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-        buffer,
-        offset: 0,
-        size: NonZeroU64::new(4 * u64::from(words.max(1))),
-    })
-}
-
 impl PrefixSum {
     /// Compiles the scan, dispatching at most `max_groups_per_dim` workgroups along x.
     pub(crate) fn new(device: &wgpu::Device, max_groups_per_dim: u32) -> Self {
@@ -109,18 +88,9 @@ impl PrefixSum {
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("prefix sum"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: true,
-                        min_binding_size: NonZeroU64::new(PARAMS_SIZE),
-                    },
-                    count: None,
-                },
-                storage_entry(1),
-                storage_entry(2),
+                dynamic_uniform_entry(PARAMS_SIZE),
+                storage_entry(1, false),
+                storage_entry(2, false),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {

@@ -30,8 +30,9 @@ use wgpu::util::DeviceExt;
 #[cfg(any(test, feature = "test-support"))]
 pub use harness::SortHarness;
 
+use super::buffers::{dynamic_uniform_entry, storage_entry, words};
 use super::layout::wgsl_mirror;
-use super::scan::{self, PrefixSum, ScanPlan, dispatch_grid, words};
+use super::scan::{self, PrefixSum, ScanPlan, dispatch_grid};
 
 /// Elements per workgroup (block) in every kernel.
 const BLOCK: u32 = 1024;
@@ -94,32 +95,6 @@ fn level_lengths(n: u32) -> Vec<u32> {
     scan::level_lengths(BINS * n.div_ceil(BLOCK).max(1))
 }
 
-fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: NonZeroU64::new(4),
-        },
-        count: None,
-    }
-}
-
-fn params_entry() -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding: 0,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: true,
-            min_binding_size: NonZeroU64::new(PARAMS_SIZE),
-        },
-        count: None,
-    }
-}
-
 fn storage_buffer(device: &wgpu::Device, label: &str, words: u32) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),
@@ -167,7 +142,7 @@ impl RadixSorter {
         let count_layout = layout(
             "radix sort count",
             &[
-                params_entry(),
+                dynamic_uniform_entry(PARAMS_SIZE),
                 storage_entry(1, true),
                 storage_entry(2, false),
             ],
@@ -175,7 +150,7 @@ impl RadixSorter {
         let scatter_layout = layout(
             "radix sort scatter",
             &[
-                params_entry(),
+                dynamic_uniform_entry(PARAMS_SIZE),
                 storage_entry(1, true),
                 storage_entry(2, true),
                 storage_entry(3, true),
