@@ -43,7 +43,7 @@ use crate::memory::{MemoryEstimate, MemoryInputs};
 use crate::motion_report::{MotionReport, pixels_per_unit};
 use crate::state::SceneState;
 use crate::timers::{Phase, PhaseTimes};
-use evogs_metrics::{ImageSize, photometric_loss, psnr};
+use evogs_metrics::{ImageSize, LossWorkspace, psnr_from_mse};
 
 /// What one iteration did.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -137,6 +137,8 @@ pub struct Trainer {
     backend: BackendInfo,
     densify: DensifyConfig,
     order: (u64, Vec<usize>),
+    /// Buffers of the loss and its gradient, reused every iteration.
+    loss: LossWorkspace<f32>,
 }
 
 impl Trainer {
@@ -216,6 +218,7 @@ impl Trainer {
             raster,
             backend,
             order: (u64::MAX, Vec::new()),
+            loss: LossWorkspace::new(),
         })
     }
 
@@ -290,8 +293,8 @@ impl Trainer {
         let fwd = self.raster.forward(gview, &view.camera, &opts)?;
         t = self.times.lap(Phase::RasterForward, t);
         let size = ImageSize::new(view.image.width as usize, view.image.height as usize);
-        let loss = photometric_loss(size, &fwd.color, &view.image.pixels)?;
-        let train_psnr = psnr(size, &fwd.color, &view.image.pixels)?;
+        let loss = self.loss.compute(size, &fwd.color, &view.image.pixels)?;
+        let train_psnr = psnr_from_mse(loss.mse);
         t = self.times.lap(Phase::Loss, t);
         let grads = self
             .raster
@@ -300,7 +303,7 @@ impl Trainer {
                 &view.camera,
                 &opts,
                 &fwd,
-                PixelGrads::from_color(&loss.d_rendered),
+                PixelGrads::from_color(self.loss.gradient()),
             )?
             .grads;
         t = self.times.lap(Phase::RasterBackward, t);
