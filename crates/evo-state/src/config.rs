@@ -3,17 +3,35 @@
 //!
 //! The switches a user picks ([`Gain`], [`HistoryMode`], [`Storage`], and splat-core's
 //! [`Layout`]) have one command-line spelling each ([`FromStr`] / [`fmt::Display`]) and, with the
-//! `serde` feature, one file spelling (lowercase names; a fixed gain is `{"fixed": k}`).
+//! `serde` feature, one file spelling (lowercase names; a fixed gain is `{"fixed": k}`). The
+//! one-word enums derive theirs with `strum` (`EnumString`, `Display`, `IntoStaticStr`,
+//! `VariantNames`); [`Gain`], which carries a number, and [`Layout`], a set, spell themselves.
 
 use std::fmt;
 use std::str::FromStr;
 
+use strum::VariantNames;
 use thiserror::Error;
 
 pub use splat_core::{Component, Layout};
 
 /// Element type of the buffer of corrected states (spelled `f32` / `f16`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    strum::EnumString,
+    strum::Display,
+    strum::IntoStaticStr,
+    strum::VariantNames,
+)]
+#[strum(
+    serialize_all = "lowercase",
+    parse_err_ty = ParseError,
+    parse_err_fn = ParseError::one_of::<Self>
+)]
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
@@ -54,7 +72,22 @@ pub enum Gain {
 }
 
 /// Where the history states come from (spelled `buffer` / `requery`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    strum::EnumString,
+    strum::Display,
+    strum::IntoStaticStr,
+    strum::VariantNames,
+)]
+#[strum(
+    serialize_all = "lowercase",
+    parse_err_ty = ParseError,
+    parse_err_fn = ParseError::one_of::<Self>
+)]
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
@@ -75,37 +108,16 @@ pub struct ParseError {
     /// The spelling given.
     pub value: String,
     /// What is accepted.
-    pub expected: &'static str,
+    pub expected: String,
 }
 
-impl Storage {
-    /// The spelling: `f32` or `f16`.
-    pub const fn name(self) -> &'static str {
-        match self {
-            Storage::F32 => "f32",
-            Storage::F16 => "f16",
+impl ParseError {
+    /// `value` names no variant of `T`: expected "one of" `T`'s spellings.
+    fn one_of<T: VariantNames>(value: &str) -> Self {
+        Self {
+            value: value.to_string(),
+            expected: format!("one of {}", T::VARIANTS.join(", ")),
         }
-    }
-}
-
-impl FromStr for Storage {
-    type Err = ParseError;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "f32" => Ok(Self::F32),
-            "f16" => Ok(Self::F16),
-            _ => Err(ParseError {
-                value: s.to_string(),
-                expected: "one of f32, f16",
-            }),
-        }
-    }
-}
-
-impl fmt::Display for Storage {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
     }
 }
 
@@ -121,7 +133,7 @@ impl FromStr for Gain {
             Ok(k) if (0.0..=1.0).contains(&k) => Ok(Self::Fixed(k)),
             _ => Err(ParseError {
                 value: s.to_string(),
-                expected: "`learned` or a number in [0, 1] such as 0, 0.5 or 1",
+                expected: "`learned` or a number in [0, 1] such as 0, 0.5 or 1".to_string(),
             }),
         }
     }
@@ -133,37 +145,6 @@ impl fmt::Display for Gain {
             Self::Learned => f.write_str("learned"),
             Self::Fixed(k) => write!(f, "{k}"),
         }
-    }
-}
-
-impl HistoryMode {
-    /// The spelling: `buffer` or `requery`.
-    pub const fn name(self) -> &'static str {
-        match self {
-            Self::Buffer => "buffer",
-            Self::Requery => "requery",
-        }
-    }
-}
-
-impl FromStr for HistoryMode {
-    type Err = ParseError;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "buffer" => Ok(Self::Buffer),
-            "requery" => Ok(Self::Requery),
-            _ => Err(ParseError {
-                value: s.to_string(),
-                expected: "one of buffer, requery",
-            }),
-        }
-    }
-}
-
-impl fmt::Display for HistoryMode {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
     }
 }
 

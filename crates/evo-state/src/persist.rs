@@ -19,7 +19,7 @@ use half::f16;
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 
 use crate::buffer::{Block, StateBuffer};
-use crate::config::{EvoConfig, Gain, HistoryMode, Layout, Storage};
+use crate::config::{EvoConfig, Gain, HistoryMode, Layout, ParseError, Storage};
 use crate::error::EvoError;
 use crate::frames::Frames;
 use crate::gain::GainNet;
@@ -76,13 +76,7 @@ impl EvoState {
         };
         put("format", FORMAT.into());
         put("layout_bits", c.layout.bits().to_string());
-        put(
-            "storage",
-            match c.storage {
-                Storage::F32 => "f32".into(),
-                Storage::F16 => "f16".into(),
-            },
-        );
+        put("storage", c.storage.to_string());
         put("beta", c.beta.to_string());
         put("max_gap", c.max_gap.to_string());
         put("motion_floor", c.motion_floor.to_string());
@@ -95,13 +89,7 @@ impl EvoState {
                 Gain::Fixed(k) => format!("fixed:{k}"),
             },
         );
-        put(
-            "history",
-            match c.history {
-                HistoryMode::Buffer => "buffer".into(),
-                HistoryMode::Requery => "requery".into(),
-            },
-        );
+        put("history", c.history.to_string());
         put("lambda_sup", c.lambda_sup.to_string());
         put("lambda_prior", c.lambda_prior.to_string());
         put("rows", self.rows.to_string());
@@ -216,11 +204,9 @@ impl EvoState {
         let bits: u8 = parse(get("layout_bits")?, "layout_bits", &bad)?;
         let layout = Layout::from_bits(bits)
             .ok_or_else(|| bad("layout_bits", format!("{bits} is not a layout")))?;
-        let storage = match get("storage")?.as_str() {
-            "f32" => Storage::F32,
-            "f16" => Storage::F16,
-            other => return Err(bad("storage", format!("unknown storage {other:?}"))),
-        };
+        let storage: Storage = get("storage")?
+            .parse()
+            .map_err(|e: ParseError| bad("storage", e.to_string()))?;
         let gain = match get("gain")?.as_str() {
             "learned" => Gain::Learned,
             other => match other.strip_prefix("fixed:") {
@@ -228,11 +214,9 @@ impl EvoState {
                 None => return Err(bad("gain", format!("unknown gain {other:?}"))),
             },
         };
-        let history = match get("history")?.as_str() {
-            "buffer" => HistoryMode::Buffer,
-            "requery" => HistoryMode::Requery,
-            other => return Err(bad("history", format!("unknown history mode {other:?}"))),
-        };
+        let history: HistoryMode = get("history")?
+            .parse()
+            .map_err(|e: ParseError| bad("history", e.to_string()))?;
         let config = EvoConfig {
             layout,
             storage,

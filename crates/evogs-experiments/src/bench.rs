@@ -515,9 +515,7 @@ pub fn table(config: &TrainConfig, runs: &[BenchRun]) -> String {
          or deformed at an evaluated time.\n\n\
          | scene | method | split | PSNR (dB) | SSIM | LPIPS (Alex) | LPIPS (VGG) | other split PSNR | Gaussians | peak memory (MiB) | training (min) | non-finite | published (D-3DGS) |\n\
          | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |\n",
-        config.preset.name(),
-        config.iterations,
-        config.seed
+        config.preset, config.iterations, config.seed
     );
     for r in runs {
         let head = r.score(&r.headline);

@@ -29,16 +29,69 @@
 //! by ~0.024 world units in its first Adam step and, with a short warm-up, diverged (lego,
 //! `results/dnerf/`). What these choices do on lego is measured in `results/dnerf/`.
 
-use std::fmt;
-use std::str::FromStr;
-
 use densify::{DensifyConfig, Schedule};
 use serde::{Deserialize, Serialize};
+use strum::VariantNames;
 
 use crate::error::TrainError;
 
+/// A setting spelled by one word (on the command line and in `config.json`): the field its
+/// parse errors name.
+pub(crate) trait OneWord: VariantNames {
+    /// The `config.json` field (and `--` flag) of the setting.
+    const FIELD: &'static str;
+    /// What a value is called in the error message.
+    const NOUN: &'static str = Self::FIELD;
+}
+
+/// The error for `value`, which spells no `T`: "unknown method `x`; expected baseline or evogs".
+pub(crate) fn unknown<T: OneWord>(value: &str) -> TrainError {
+    let names = T::VARIANTS;
+    let expected = match names.split_last() {
+        Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
+        _ => names.join(""),
+    };
+    TrainError::config(
+        T::FIELD,
+        format!("unknown {} `{value}`; expected {expected}", T::NOUN),
+    )
+}
+
+impl OneWord for Method {
+    const FIELD: &'static str = "method";
+}
+
+impl OneWord for BackboneKind {
+    const FIELD: &'static str = "backbone";
+}
+
+impl OneWord for Background {
+    const FIELD: &'static str = "background";
+}
+
+impl OneWord for Preset {
+    const FIELD: &'static str = "preset";
+}
+
 /// The deformation method.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Serialize,
+    Deserialize,
+    strum::EnumString,
+    strum::Display,
+    strum::IntoStaticStr,
+    strum::VariantNames,
+)]
+#[strum(
+    serialize_all = "lowercase",
+    parse_err_ty = TrainError,
+    parse_err_fn = unknown::<Self>
+)]
 #[serde(rename_all = "lowercase")]
 pub enum Method {
     /// D-3DGS: the deformation MLP alone.
@@ -47,32 +100,26 @@ pub enum Method {
     Evogs,
 }
 
-impl FromStr for Method {
-    type Err = TrainError;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "baseline" => Ok(Self::Baseline),
-            "evogs" => Ok(Self::Evogs),
-            other => Err(TrainError::config(
-                "method",
-                format!("unknown method `{other}`; expected baseline or evogs"),
-            )),
-        }
-    }
-}
-
-impl fmt::Display for Method {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Self::Baseline => "baseline",
-            Self::Evogs => "evogs",
-        })
-    }
-}
-
 /// The deformation backbone (`--backbone`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Default,
+    Serialize,
+    Deserialize,
+    strum::EnumString,
+    strum::Display,
+    strum::IntoStaticStr,
+    strum::VariantNames,
+)]
+#[strum(
+    serialize_all = "lowercase",
+    parse_err_ty = TrainError,
+    parse_err_fn = unknown::<Self>
+)]
 pub enum BackboneKind {
     /// Deformable-3D-Gaussians' deformation MLP ([`crate::D3dgsBackbone`]).
     #[default]
@@ -80,35 +127,29 @@ pub enum BackboneKind {
     D3dgs,
     /// 4DGaussians' HexPlane field ([`crate::hex_backbone::HexBackbone`]).
     #[serde(rename = "4dgs")]
+    #[strum(serialize = "4dgs")]
     FourDgs,
 }
 
-impl FromStr for BackboneKind {
-    type Err = TrainError;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "d3dgs" => Ok(Self::D3dgs),
-            "4dgs" => Ok(Self::FourDgs),
-            other => Err(TrainError::config(
-                "backbone",
-                format!("unknown backbone `{other}`; expected d3dgs or 4dgs"),
-            )),
-        }
-    }
-}
-
-impl fmt::Display for BackboneKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Self::D3dgs => "d3dgs",
-            Self::FourDgs => "4dgs",
-        })
-    }
-}
-
 /// Background colour composited behind the Gaussians and behind the images' alpha.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Serialize,
+    Deserialize,
+    strum::EnumString,
+    strum::Display,
+    strum::IntoStaticStr,
+    strum::VariantNames,
+)]
+#[strum(
+    serialize_all = "lowercase",
+    parse_err_ty = TrainError,
+    parse_err_fn = unknown::<Self>
+)]
 #[serde(rename_all = "lowercase")]
 pub enum Background {
     /// (0, 0, 0): D-3DGS's default for D-NeRF.
@@ -127,23 +168,25 @@ impl Background {
     }
 }
 
-impl FromStr for Background {
-    type Err = TrainError;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "black" => Ok(Self::Black),
-            "white" => Ok(Self::White),
-            other => Err(TrainError::config(
-                "background",
-                format!("unknown background `{other}`; expected white or black"),
-            )),
-        }
-    }
-}
-
 /// A named set of settings.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Serialize,
+    Deserialize,
+    strum::EnumString,
+    strum::Display,
+    strum::IntoStaticStr,
+    strum::VariantNames,
+)]
+#[strum(
+    serialize_all = "lowercase",
+    parse_err_ty = TrainError,
+    parse_err_fn = unknown::<Self>
+)]
 #[serde(rename_all = "lowercase")]
 pub enum Preset {
     /// D-3DGS's reference setting (network width 256, 40 000 iterations, 100 000 initial points,
@@ -169,32 +212,6 @@ pub enum Preset {
 impl Preset {
     /// All presets.
     pub const ALL: [Preset; 4] = [Preset::Paper, Preset::Cpu, Preset::Tiny, Preset::Dnerf];
-
-    /// The preset's name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Paper => "paper",
-            Self::Cpu => "cpu",
-            Self::Tiny => "tiny",
-            Self::Dnerf => "dnerf",
-        }
-    }
-}
-
-impl FromStr for Preset {
-    type Err = TrainError;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Self::ALL
-            .into_iter()
-            .find(|p| p.name() == s)
-            .ok_or_else(|| {
-                TrainError::config(
-                    "preset",
-                    format!("unknown preset `{s}`; expected paper, cpu, tiny or dnerf"),
-                )
-            })
-    }
 }
 
 /// How the deformation network's parameters start.
@@ -606,6 +623,70 @@ impl TrainConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::DensifyPolicy;
+    use crate::render::ExportFormat;
+
+    /// Each one-word setting: every spelling parses back to its value, `config.json` (serde)
+    /// spells it as the command line does (strum), and an unknown word names the setting and
+    /// every spelling.
+    fn check_one_word<T>(values: &[T], expected: &str)
+    where
+        T: OneWord
+            + Copy
+            + PartialEq
+            + std::fmt::Debug
+            + std::fmt::Display
+            + std::str::FromStr<Err = TrainError>
+            + Serialize
+            + Into<&'static str>,
+    {
+        let names: Vec<String> = values.iter().map(T::to_string).collect();
+        assert_eq!(names, T::VARIANTS);
+        for &v in values {
+            let name: &'static str = v.into();
+            assert_eq!(name, v.to_string());
+            assert_eq!(name.parse::<T>().unwrap(), v);
+            assert_eq!(serde_json::to_string(&v).unwrap(), format!("\"{name}\""));
+        }
+        let e = "nope".parse::<T>().unwrap_err().to_string();
+        assert_eq!(
+            e,
+            format!(
+                "invalid setting `{}`: unknown {} `nope`; expected {expected}",
+                T::FIELD,
+                T::NOUN
+            )
+        );
+    }
+
+    #[test]
+    fn one_word_settings_spell_alike_everywhere() {
+        check_one_word(&[Method::Baseline, Method::Evogs], "baseline or evogs");
+        check_one_word(
+            &[BackboneKind::D3dgs, BackboneKind::FourDgs],
+            "d3dgs or 4dgs",
+        );
+        check_one_word(&[Background::Black, Background::White], "black or white");
+        check_one_word(&Preset::ALL, "paper, cpu, tiny or dnerf");
+        check_one_word(
+            &[
+                DensifyPolicy::Standard,
+                DensifyPolicy::Trigger,
+                DensifyPolicy::TriggerDeform,
+            ],
+            "standard, trigger or trigger+deform",
+        );
+    }
+
+    #[test]
+    fn export_formats_spell_alike() {
+        let all = [
+            ExportFormat::Ply,
+            ExportFormat::CompressedPly,
+            ExportFormat::Splat,
+        ];
+        check_one_word(&all, "ply, compressed-ply or splat");
+    }
 
     #[test]
     fn paper_preset_is_d3dgs() {

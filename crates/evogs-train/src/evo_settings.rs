@@ -22,9 +22,6 @@
 //! network has heads for position, rotation and scale only). EvoGS trains every component:
 //! opacity adds to the opacity logit, colour to the SH DC coefficients (DESIGN §4.1).
 
-use std::fmt;
-use std::str::FromStr;
-
 use serde::{Deserialize, Serialize};
 
 /// The switches' types are the libraries' own, recorded in `config.json` through their `serde`
@@ -33,59 +30,42 @@ use serde::{Deserialize, Serialize};
 pub use evo_state::{Gain, HistoryMode, Layout, Storage};
 pub use tiny_nn::Precision;
 
+use crate::config::{OneWord, unknown};
 use crate::error::TrainError;
 
 /// Densification policy (DESIGN §6).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Serialize,
+    Deserialize,
+    strum::EnumString,
+    strum::Display,
+    strum::IntoStaticStr,
+    strum::VariantNames,
+)]
+#[strum(parse_err_ty = TrainError, parse_err_fn = unknown::<Self>)]
 pub enum DensifyPolicy {
     /// 3DGS adaptive density control.
     #[serde(rename = "standard")]
+    #[strum(serialize = "standard")]
     Standard,
     /// ADC gated by EvoGS's uncertainty-aware trigger.
     #[serde(rename = "trigger")]
+    #[strum(serialize = "trigger")]
     Trigger,
     /// The trigger plus deformation-aware clone/split (α = 0.5), EvoGS's full policy.
     #[serde(rename = "trigger+deform")]
+    #[strum(serialize = "trigger+deform")]
     TriggerDeform,
 }
 
-impl DensifyPolicy {
-    /// Every value, in declaration order.
-    pub const ALL: &'static [DensifyPolicy] = &[Self::Standard, Self::Trigger, Self::TriggerDeform];
-
-    /// The command-line spelling (also the file spelling).
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Standard => "standard",
-            Self::Trigger => "trigger",
-            Self::TriggerDeform => "trigger+deform",
-        }
-    }
-}
-
-impl FromStr for DensifyPolicy {
-    type Err = TrainError;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Self::ALL
-            .iter()
-            .copied()
-            .find(|v| v.name() == s)
-            .ok_or_else(|| {
-                TrainError::config(
-                    "densify",
-                    format!(
-                        "unknown value `{s}`; expected one of standard, trigger, trigger+deform"
-                    ),
-                )
-            })
-    }
-}
-
-impl fmt::Display for DensifyPolicy {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
+impl OneWord for DensifyPolicy {
+    const FIELD: &'static str = "densify";
+    const NOUN: &'static str = "densification policy";
 }
 
 /// EvoGS's settings: the switches and Φ's shape.

@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 use evogs_io::{ImageRgb, save_png, write_ply};
 use splat_raster::{Camera, RenderOptions};
 
+use crate::config::{OneWord, unknown};
 use crate::error::TrainError;
 use crate::run::LoadedRun;
 
@@ -108,14 +109,31 @@ pub fn export_frame(run: &mut LoadedRun, time: f32, out: &Path) -> Result<usize,
 }
 
 /// The file formats of [`export_sequence`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    serde::Serialize,
+    strum::EnumString,
+    strum::Display,
+    strum::IntoStaticStr,
+    strum::VariantNames,
+)]
 #[serde(rename_all = "lowercase")]
+#[strum(
+    serialize_all = "lowercase",
+    parse_err_ty = TrainError,
+    parse_err_fn = unknown::<Self>
+)]
 pub enum ExportFormat {
     /// The INRIA 3DGS PLY (every SH band, f32; DESIGN §2.2).
     Ply,
     /// PlayCanvas/SuperSplat's compressed PLY (`evogs_io::compressed_ply`: chunks of 256 in
     /// Morton order, quantised to 8 to 11 bits a value, higher SH bands as one byte each).
     #[serde(rename = "compressed-ply")]
+    #[strum(serialize = "compressed-ply")]
     CompressedPly,
     /// The 32-byte `.splat` of web viewers (`evogs_io::splat`: DC colour only, 8-bit colour and
     /// rotation).
@@ -134,19 +152,9 @@ impl ExportFormat {
     }
 }
 
-impl std::str::FromStr for ExportFormat {
-    type Err = String;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "ply" => Ok(Self::Ply),
-            "compressed-ply" => Ok(Self::CompressedPly),
-            "splat" => Ok(Self::Splat),
-            _ => Err(format!(
-                "unknown export format `{s}`; expected ply, compressed-ply or splat"
-            )),
-        }
-    }
+impl OneWord for ExportFormat {
+    const FIELD: &'static str = "format";
+    const NOUN: &'static str = "export format";
 }
 
 /// Writes the deformed Gaussians of `run` at `time` in `format` (atomically); returns how many.

@@ -4,20 +4,34 @@
 //! into f16 storage saturates at ±65504 ([`F16_MAX`]) instead of overflowing to infinity, and the
 //! number of saturated values is returned so that networks can count them. NaN stays NaN.
 
-use std::fmt;
-use std::str::FromStr;
-
 use half::f16;
 use half::slice::HalfFloatSliceExt;
+use strum::VariantNames;
 
 /// Largest finite f16 value.
 pub const F16_MAX: f32 = 65504.0;
 
 /// Storage precision of one network (parameters and cached activations).
 ///
-/// Spelled `f32` / `f16` on the command line ([`FromStr`], [`fmt::Display`]) and, with the
+/// Spelled `f32` / `f16` on the command line (`FromStr`, `Display`, derived with `strum`) and, with the
 /// `serde` feature, in files.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Hash,
+    strum::EnumString,
+    strum::Display,
+    strum::IntoStaticStr,
+    strum::VariantNames,
+)]
+#[strum(
+    serialize_all = "lowercase",
+    parse_err_ty = PrecisionParseError,
+    parse_err_fn = PrecisionParseError::new
+)]
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
@@ -30,36 +44,14 @@ pub enum Precision {
     F16,
 }
 
-impl Precision {
-    /// The spelling: `f32` or `f16`.
-    pub const fn name(self) -> &'static str {
-        match self {
-            Self::F32 => "f32",
-            Self::F16 => "f16",
-        }
-    }
-}
-
 /// A precision spelling other than `f32` and `f16`.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown value `{0}`; expected one of f32, f16")]
+#[error("unknown value `{0}`; expected one of {expected}", expected = Precision::VARIANTS.join(", "))]
 pub struct PrecisionParseError(pub String);
 
-impl FromStr for Precision {
-    type Err = PrecisionParseError;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "f32" => Ok(Self::F32),
-            "f16" => Ok(Self::F16),
-            other => Err(PrecisionParseError(other.to_string())),
-        }
-    }
-}
-
-impl fmt::Display for Precision {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
+impl PrecisionParseError {
+    fn new(value: &str) -> Self {
+        Self(value.to_string())
     }
 }
 
