@@ -10,28 +10,15 @@
 use std::fmt;
 use std::str::FromStr;
 
-use strum::VariantNames;
+use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 use thiserror::Error;
 
 pub use splat_core::{Component, Layout};
 
 /// Element type of the buffer of corrected states (spelled `f32` / `f16`).
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    strum::EnumString,
-    strum::Display,
-    strum::IntoStaticStr,
-    strum::VariantNames,
-)]
-#[strum(
-    serialize_all = "lowercase",
-    parse_err_ty = ParseError,
-    parse_err_fn = ParseError::one_of::<Self>
-)]
+#[derive(EnumString, Display, IntoStaticStr, VariantNames)]
+#[strum(serialize_all = "lowercase", parse_err_ty = ParseError, parse_err_fn = ParseError::one_of::<Self>)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
@@ -72,22 +59,9 @@ pub enum Gain {
 }
 
 /// Where the history states come from (spelled `buffer` / `requery`).
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    strum::EnumString,
-    strum::Display,
-    strum::IntoStaticStr,
-    strum::VariantNames,
-)]
-#[strum(
-    serialize_all = "lowercase",
-    parse_err_ty = ParseError,
-    parse_err_fn = ParseError::one_of::<Self>
-)]
+#[derive(EnumString, Display, IntoStaticStr, VariantNames)]
+#[strum(serialize_all = "lowercase", parse_err_ty = ParseError, parse_err_fn = ParseError::one_of::<Self>)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),

@@ -23,6 +23,7 @@
 //! opacity adds to the opacity logit, colour to the SH DC coefficients (DESIGN §4.1).
 
 use serde::{Deserialize, Serialize};
+use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 
 /// The switches' types are the libraries' own, recorded in `config.json` through their `serde`
 /// features: evo-state's gain, history mode and buffer storage, tiny-nn's precision and
@@ -34,20 +35,9 @@ use crate::config::{OneWord, unknown};
 use crate::error::TrainError;
 
 /// Densification policy (DESIGN §6).
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    PartialEq,
-    Eq,
-    Serialize,
-    Deserialize,
-    strum::EnumString,
-    strum::Display,
-    strum::IntoStaticStr,
-    strum::VariantNames,
-)]
+#[derive(EnumString, Display, IntoStaticStr, VariantNames)]
 #[strum(parse_err_ty = TrainError, parse_err_fn = unknown::<Self>)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum DensifyPolicy {
     /// 3DGS adaptive density control.
     #[serde(rename = "standard")]

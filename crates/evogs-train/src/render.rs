@@ -17,6 +17,7 @@ use std::path::{Path, PathBuf};
 
 use evogs_io::{ImageRgb, save_png, write_ply};
 use splat_raster::{Camera, RenderOptions};
+use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 
 use crate::config::{OneWord, unknown};
 use crate::error::TrainError;
@@ -109,24 +110,10 @@ pub fn export_frame(run: &mut LoadedRun, time: f32, out: &Path) -> Result<usize,
 }
 
 /// The file formats of [`export_sequence`].
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    PartialEq,
-    Eq,
-    serde::Serialize,
-    strum::EnumString,
-    strum::Display,
-    strum::IntoStaticStr,
-    strum::VariantNames,
-)]
+#[derive(EnumString, Display, IntoStaticStr, VariantNames)]
+#[strum(serialize_all = "lowercase", parse_err_ty = TrainError, parse_err_fn = unknown::<Self>)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
-#[strum(
-    serialize_all = "lowercase",
-    parse_err_ty = TrainError,
-    parse_err_fn = unknown::<Self>
-)]
 pub enum ExportFormat {
     /// The INRIA 3DGS PLY (every SH band, f32; DESIGN §2.2).
     Ply,

@@ -6,7 +6,7 @@
 
 use half::f16;
 use half::slice::HalfFloatSliceExt;
-use strum::VariantNames;
+use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 
 /// Largest finite f16 value.
 pub const F16_MAX: f32 = 65504.0;
@@ -15,23 +15,9 @@ pub const F16_MAX: f32 = 65504.0;
 ///
 /// Spelled `f32` / `f16` on the command line (`FromStr`, `Display`, derived with `strum`) and, with the
 /// `serde` feature, in files.
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    PartialEq,
-    Eq,
-    Hash,
-    strum::EnumString,
-    strum::Display,
-    strum::IntoStaticStr,
-    strum::VariantNames,
-)]
-#[strum(
-    serialize_all = "lowercase",
-    parse_err_ty = PrecisionParseError,
-    parse_err_fn = PrecisionParseError::new
-)]
+#[derive(EnumString, Display, IntoStaticStr, VariantNames)]
+#[strum(serialize_all = "lowercase", parse_err_ty = PrecisionParseError, parse_err_fn = PrecisionParseError::new)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
