@@ -42,19 +42,26 @@ pub(crate) trait OneWord: VariantNames {
     const FIELD: &'static str;
     /// What a value is called in the error message.
     const NOUN: &'static str = Self::FIELD;
+    /// The spellings as "one of a, b, c" rather than "a, b or c" (kept as the messages were).
+    const ONE_OF: bool = false;
 }
 
-/// The error for `value`, which spells no `T`: "unknown method `x`; expected baseline or evogs".
-pub(crate) fn unknown<T: OneWord>(value: &str) -> TrainError {
+/// The message for `value`, which spells no `T`: "unknown method `x`; expected baseline or
+/// evogs" (or "expected one of a, b, c" where [`OneWord::ONE_OF`]), the spellings in declaration
+/// order.
+pub(crate) fn unknown_message<T: OneWord>(value: &str) -> String {
     let names = T::VARIANTS;
     let expected = match names.split_last() {
+        _ if T::ONE_OF => format!("one of {}", names.join(", ")),
         Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
         _ => names.join(""),
     };
-    TrainError::config(
-        T::FIELD,
-        format!("unknown {} `{value}`; expected {expected}", T::NOUN),
-    )
+    format!("unknown {} `{value}`; expected {expected}", T::NOUN)
+}
+
+/// [`unknown_message`] as the error of the setting [`OneWord::FIELD`].
+pub(crate) fn unknown<T: OneWord>(value: &str) -> TrainError {
+    TrainError::config(T::FIELD, unknown_message::<T>(value))
 }
 
 impl OneWord for Method {
@@ -106,10 +113,10 @@ pub enum BackboneKind {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Background {
-    /// (0, 0, 0): D-3DGS's default for D-NeRF.
-    Black,
     /// (1, 1, 1).
     White,
+    /// (0, 0, 0): D-3DGS's default for D-NeRF.
+    Black,
 }
 
 impl Background {
@@ -605,7 +612,7 @@ mod tests {
             &[BackboneKind::D3dgs, BackboneKind::FourDgs],
             "d3dgs or 4dgs",
         );
-        check_one_word(&[Background::Black, Background::White], "black or white");
+        check_one_word(&[Background::White, Background::Black], "white or black");
         check_one_word(&Preset::ALL, "paper, cpu, tiny or dnerf");
         check_one_word(
             &[
@@ -613,7 +620,7 @@ mod tests {
                 DensifyPolicy::Trigger,
                 DensifyPolicy::TriggerDeform,
             ],
-            "standard, trigger or trigger+deform",
+            "one of standard, trigger, trigger+deform",
         );
     }
 
@@ -624,7 +631,16 @@ mod tests {
             ExportFormat::CompressedPly,
             ExportFormat::Splat,
         ];
-        check_one_word(&all, "ply, compressed-ply or splat");
+        let names: Vec<String> = all.iter().map(ExportFormat::to_string).collect();
+        assert_eq!(names, ExportFormat::VARIANTS);
+        for v in all {
+            assert_eq!(v.to_string().parse::<ExportFormat>().unwrap(), v);
+            assert_eq!(serde_json::to_string(&v).unwrap(), format!("\"{v}\""));
+        }
+        assert_eq!(
+            "tiff".parse::<ExportFormat>().unwrap_err(),
+            "unknown export format `tiff`; expected ply, compressed-ply or splat"
+        );
     }
 
     #[test]

@@ -55,7 +55,8 @@ pub enum DensifyPolicy {
 
 impl OneWord for DensifyPolicy {
     const FIELD: &'static str = "densify";
-    const NOUN: &'static str = "densification policy";
+    const NOUN: &'static str = "value";
+    const ONE_OF: bool = true;
 }
 
 /// EvoGS's settings: the switches and Φ's shape.

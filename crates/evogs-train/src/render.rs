@@ -19,7 +19,7 @@ use evogs_io::{ImageRgb, save_png, write_ply};
 use splat_raster::{Camera, RenderOptions};
 use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 
-use crate::config::{OneWord, unknown};
+use crate::config::{OneWord, unknown_message};
 use crate::error::TrainError;
 use crate::run::LoadedRun;
 
@@ -111,7 +111,7 @@ pub fn export_frame(run: &mut LoadedRun, time: f32, out: &Path) -> Result<usize,
 
 /// The file formats of [`export_sequence`].
 #[derive(EnumString, Display, IntoStaticStr, VariantNames)]
-#[strum(serialize_all = "lowercase", parse_err_ty = TrainError, parse_err_fn = unknown::<Self>)]
+#[strum(serialize_all = "lowercase", parse_err_ty = String, parse_err_fn = unknown_message::<Self>)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ExportFormat {
