@@ -48,9 +48,9 @@
 //! - forward: upload `4·(11 + k)` bytes per Gaussian (raw parameters) and a 160-byte uniform;
 //!   read back 36 bytes mid-pass (cull counts, pair count), then 20 bytes per pixel (colour,
 //!   alpha, depth), 4 bytes per Gaussian (radius) and 8 bytes per tile (work counters);
-//! - backward: upload 12 bytes per pixel (`d_color`) plus 4 per pixel for each of `d_alpha`,
-//!   `d_depth` given; read back `4·(14 + k)` bytes per Gaussian (gradients, means2d, a
-//!   non-finite flag). The compositing record, tile lists, per-pixel `T` and last contributor
+//! - backward: upload 12 bytes per pixel (the [`PixelGrads`](crate::PixelGrads) colour) plus 4
+//!   per pixel for each of its alpha and depth given; read back `4·(14 + k)` bytes per Gaussian
+//!   (gradients, means2d, a non-finite flag). The compositing record, tile lists, per-pixel `T` and last contributor
 //!   stay on the device between forward and backward (in the [`ForwardOutput`]).
 //!
 //! Not (yet) done here: buffer pooling across calls (buffers are allocated per call), subgroup
