@@ -133,7 +133,7 @@ fn bench(c: &mut Criterion) {
             run.stats
                 .add_evolution(Some(&residual), Some(&theta))
                 .unwrap();
-        })
+        });
     });
     // A realistic interval: a few views accumulated, about 5% of Gaussians densified.
     run.stats.reset(N);
@@ -161,7 +161,7 @@ fn bench(c: &mut Criterion) {
         .unwrap()
     };
     c.bench_function("plan 1M (EvoGS policies)", |b| {
-        b.iter(|| black_box(input(&run)))
+        b.iter(|| black_box(input(&run)));
     });
     let plan = input(&run);
     eprintln!("bench plan: {}", plan.summary);
@@ -172,14 +172,14 @@ fn bench(c: &mut Criterion) {
             || clone_run(&run),
             |r| apply_all(&plan, r, true),
             BatchSize::PerIteration,
-        )
+        );
     });
     group.bench_function("all arrays except evo state", |b| {
         b.iter_batched_ref(
             || clone_run(&run),
             |r| apply_all(&plan, r, false),
             BatchSize::PerIteration,
-        )
+        );
     });
     // Floor for comparison: one plain copy of as many bytes as the parameters and moments
     // (59 floats × 3 per Gaussian), into memory already allocated.
@@ -190,7 +190,7 @@ fn bench(c: &mut Criterion) {
         b.iter(|| {
             dst.copy_from_slice(black_box(&src));
             black_box(&dst);
-        })
+        });
     });
     group.finish();
 }

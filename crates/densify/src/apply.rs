@@ -170,6 +170,7 @@ impl PerGaussian for Gaussians {
 /// The Adam moments of one parameter group whose rows are Gaussians.
 #[derive(Debug)]
 pub struct Moments<'a> {
+    /// The group; its first and second moments get the plan's rows (new rows start at zero).
     pub group: &'a mut AdamGroup,
     /// The column of a row that holds the opacity (zeroed at reset rows): `Some(0)` for a group
     /// holding only opacities, `Some(10)` for one interleaved 59-wide parameter row, `None` for
@@ -227,6 +228,7 @@ impl PerGaussian for Moments<'_> {
 /// rest), each with the column holding the opacity if any; treated as one container.
 #[derive(Debug)]
 pub struct OptimiserMoments<'a> {
+    /// The optimiser whose groups are listed in `groups`; its other groups are left alone.
     pub adam: &'a mut Adam,
     /// (group, opacity column) of every group whose rows are Gaussians.
     pub groups: &'a [(GroupId, Option<usize>)],
@@ -323,9 +325,13 @@ impl PerGaussian for DensifyStats {
 /// Any other per-Gaussian array: rows of `stride` elements, new rows filled by `fill`.
 #[derive(Debug)]
 pub struct Rows<'a, T> {
+    /// The array's name in error messages.
     pub label: &'a str,
+    /// The rows, row-major: `stride` elements per Gaussian.
     pub data: &'a mut Vec<T>,
+    /// Elements per row.
     pub stride: usize,
+    /// How the appended rows are filled (copied from the parent or set to a value).
     pub fill: NewRows<T>,
 }
 

@@ -14,9 +14,13 @@ use std::fmt;
 /// opacity → logit, colour → SH DC) before cloning or splitting.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct NewValues {
+    /// Means in world coordinates.
     pub means: Vec<[f32; 3]>,
+    /// Natural-log scales.
     pub log_scales: Vec<[f32; 3]>,
+    /// Raw quaternions `w, x, y, z` (not normalised).
     pub rotations: Vec<[f32; 4]>,
+    /// Opacity logits; opacity is `sigmoid(logit)`.
     pub opacity_logits: Vec<f32>,
     /// The three SH DC (coefficient 0) values, R, G, B.
     pub sh_dc: Vec<[f32; 3]>,

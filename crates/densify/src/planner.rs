@@ -40,14 +40,18 @@ use splat_core::{Component, Layout, RowPlan};
 /// The latest corrected deformation d̃ (N × D, from evo-state's step) and its layout.
 #[derive(Debug, Clone, Copy)]
 pub struct Deformation<'a> {
+    /// d̃, row-major: one row of `layout.dim()` floats per Gaussian.
     pub corrected: &'a [f32],
+    /// Which components a row holds, in which columns.
     pub layout: Layout,
 }
 
 /// Everything a plan is made from.
 #[derive(Debug, Clone, Copy)]
 pub struct PlanInput<'a> {
+    /// The Gaussians the statistics were gathered on (canonical parameters).
     pub gaussians: GaussiansView<'a>,
+    /// The statistics accumulated since the last densification, one row per Gaussian.
     pub stats: &'a DensifyStats,
     /// Scene extent ([`crate::scene_extent`]).
     pub extent: f32,

@@ -85,7 +85,7 @@ pub fn run_ablate(args: &AblateArgs) -> Result<Vec<AblationResult>> {
                     index + 1,
                     row.name,
                     row.switches()
-                )
+                );
             });
             bar.set_message(row.name);
         }
@@ -101,7 +101,7 @@ pub fn run_ablate(args: &AblateArgs) -> Result<Vec<AblationResult>> {
                     result.name,
                     result.scores.seconds,
                     result.scores.psnr
-                )
+                );
             });
             bar.inc(1);
         }

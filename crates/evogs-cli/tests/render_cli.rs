@@ -146,7 +146,7 @@ fn renders_the_demo_scene_without_inputs() {
     assert_eq!(img.dimensions(), (160, 120));
     // Something recognisable: many distinct colours, both dark background and bright objects.
     let mut colours: Vec<[u8; 3]> = img.pixels().map(|p| p.0).collect();
-    colours.sort();
+    colours.sort_unstable();
     colours.dedup();
     assert!(colours.len() > 500, "{} colours", colours.len());
     assert_eq!(img.get_pixel(2, 2).0, [0, 0, 0]);

@@ -18,8 +18,7 @@ use support::view::{Viewer, diff, fixture};
 /// The Chromium binary: `$EVOGS_CHROMIUM`, or Debian's.
 fn chromium() -> PathBuf {
     let path = std::env::var_os("EVOGS_CHROMIUM")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from("/usr/bin/chromium"));
+        .map_or_else(|| PathBuf::from("/usr/bin/chromium"), PathBuf::from);
     assert!(
         path.exists(),
         "{}: Chromium is missing (scripts/test installs Debian's `chromium`)",

@@ -38,15 +38,15 @@ fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("loaders");
     group.throughput(Throughput::Bytes(points_bin.len() as u64));
     group.bench_function("points3D.bin 1M points", |b| {
-        b.iter(|| parse_points3d_bin(Path::new("points3D.bin"), black_box(&points_bin)).unwrap())
+        b.iter(|| parse_points3d_bin(Path::new("points3D.bin"), black_box(&points_bin)).unwrap());
     });
     group.throughput(Throughput::Bytes(images_bin.len() as u64));
     group.bench_function("images.bin 1000 images x 2000 points", |b| {
-        b.iter(|| parse_images_bin(Path::new("images.bin"), black_box(&images_bin)).unwrap())
+        b.iter(|| parse_images_bin(Path::new("images.bin"), black_box(&images_bin)).unwrap());
     });
     group.throughput(Throughput::Bytes(npy.len() as u64));
     group.bench_function("npy 1M x 3 <f4", |b| {
-        b.iter(|| parse_npy(Path::new("points.npy"), black_box(&npy)).unwrap())
+        b.iter(|| parse_npy(Path::new("points.npy"), black_box(&npy)).unwrap());
     });
     group.finish();
 }

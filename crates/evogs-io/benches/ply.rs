@@ -40,13 +40,13 @@ fn bench(c: &mut Criterion) {
         b.iter(|| {
             out.clear();
             write_ply_to(&mut out, black_box(g.view()), Path::new("mem.ply")).unwrap();
-        })
+        });
     });
     group.bench_function("write_file_atomic", |b| {
-        b.iter(|| write_ply(&path, black_box(g.view())).unwrap())
+        b.iter(|| write_ply(&path, black_box(g.view())).unwrap());
     });
     group.bench_function("read_memory", |b| {
-        b.iter(|| read_ply_bytes(black_box(&bytes), Path::new("mem.ply")).unwrap())
+        b.iter(|| read_ply_bytes(black_box(&bytes), Path::new("mem.ply")).unwrap());
     });
     group.bench_function("read_file", |b| b.iter(|| read_ply(&path).unwrap()));
     group.finish();

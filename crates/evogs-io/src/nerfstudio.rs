@@ -349,9 +349,8 @@ pub fn read_nerfstudio_dataset(dir: &Path, time_from: TimeFrom) -> Result<Datase
             .collect()
     } else if timed == 0 {
         let names: Vec<&str> = frames.iter().map(|f| f.relative.as_str()).collect();
-        times_from_names(&names, time_from).map_err(|(index, problem)| {
-            top.error(&format!("frames[{}].file_path", index), problem)
-        })?
+        times_from_names(&names, time_from)
+            .map_err(|(index, problem)| top.error(&format!("frames[{index}].file_path"), problem))?
     } else {
         let missing = frames.iter().position(|f| f.time.is_none()).unwrap_or(0);
         return Err(top.error(

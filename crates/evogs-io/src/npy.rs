@@ -190,8 +190,7 @@ fn dict_value<'h>(header: &'h str, key: &str) -> Option<&'h str> {
             }
             depth < 0 || (depth == 0 && (c == ',' || c == '}'))
         })
-        .map(|(i, c)| if c == ')' { i + 1 } else { i })
-        .unwrap_or(rest.len());
+        .map_or(rest.len(), |(i, c)| if c == ')' { i + 1 } else { i });
     Some(rest[..end].trim())
 }
 

@@ -367,7 +367,7 @@ fn check_frames(
         );
         seen.push((c, k));
     }
-    seen.sort();
+    seen.sort_unstable();
     seen
 }
 

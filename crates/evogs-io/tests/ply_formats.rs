@@ -103,7 +103,7 @@ proptest! {
                     (true, 0) => "short",
                     (true, 1) => "int",
                     (true, 2) => "char",
-                    (false, 0) | (false, 2) => "double",
+                    (false, 0 | 2) => "double",
                     _ => "float",
                 };
                 (name.clone(), ty.to_string())
@@ -111,7 +111,9 @@ proptest! {
             .collect();
         for e in 0..extras {
             props.push((format!("extra_{e}"), "uchar".into()));
-            rows.iter_mut().for_each(|r| r.push(7.0));
+            for r in &mut rows {
+                r.push(7.0);
+            }
         }
         // Permute columns deterministically from the seed.
         let mut order: Vec<usize> = (0..props.len()).collect();

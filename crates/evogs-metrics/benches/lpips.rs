@@ -41,7 +41,7 @@ fn bench<M: Measurement + 'static>(c: &mut Criterion<M>) {
                 lpips
                     .distance(size, black_box(&rendered), black_box(&gt))
                     .unwrap()
-            })
+            });
         });
     }
     group.finish();

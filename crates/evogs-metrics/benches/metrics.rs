@@ -33,7 +33,7 @@ fn bench<M: Measurement + 'static>(c: &mut Criterion<M>) {
     let (rendered, gt) = images(size);
     let mut group = c.benchmark_group(format!("{}metrics_400x400", clock_prefix::<M>()));
     group.bench_function("loss_and_gradient", |b| {
-        b.iter(|| photometric_loss(size, black_box(&rendered), black_box(&gt)).unwrap())
+        b.iter(|| photometric_loss(size, black_box(&rendered), black_box(&gt)).unwrap());
     });
     let mut workspace = LossWorkspace::new();
     group.bench_function("loss_and_gradient_fast", |b| {
@@ -41,10 +41,10 @@ fn bench<M: Measurement + 'static>(c: &mut Criterion<M>) {
             workspace
                 .compute(size, black_box(&rendered), black_box(&gt))
                 .unwrap()
-        })
+        });
     });
     group.bench_function("ssim", |b| {
-        b.iter(|| ssim(size, black_box(&rendered), black_box(&gt)).unwrap())
+        b.iter(|| ssim(size, black_box(&rendered), black_box(&gt)).unwrap());
     });
     group.finish();
 }

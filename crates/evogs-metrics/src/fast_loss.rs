@@ -156,7 +156,7 @@ impl<T: Real> LossWorkspace<T> {
                     #[cfg(target_arch = "x86_64")]
                     // SAFETY: `avx2` is true only where `avx2_available()` found AVX2 on this CPU.
                     unsafe {
-                        pass1_avx2(&ctx, b * BLOCK_ROWS, out, scratch, sums)
+                        pass1_avx2(&ctx, b * BLOCK_ROWS, out, scratch, sums);
                     };
                 } else {
                     pass1(&ctx, b * BLOCK_ROWS, out, scratch, sums);
@@ -186,7 +186,7 @@ impl<T: Real> LossWorkspace<T> {
                     #[cfg(target_arch = "x86_64")]
                     // SAFETY: `avx2` is true only where `avx2_available()` found AVX2 on this CPU.
                     unsafe {
-                        pass2_avx2(&ctx, b * BLOCK_ROWS, maps, grad, scratch)
+                        pass2_avx2(&ctx, b * BLOCK_ROWS, maps, grad, scratch);
                     };
                 } else {
                     pass2(&ctx, b * BLOCK_ROWS, maps, grad, scratch);

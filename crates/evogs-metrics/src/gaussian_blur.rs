@@ -24,7 +24,9 @@ pub fn ssim_kernel() -> [f64; SSIM_WINDOW] {
         *v = (-d * d / (2.0 * SSIM_SIGMA * SSIM_SIGMA)).exp();
     }
     let sum: f64 = k.iter().sum();
-    k.iter_mut().for_each(|v| *v /= sum);
+    for v in &mut k {
+        *v /= sum;
+    }
     k
 }
 

@@ -351,8 +351,7 @@ pub fn prepare(
     std::fs::create_dir_all(&parent).map_err(|e| PrepareError::io(&parent, e))?;
     let name = out
         .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "dataset".into());
+        .map_or_else(|| "dataset".into(), |n| n.to_string_lossy().into_owned());
     // Removed on every early return: nothing half-written is left.
     let temp = tempfile::Builder::new()
         .prefix(&format!(".{name}.prepare-"))

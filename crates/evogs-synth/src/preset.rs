@@ -167,6 +167,7 @@ impl SceneSpec {
     }
 
     /// Sets the image side.
+    #[must_use]
     pub fn with_size(mut self, size: u32) -> Self {
         self.image_size = size;
         self
@@ -174,6 +175,7 @@ impl SceneSpec {
 
     /// Sets the number of training frames; test and val get a fifth of it (at least 2 each), and
     /// a jump is moved to a quarter of the way between the two middle training times.
+    #[must_use]
     pub fn with_frames(mut self, frames: usize) -> Self {
         self.train_frames = frames;
         self.test_frames = (frames / 5).max(2);
@@ -186,6 +188,7 @@ impl SceneSpec {
     }
 
     /// Scales every Gaussian count by `factor` (at least 6 each).
+    #[must_use]
     pub fn with_gaussian_scale(mut self, factor: f32) -> Self {
         let scale = |n: usize| ((n as f32 * factor).round() as usize).max(6);
         self.body_gaussians = scale(self.body_gaussians);

@@ -91,6 +91,7 @@ impl Response {
     }
 
     /// Adds a header.
+    #[must_use]
     pub fn with(mut self, name: &'static str, value: impl Into<String>) -> Self {
         self.headers.push((name, value.into()));
         self

@@ -179,7 +179,7 @@ impl Query {
     /// `fmt`: `jpeg` (default) or `png`.
     pub fn format(&self) -> Result<Format, BadRequest> {
         match self.get("fmt") {
-            None | Some("jpeg") | Some("jpg") => Ok(Format::Jpeg),
+            None | Some("jpeg" | "jpg") => Ok(Format::Jpeg),
             Some("png") => Ok(Format::Png),
             Some(other) => Err(BadRequest::new(format!(
                 "`fmt` is `{}`; expected jpeg or png",
@@ -198,7 +198,7 @@ impl Query {
     pub fn split(&self, key: &str) -> Result<Split, BadRequest> {
         let text = self.required(key)?;
         text.parse::<Split>()
-            .map_err(|e| BadRequest::new(format!("`{key}`: {}", printable(&e.to_string()))))
+            .map_err(|e| BadRequest::new(format!("`{key}`: {}", printable(&e))))
     }
 }
 

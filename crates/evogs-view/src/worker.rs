@@ -327,10 +327,7 @@ impl Loaded {
         let train = split_cams.get("train").cloned().unwrap_or_default();
         let fit_cams: Vec<Camera> = train.iter().map(|(c, _)| *c).collect();
         let fit = SceneFit::fit(&fit_cams)?;
-        let (width, height) = fit_cams
-            .first()
-            .map(|c| (c.width, c.height))
-            .unwrap_or((400, 400));
+        let (width, height) = fit_cams.first().map_or((400, 400), |c| (c.width, c.height));
         let mut psnr = serde_json::Map::new();
         for split in Split::ALL {
             let path = run.paths.eval_json(split);
@@ -343,10 +340,10 @@ impl Loaded {
             }
         }
         let info = RunInfo {
-            name: root
-                .file_name()
-                .map(|n| n.to_string_lossy().into_owned())
-                .unwrap_or_else(|| root.display().to_string()),
+            name: root.file_name().map_or_else(
+                || root.display().to_string(),
+                |n| n.to_string_lossy().into_owned(),
+            ),
             method: serde_json::to_value(run.run.train.method).unwrap_or_default(),
             backbone: serde_json::to_value(run.run.train.backbone).unwrap_or_default(),
             iteration: run.summary.iteration,

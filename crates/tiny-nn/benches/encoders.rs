@@ -65,7 +65,7 @@ fn hashgrid_benches<M: Measurement>(c: &mut Criterion<M>) {
                     b.iter(|| {
                         let (_, cache) = enc.forward(black_box(&x), rows).unwrap();
                         enc.backward(&cache, &d, true).unwrap()
-                    })
+                    });
                 },
             );
         }
@@ -89,13 +89,13 @@ fn hexplane_benches<M: Measurement>(c: &mut Criterion<M>) {
         let d = vals(rows * enc.output_width(), 4, 1.0);
         g.throughput(Throughput::Elements(rows as u64));
         g.bench_function(BenchmarkId::new(format!("{prec:?}/fwd"), rows), |b| {
-            b.iter(|| enc.forward(black_box(&x), rows).unwrap())
+            b.iter(|| enc.forward(black_box(&x), rows).unwrap());
         });
         g.bench_function(BenchmarkId::new(format!("{prec:?}/fwd+bwd"), rows), |b| {
             b.iter(|| {
                 let (_, cache) = enc.forward(black_box(&x), rows).unwrap();
                 enc.backward(&cache, &d, true).unwrap()
-            })
+            });
         });
     }
     g.finish();

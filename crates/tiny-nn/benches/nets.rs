@@ -123,8 +123,8 @@ fn gemm_peak<M: Measurement>(c: &mut Criterion<M>) {
                 (n, n, n),
                 false,
                 parallelism(rayon::current_num_threads()),
-            )
-        })
+            );
+        });
     });
     g.finish();
 }
@@ -148,14 +148,14 @@ fn phi_benches<M: Measurement>(c: &mut Criterion<M>) {
                     b.iter(|| {
                         net.forward_reusing(black_box(&p), &t, rows, &mut cache)
                             .unwrap()
-                    })
+                    });
                 });
                 g.bench_function(BenchmarkId::new(format!("{name}/fwd+bwd"), rows), |b| {
                     b.iter(|| {
                         net.forward_reusing(black_box(&p), &t, rows, &mut cache)
                             .unwrap();
                         net.backward(&cache, &d, false).unwrap()
-                    })
+                    });
                 });
             }
         }
@@ -176,13 +176,13 @@ fn decoder_benches<M: Measurement>(c: &mut Criterion<M>) {
         |r0: usize, nr: usize, buf: &mut [f32]| buf.copy_from_slice(&x[r0 * ni..(r0 + nr) * ni]);
     g.throughput(Throughput::Elements(rows as u64));
     g.bench_function(BenchmarkId::new("F32/fwd", rows), |b| {
-        b.iter(|| mlp.forward_reusing(rows, fill, &mut cache))
+        b.iter(|| mlp.forward_reusing(rows, fill, &mut cache));
     });
     g.bench_function(BenchmarkId::new("F32/fwd+bwd(dx)", rows), |b| {
         b.iter(|| {
             mlp.forward_reusing(rows, fill, &mut cache);
             mlp.backward(&cache, &d, true).unwrap()
-        })
+        });
     });
     g.finish();
 }
@@ -200,14 +200,14 @@ fn d3dgs_benches<M: Measurement>(c: &mut Criterion<M>) {
                 b.iter(|| {
                     net.forward_reusing(black_box(&p), &t, rows, &mut cache)
                         .unwrap()
-                })
+                });
             });
             g.bench_function(BenchmarkId::new(format!("{prec:?}/fwd+bwd"), rows), |b| {
                 b.iter(|| {
                     net.forward_reusing(black_box(&p), &t, rows, &mut cache)
                         .unwrap();
                     net.backward(&cache, &d, false).unwrap()
-                })
+                });
             });
         }
     }

@@ -55,8 +55,8 @@ fn products(c: &mut Criterion<CpuTime>) {
                     (m, k, n),
                     acc,
                     Parallelism::None,
-                )
-            })
+                );
+            });
         });
     }
     g.finish();
@@ -79,17 +79,17 @@ fn decoder(c: &mut Criterion<CpuTime>) {
         let d = vals(rows * 10, 9);
         let (_, mut cache) = mlp.forward(&x, rows).unwrap();
         let fill = |r0: usize, nr: usize, buf: &mut [f32]| {
-            buf.copy_from_slice(&x[r0 * 48..(r0 + nr) * 48])
+            buf.copy_from_slice(&x[r0 * 48..(r0 + nr) * 48]);
         };
         g.throughput(Throughput::Elements(rows as u64));
         g.bench_function(BenchmarkId::new("fwd", rows), |b| {
-            b.iter(|| pool.install(|| mlp.forward_reusing(rows, fill, &mut cache)))
+            b.iter(|| pool.install(|| mlp.forward_reusing(rows, fill, &mut cache)));
         });
         g.bench_function(BenchmarkId::new("bwd_with_dx", rows), |b| {
-            b.iter(|| pool.install(|| mlp.backward(&cache, &d, true).unwrap()))
+            b.iter(|| pool.install(|| mlp.backward(&cache, &d, true).unwrap()));
         });
         g.bench_function(BenchmarkId::new("bwd_no_dx", rows), |b| {
-            b.iter(|| pool.install(|| mlp.backward(&cache, &d, false).unwrap()))
+            b.iter(|| pool.install(|| mlp.backward(&cache, &d, false).unwrap()));
         });
     }
     g.finish();
@@ -116,10 +116,10 @@ fn phi(c: &mut Criterion<CpuTime>) {
     let (_, mut cache) = net.forward(&p, &t, rows).unwrap();
     g.throughput(Throughput::Elements(rows as u64));
     g.bench_function(BenchmarkId::new("fwd", rows), |b| {
-        b.iter(|| net.forward_reusing(&p, &t, rows, &mut cache).unwrap())
+        b.iter(|| net.forward_reusing(&p, &t, rows, &mut cache).unwrap());
     });
     g.bench_function(BenchmarkId::new("bwd", rows), |b| {
-        b.iter(|| net.backward(&cache, &d, false).unwrap())
+        b.iter(|| net.backward(&cache, &d, false).unwrap());
     });
     g.finish();
 }

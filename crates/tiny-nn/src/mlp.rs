@@ -92,36 +92,43 @@ impl MlpConfig {
         }
     }
     /// Sets the hidden activation.
+    #[must_use]
     pub fn hidden_activation(mut self, a: Activation) -> Self {
         self.hidden_activation = a;
         self
     }
     /// Sets the output activation.
+    #[must_use]
     pub fn output_activation(mut self, a: Activation) -> Self {
         self.output_activation = a;
         self
     }
     /// Re-concatenates the input after hidden layer `layer` (0-based).
+    #[must_use]
     pub fn skip_after(mut self, layer: usize) -> Self {
         self.skip_after = Some(layer);
         self
     }
     /// Starts the output layer at zero.
+    #[must_use]
     pub fn zero_output(mut self, zero: bool) -> Self {
         self.zero_output = zero;
         self
     }
     /// Sets the hidden layers' initialisation.
+    #[must_use]
     pub fn init(mut self, init: Init) -> Self {
         self.init = init;
         self
     }
     /// Sets the storage precision.
+    #[must_use]
     pub fn precision(mut self, p: Precision) -> Self {
         self.precision = p;
         self
     }
     /// Sets the initialisation seed.
+    #[must_use]
     pub fn seed(mut self, seed: u64) -> Self {
         self.seed = seed;
         self
@@ -173,10 +180,7 @@ impl MlpCache {
     }
     /// The outputs of the forward pass (rows × output, storage precision).
     pub(crate) fn output(&self) -> StoreRef<'_> {
-        self.acts
-            .last()
-            .map(Store::as_ref)
-            .unwrap_or(StoreRef::F32(&[]))
+        self.acts.last().map_or(StoreRef::F32(&[]), Store::as_ref)
     }
     /// Values that saturated at ±65504 when stored in f16 during the forward pass (always 0 for
     /// f32 storage).
@@ -530,12 +534,12 @@ impl Mlp {
             dx_blocks,
             want_input_grad,
             || (),
-            |_, _, dst, dx| {
+            |(), _, dst, dx| {
                 if let (Some(dst), Some(dx)) = (dst, dx) {
                     dst.copy_from_slice(dx);
                 }
             },
-            |_, _| (),
+            |(), ()| (),
         );
         Ok(MlpGrads {
             params: params.0,

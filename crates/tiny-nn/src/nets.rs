@@ -173,7 +173,7 @@ impl ObservationNet {
                     times: &times[r0..r0 + nr],
                     out: buf,
                     feat: &mut vec![0f32; 3 * c],
-                })
+                });
             },
             mlp,
         );
@@ -286,8 +286,10 @@ impl Kernel for EncodeRows<'_> {
             .zip(self.times)
         {
             let (fx, ft) = row.split_at_mut(wx);
-            self.net.triplane.encode_row(self.planes, p, fx, self.feat);
-            self.net.bspline.encode_row(self.ctrl, t, ft);
+            self.net
+                .triplane
+                .encode_row_into(self.planes, p, fx, self.feat);
+            self.net.bspline.encode_row_into(self.ctrl, t, ft);
         }
     }
 }
@@ -321,7 +323,7 @@ impl Kernel for BackwardRows<'_> {
             .zip(self.times)
             .zip(self.d_positions.chunks_exact_mut(3))
         {
-            self.net.triplane.backward_row(
+            self.net.triplane.backward_row_into(
                 self.planes,
                 p,
                 &g[..wx],
@@ -332,7 +334,7 @@ impl Kernel for BackwardRows<'_> {
             );
             self.net
                 .bspline
-                .backward_row(self.ctrl, t, &g[wx..], self.d_controls);
+                .backward_row_into(self.ctrl, t, &g[wx..], self.d_controls);
         }
     }
 }
@@ -502,8 +504,8 @@ impl DeformNet {
                 for (i, row) in buf.chunks_exact_mut(wx + wt).enumerate() {
                     let r = r0 + i;
                     let (ex, et) = row.split_at_mut(wx);
-                    self.xyz.encode_row(&positions[r * 3..r * 3 + 3], ex);
-                    self.t.encode_row(&times[r..r + 1], et);
+                    self.xyz.encode_row_into(&positions[r * 3..r * 3 + 3], ex);
+                    self.t.encode_row_into(&times[r..r + 1], et);
                 }
             },
             &mut cache.mlp,
@@ -539,7 +541,7 @@ impl DeformNet {
                 let mut dp = vec![0f32; nr * 3];
                 for (i, g) in dx.chunks_exact(wx + wt).enumerate() {
                     let r = r0 + i;
-                    self.xyz.backward_row(
+                    self.xyz.backward_row_into(
                         &cache.positions[r * 3..r * 3 + 3],
                         &g[..wx],
                         &mut dp[i * 3..i * 3 + 3],
@@ -612,9 +614,9 @@ mod tests {
                     feat: &mut vec![0f32; 3 * c],
                 };
                 if avx {
-                    vectorised(k)
+                    vectorised(k);
                 } else {
-                    k.run()
+                    k.run();
                 }
                 out
             };
@@ -640,9 +642,9 @@ mod tests {
                     dfeat: &mut vec![0f32; 3 * c],
                 };
                 if avx {
-                    vectorised(k)
+                    vectorised(k);
                 } else {
-                    k.run()
+                    k.run();
                 }
                 let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                 (bits(&d_planes), bits(&d_controls), bits(&d_positions))

@@ -192,6 +192,7 @@ impl<'a> StoreRef<'a> {
     }
 
     /// Sub-range `start..start + len`.
+    #[must_use]
     pub fn slice(&self, start: usize, len: usize) -> StoreRef<'a> {
         match *self {
             StoreRef::F32(v) => StoreRef::F32(&v[start..start + len]),

@@ -332,7 +332,7 @@ pub fn read_compressed_ply_bytes(bytes: &[u8], name: &Path) -> Result<Gaussians,
     // Check every element fits in the file before allocating anything.
     let mut body = &bytes[end + END.len()..];
     let mut rows = Vec::with_capacity(3);
-    for element in header.elements.iter() {
+    for element in &header.elements {
         let row = element.binary_row_size().unwrap_or(0);
         let needed = element.count as u128 * row as u128;
         if needed > body.len() as u128 {

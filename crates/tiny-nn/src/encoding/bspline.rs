@@ -44,16 +44,19 @@ impl BSplineConfig {
         }
     }
     /// Sets the storage precision.
+    #[must_use]
     pub fn precision(mut self, p: Precision) -> Self {
         self.precision = p;
         self
     }
     /// Sets the seed.
+    #[must_use]
     pub fn seed(mut self, seed: u64) -> Self {
         self.seed = seed;
         self
     }
     /// Sets the initialisation scale.
+    #[must_use]
     pub fn init_scale(mut self, s: f32) -> Self {
         self.init_scale = s;
         self
@@ -188,7 +191,7 @@ impl BSplineTime {
 
     /// Encodes one time into `out` (E values).
     #[inline(always)]
-    pub(crate) fn encode_row(&self, ctrl: &[f32], t: f32, out: &mut [f32]) {
+    pub(crate) fn encode_row_into(&self, ctrl: &[f32], t: f32, out: &mut [f32]) {
         let e = self.config.width;
         let (k, u, _) = self.segment(t);
         let b = basis(u);
@@ -201,7 +204,13 @@ impl BSplineTime {
 
     /// Backward of one row: adds dL/d(controls) into `acc`, returns dL/dt.
     #[inline(always)]
-    pub(crate) fn backward_row(&self, ctrl: &[f32], t: f32, go: &[f32], acc: &mut [f32]) -> f32 {
+    pub(crate) fn backward_row_into(
+        &self,
+        ctrl: &[f32],
+        t: f32,
+        go: &[f32],
+        acc: &mut [f32],
+    ) -> f32 {
         let e = self.config.width;
         let (k, u, ds) = self.segment(t);
         let (b, db) = (basis(u), basis_derivative(u));
@@ -226,7 +235,7 @@ impl BSplineTime {
             .zip(times.par_chunks(ENC_ROWS))
             .for_each(|(o, ts)| {
                 for (orow, &t) in o.chunks_exact_mut(e).zip(ts) {
-                    self.encode_row(&p, t, orow);
+                    self.encode_row_into(&p, t, orow);
                 }
             });
         Ok((
@@ -263,7 +272,7 @@ impl BSplineTime {
                 for i in 0..ENC_ROWS.min(rows - r0) {
                     let row = r0 + i;
                     let g = &d_out[row * e..(row + 1) * e];
-                    let gt = self.backward_row(&p, cache.times[row], g, &mut acc);
+                    let gt = self.backward_row_into(&p, cache.times[row], g, &mut acc);
                     if let Some(dt) = dt.as_mut() {
                         dt[i] = gt;
                     }

@@ -152,38 +152,45 @@ impl HashGridConfig {
         }
     }
     /// Sets per-axis base and finest resolutions.
+    #[must_use]
     pub fn resolutions(mut self, base: &[f32], finest: &[f32]) -> Self {
         self.base_resolution = base.to_vec();
         self.finest_resolution = finest.to_vec();
         self
     }
     /// Sets the box.
+    #[must_use]
     pub fn bounds(mut self, min: &[f32], max: &[f32]) -> Self {
         self.box_min = min.to_vec();
         self.box_max = max.to_vec();
         self
     }
     /// Sets the interpolation.
+    #[must_use]
     pub fn interpolation(mut self, i: Interpolation) -> Self {
         self.interpolation = i;
         self
     }
     /// Sets the handling of inputs outside the box.
+    #[must_use]
     pub fn outside(mut self, o: Outside) -> Self {
         self.outside = o;
         self
     }
     /// Sets the initialisation range.
+    #[must_use]
     pub fn init_range(mut self, lo: f32, hi: f32) -> Self {
         self.init_range = (lo, hi);
         self
     }
     /// Sets the storage precision.
+    #[must_use]
     pub fn precision(mut self, p: Precision) -> Self {
         self.precision = p;
         self
     }
     /// Sets the seed.
+    #[must_use]
     pub fn seed(mut self, seed: u64) -> Self {
         self.seed = seed;
         self

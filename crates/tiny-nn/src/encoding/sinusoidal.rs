@@ -43,7 +43,7 @@ impl Sinusoidal {
     }
 
     /// Encodes one row `x` (input width) into `out` (output width).
-    pub fn encode_row(&self, x: &[f32], out: &mut [f32]) {
+    pub fn encode_row_into(&self, x: &[f32], out: &mut [f32]) {
         let d = self.input;
         out[..d].copy_from_slice(x);
         for f in 0..self.freqs {
@@ -58,7 +58,7 @@ impl Sinusoidal {
     }
 
     /// Writes dL/dx of one row into `gx` from the row's output gradient `go`.
-    pub fn backward_row(&self, x: &[f32], go: &[f32], gx: &mut [f32]) {
+    pub fn backward_row_into(&self, x: &[f32], go: &[f32], gx: &mut [f32]) {
         let d = self.input;
         gx.copy_from_slice(&go[..d]);
         for f in 0..self.freqs {
@@ -80,7 +80,7 @@ impl Sinusoidal {
             .zip(x.par_chunks(ENC_ROWS * d))
             .for_each(|(o, xs)| {
                 for (orow, xrow) in o.chunks_exact_mut(w).zip(xs.chunks_exact(d)) {
-                    self.encode_row(xrow, orow);
+                    self.encode_row_into(xrow, orow);
                 }
             });
         Ok(out)
@@ -101,7 +101,7 @@ impl Sinusoidal {
                     .zip(xs.chunks_exact(d))
                     .zip(go.chunks_exact(w))
                 {
-                    self.backward_row(xrow, orow, grow);
+                    self.backward_row_into(xrow, orow, grow);
                 }
             });
         Ok(dx)

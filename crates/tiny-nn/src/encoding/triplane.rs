@@ -145,27 +145,32 @@ impl TriPlaneConfig {
         }
     }
     /// Sets the normalisation box.
+    #[must_use]
     pub fn bounds(mut self, min: [f32; 3], max: [f32; 3]) -> Self {
         self.box_min = min;
         self.box_max = max;
         self
     }
     /// Adds a time axis (a HexPlane).
+    #[must_use]
     pub fn time(mut self, axis: TimeAxis) -> Self {
         self.time = Some(axis);
         self
     }
     /// Sets the storage precision.
+    #[must_use]
     pub fn precision(mut self, p: Precision) -> Self {
         self.precision = p;
         self
     }
     /// Sets the seed.
+    #[must_use]
     pub fn seed(mut self, seed: u64) -> Self {
         self.seed = seed;
         self
     }
     /// Sets the initialisation range.
+    #[must_use]
     pub fn init_range(mut self, lo: f32, hi: f32) -> Self {
         self.init_range = (lo, hi);
         self
@@ -483,7 +488,13 @@ impl TriPlane {
     /// Encodes one input row `p` ([`TriPlane::dims`] values) into `out` (output width); `feat`
     /// is scratch of `planes_per_scale · C`.
     #[inline(always)]
-    pub(crate) fn encode_row(&self, planes: &[f32], p: &[f32], out: &mut [f32], feat: &mut [f32]) {
+    pub(crate) fn encode_row_into(
+        &self,
+        planes: &[f32],
+        p: &[f32],
+        out: &mut [f32],
+        feat: &mut [f32],
+    ) {
         match self.axes.len() {
             3 => self.encode_row_p::<3>(planes, p, out, feat),
             _ => self.encode_row_p::<MAX_PLANES>(planes, p, out, feat),
@@ -508,7 +519,7 @@ impl TriPlane {
             }
             match self.config.combine {
                 PlaneCombine::Concat => {
-                    out[r * P * c..(r + 1) * P * c].copy_from_slice(&feat[..P * c])
+                    out[r * P * c..(r + 1) * P * c].copy_from_slice(&feat[..P * c]);
                 }
                 PlaneCombine::Product => {
                     for (ch, o) in out[r * c..(r + 1) * c].iter_mut().enumerate() {
@@ -528,7 +539,7 @@ impl TriPlane {
     /// scratch of `planes_per_scale · C`.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    pub(crate) fn backward_row(
+    pub(crate) fn backward_row_into(
         &self,
         planes: &[f32],
         p: &[f32],
@@ -618,7 +629,7 @@ impl TriPlane {
             .for_each(|(o, ps)| {
                 let mut feat = vec![0f32; self.axes.len() * self.config.channels];
                 for (orow, p) in o.chunks_exact_mut(w).zip(ps.chunks_exact(dims)) {
-                    self.encode_row(&planes, p, orow, &mut feat);
+                    self.encode_row_into(&planes, p, orow, &mut feat);
                 }
             });
         Ok((
@@ -660,7 +671,7 @@ impl TriPlane {
                 let mut g = [0f32; MAX_AXES];
                 for i in 0..nr {
                     let row = r0 + i;
-                    self.backward_row(
+                    self.backward_row_into(
                         &planes,
                         &cache.positions[row * dims..(row + 1) * dims],
                         &d_out[row * w..(row + 1) * w],
