@@ -11,17 +11,31 @@ pub struct Frames {
 /// Bad frame times.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum FramesError {
+    /// The list of times is empty.
     #[error("frames: no training times")]
     Empty,
+    /// A time is NaN or infinite.
     #[error("frames: time[{index}] = {time} is not finite")]
-    NonFinite { index: usize, time: f32 },
+    NonFinite {
+        /// Its index in the list.
+        index: usize,
+        /// The time.
+        time: f32,
+    },
+    /// A time is not greater than the one before it (unsorted or repeated).
     #[error("frames: time[{index}] = {time} does not exceed the previous time")]
-    NotIncreasing { index: usize, time: f32 },
+    NotIncreasing {
+        /// Its index in the list.
+        index: usize,
+        /// The time.
+        time: f32,
+    },
 }
 
 /// The history of a query: frames k1 > k2 > k3 (only the first `len` are meaningful).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct History {
+    /// Frame indices into [`Frames`], latest first; entries from `len` on are unused.
     pub frames: [usize; 3],
     /// h, the number of history frames (0..=3).
     pub len: usize,

@@ -32,26 +32,47 @@ pub enum RowPlanError {
     /// `kept` names a row outside the array.
     #[error("row plan: kept[{position}] = {row} is out of range for {rows} rows")]
     KeptOutOfRange {
+        /// The index into `kept`.
         position: usize,
+        /// The row it names.
         row: u32,
+        /// The array's row count.
         rows: usize,
     },
     /// `kept` is not strictly increasing.
     #[error("row plan: kept[{position}] = {row} is not greater than the previous kept row")]
-    KeptNotIncreasing { position: usize, row: u32 },
+    KeptNotIncreasing {
+        /// The index into `kept`.
+        position: usize,
+        /// The row it names.
+        row: u32,
+    },
     /// `parent_from_new` names a row outside the array.
     #[error("row plan: parent_from_new[{position}] = {row} is out of range for {rows} rows")]
     ParentOutOfRange {
+        /// The index into `parent_from_new` (the appended row's number).
         position: usize,
+        /// The parent row it names.
         row: u32,
+        /// The array's row count.
         rows: usize,
     },
     /// The array's length is not a whole number of rows.
     #[error("row plan: array of length {len} is not a whole number of rows of stride {stride}")]
-    BadStride { len: usize, stride: usize },
+    BadStride {
+        /// The array's length in elements.
+        len: usize,
+        /// Elements per row.
+        stride: usize,
+    },
     /// The array does not have the number of rows the plan was made for.
     #[error("row plan: array has {actual} rows, the plan expects {expected}")]
-    RowCount { expected: usize, actual: usize },
+    RowCount {
+        /// The row count the plan was made for.
+        expected: usize,
+        /// The array's row count.
+        actual: usize,
+    },
 }
 
 impl RowPlan {
