@@ -32,7 +32,7 @@ pub enum DensifyError {
         field: &'static str,
         /// Its value, as written.
         value: String,
-        /// The range it must lie in.
+        /// What is wrong with it (e.g. `must be at least 1`).
         problem: &'static str,
     },
     /// A per-Gaussian array does not have the row count the plan was made for (before), or

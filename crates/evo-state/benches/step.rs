@@ -52,7 +52,7 @@ fn bench<M: Measurement>(c: &mut Criterion<M>) {
                 let grads = st.backward(&step, &z, &dl_dd, &opacity).unwrap();
                 st.commit(&step).unwrap();
                 black_box(grads.dpsi);
-            })
+            });
         });
         // The same step with a kept Step/Backward whose buffers are reused (a training loop).
         let mut step = evo_state::Step::empty();
@@ -64,17 +64,17 @@ fn bench<M: Measurement>(c: &mut Criterion<M>) {
                     .unwrap();
                 st.commit(&step).unwrap();
                 black_box(&grads.dpsi);
-            })
+            });
         });
         group.bench_function(format!("forward_{name}"), |b| {
-            b.iter(|| black_box(st.forward(t, black_box(&z)).unwrap()))
+            b.iter(|| black_box(st.forward(t, black_box(&z)).unwrap()));
         });
         let step = st.forward(t, &z).unwrap();
         group.bench_function(format!("backward_{name}"), |b| {
-            b.iter(|| black_box(st.backward(&step, &z, &dl_dd, &opacity).unwrap()))
+            b.iter(|| black_box(st.backward(&step, &z, &dl_dd, &opacity).unwrap()));
         });
         group.bench_function(format!("commit_{name}"), |b| {
-            b.iter(|| st.commit(&step).unwrap())
+            b.iter(|| st.commit(&step).unwrap());
         });
     }
     // Ψ alone (tiny-nn), forward + backward over 100K rows of 13 inputs.
@@ -86,7 +86,7 @@ fn bench<M: Measurement>(c: &mut Criterion<M>) {
             let (k, cache) = st.psi().forward(black_box(&x), N).unwrap();
             black_box(k);
             black_box(st.psi().backward(&cache, &dk).unwrap())
-        })
+        });
     });
     group.finish();
 }

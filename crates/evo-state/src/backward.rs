@@ -6,7 +6,7 @@ use rayon::prelude::*;
 use crate::error::EvoError;
 use crate::kernel::fin;
 use crate::state::{CHUNK, EvoState};
-use crate::step::{Backward, Gains, HistoryGradient, Losses, Step};
+use crate::step::{Backward, Gains, HistoryGrads, Losses, Step};
 
 impl EvoState {
     /// Backward pass: from dL_render/dd̃ (`dl_dd`, N × D) and the (stop-gradient) opacities
@@ -120,7 +120,7 @@ impl EvoState {
             for (&k, factor) in step.history.frames().iter().zip([1.0 + s, -s]) {
                 let mut g = Vec::with_capacity(n * dim);
                 g.par_extend(dprior.par_iter().map(|&v| fin(factor * v)));
-                history.push(HistoryGradient {
+                history.push(HistoryGrads {
                     time: times[k],
                     dz: g,
                 });

@@ -125,7 +125,9 @@ impl fmt::Display for Gain {
 /// Configuration of an [`crate::EvoState`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EvoConfig {
+    /// The deformation components a row of z, d̂ and d̃ holds; D = `layout.dim()`.
     pub layout: Layout,
+    /// Element type of the buffer of corrected states and of the residual memory.
     pub storage: Storage,
     /// Residual memory momentum β (DESIGN §4.8: 0.9).
     pub beta: f32,
@@ -137,7 +139,9 @@ pub struct EvoConfig {
     pub extent: f32,
     /// `false`: the baseline, d̃ = z, nothing stored, EvoGS losses zero.
     pub evolution: bool,
+    /// How K is chosen once three history frames exist (default: learned by Ψ).
     pub gain: Gain,
+    /// Where the history states come from (default: the buffer).
     pub history: HistoryMode,
     /// λ1, weight of L_sup (DESIGN §4.11: 0.5).
     pub lambda_sup: f32,
@@ -167,8 +171,11 @@ impl Default for EvoConfig {
 #[derive(Debug, Error, Clone, PartialEq)]
 #[error("evo-state config: field `{field}` = {value} {problem}")]
 pub struct ConfigError {
+    /// The field of [`EvoConfig`].
     pub field: &'static str,
+    /// Its value, as written.
     pub value: String,
+    /// What is wrong with it (e.g. `must be in [0, 1)`).
     pub problem: &'static str,
 }
 

@@ -71,7 +71,7 @@ impl GainNet {
     }
 
     /// Like [`GainNet::forward`], reusing `cache`'s buffers.
-    pub fn forward_reusing(
+    pub fn forward_into(
         &self,
         x: &[f32],
         rows: usize,
@@ -85,7 +85,7 @@ impl GainNet {
                 actual: x.len(),
             });
         }
-        Ok(self.mlp.forward_reusing(
+        Ok(self.mlp.forward_into(
             rows,
             |r0, nr, buf| buf.copy_from_slice(&x[r0 * width..(r0 + nr) * width]),
             cache,

@@ -101,4 +101,4 @@ pub use kernel::PSI_INPUT_CLAMP;
 pub use norm::InputNorm;
 pub use splat_core::{NewRows, RowPlan, RowPlanError};
 pub use state::{EvoState, ObservationSource, WARMUP_GAIN};
-pub use step::{Backward, Gains, HistoryGradient, Losses, Stats, Step};
+pub use step::{Backward, Gains, HistoryGrads, Losses, Stats, Step};

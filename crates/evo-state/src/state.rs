@@ -380,7 +380,7 @@ impl EvoState {
             (_, Gain::Fixed(k)) => Gains::Uniform(k),
             (_, Gain::Learned) => {
                 used_psi = true;
-                Gains::Learned(self.psi.forward_reusing(&inputs, n, &mut psi_cache)?)
+                Gains::Learned(self.psi.forward_into(&inputs, n, &mut psi_cache)?)
             }
         };
 

@@ -149,7 +149,7 @@ pub struct Losses {
 
 /// dL/d(observation at a history time), for history re-queried from Φ.
 #[derive(Debug, Clone, PartialEq)]
-pub struct HistoryGradient {
+pub struct HistoryGrads {
     /// The history frame's time: Φ was queried at it.
     pub time: f32,
     /// dL/dz(time), N × D.
@@ -166,7 +166,7 @@ pub struct Backward {
     /// With history re-queried from Φ (h >= 2): dL/dz at the history frames k1 and k2, through
     /// d̂ = z_k1 + s (z_k1 - z_k2) (the rendering loss and L_sup; L_prior stops d̂'s gradient).
     /// Pass each on to Φ at its time. Empty with the buffer (d̂ is then a constant).
-    pub history: Vec<HistoryGradient>,
+    pub history: Vec<HistoryGrads>,
     /// The loss values of this step.
     pub losses: Losses,
 }

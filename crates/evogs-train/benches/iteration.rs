@@ -56,7 +56,7 @@ fn bench<M: Measurement>(c: &mut Criterion<M>) {
         t.times = PhaseTimes::default();
         let start = t.iteration;
         group.bench_function(format!("{method} ({n} Gaussians)"), |b| {
-            b.iter(|| t.step().unwrap())
+            b.iter(|| t.step().unwrap());
         });
         let steps = (t.iteration - start).max(1) as f64;
         let total = t.times.total();

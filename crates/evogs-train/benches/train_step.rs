@@ -47,7 +47,7 @@ fn bench(c: &mut Criterion) {
         let mut t = trainer(method, components, &data);
         let n = t.state.len();
         group.bench_function(format!("{method}{label} ({n} Gaussians)"), |b| {
-            b.iter(|| t.step().unwrap())
+            b.iter(|| t.step().unwrap());
         });
         // The NaN/Inf check training runs every log interval, against one step above.
         group.bench_function(

@@ -272,7 +272,7 @@ impl Backbone for D3dgsBackbone {
         let mut cache = self.cache.take().unwrap_or_default();
         let geometry = self
             .net
-            .forward_reusing(&self.positions, &self.times, n, &mut cache)?;
+            .forward_into(&self.positions, &self.times, n, &mut cache)?;
         if training {
             self.cache = Some(cache);
         }

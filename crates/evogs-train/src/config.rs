@@ -451,6 +451,7 @@ impl TrainConfig {
     /// interval, lr decay lengths, densification window, interval and opacity reset) is scaled
     /// by `iterations / self.iterations` (rounded, at least 1), so the phases keep their
     /// proportions.
+    #[must_use]
     pub fn with_iterations(mut self, iterations: u64) -> Self {
         let ratio = iterations as f64 / self.iterations.max(1) as f64;
         let scale = |v: u64| ((v as f64 * ratio).round() as u64).max(1);

@@ -288,7 +288,7 @@ impl Backbone for EvoBackbone {
             .unwrap_or_default();
         let z = self
             .phi
-            .forward_reusing(&self.positions, &self.times, n, &mut cache)?;
+            .forward_into(&self.positions, &self.times, n, &mut cache)?;
         let mut step = kept.map_or_else(Step::empty, |t| t.step);
         let history_caches = self.evolve(time, &z, &mut step, training)?;
         let out = self.widen(step.corrected());

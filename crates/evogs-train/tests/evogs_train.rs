@@ -266,10 +266,10 @@ fn every_switch_combination_trains_finitely_and_stays_aligned() {
             c.evogs.net_precision = Precision::F16;
         }),
         ("position only", |c| {
-            c.evogs.components = "pos".parse().unwrap()
+            c.evogs.components = "pos".parse().unwrap();
         }),
         ("every component, opacity and colour included", |c| {
-            c.evogs.components = "pos,rot,scale,opacity,colour".parse().unwrap()
+            c.evogs.components = "pos,rot,scale,opacity,colour".parse().unwrap();
         }),
     ];
     for (name, edit) in cases {

@@ -73,7 +73,7 @@ fn resumed_run_matches_uninterrupted_run_bit_for_bit() {
         assert_eq!(half.iteration, 30);
         let mut seen = Vec::new();
         let rest = train(&request("resumed", true, None), &mut |r, _| {
-            seen.push(r.iteration)
+            seen.push(r.iteration);
         })
         .unwrap();
         assert_eq!(seen.first(), Some(&31));

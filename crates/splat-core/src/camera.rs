@@ -82,6 +82,7 @@ impl Camera {
 
     /// Scales the image size and the intrinsics by `factor` (DESIGN §1.2: resizing scales fx, fy, cx,
     /// cy by the same factor). Sizes are rounded to the nearest pixel.
+    #[must_use]
     pub fn scaled(&self, factor: f32) -> Self {
         Self {
             width: (self.width as f32 * factor).round().max(1.0) as u32,

@@ -31,7 +31,7 @@ fn bench(c: &mut Criterion) {
         let mut group = c.benchmark_group(format!("wgpu/{}k_{size}", n / 1000));
         group.throughput(Throughput::Elements(evals));
         group.bench_function("forward", |b| {
-            b.iter(|| r.forward(black_box(g.view()), &cam, &opts).unwrap())
+            b.iter(|| r.forward(black_box(g.view()), &cam, &opts).unwrap());
         });
         group.bench_function("forward_backward", |b| {
             b.iter(|| {
@@ -44,7 +44,7 @@ fn bench(c: &mut Criterion) {
                     PixelGrads::from_color(&d_color).with_alpha(&d_alpha),
                 )
                 .unwrap()
-            })
+            });
         });
         group.finish();
     }

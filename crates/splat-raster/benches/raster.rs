@@ -54,7 +54,7 @@ fn bench<M: Measurement>(c: &mut Criterion<M>, clock: &str) {
         for (prefix, kernel) in [("", CpuKernel::Simd), ("scalar_", CpuKernel::Scalar)] {
             let r = CpuRasterizer::new().with_kernel(kernel);
             group.bench_function(format!("{prefix}forward"), |b| {
-                b.iter(|| r.forward(black_box(g.view()), &cam, &opts).unwrap())
+                b.iter(|| r.forward(black_box(g.view()), &cam, &opts).unwrap());
             });
             group.bench_function(format!("{prefix}forward_backward"), |b| {
                 b.iter(|| {
@@ -67,7 +67,7 @@ fn bench<M: Measurement>(c: &mut Criterion<M>, clock: &str) {
                         PixelGrads::from_color(&d_color).with_alpha(&d_alpha),
                     )
                     .unwrap()
-                })
+                });
             });
         }
         group.finish();

@@ -107,6 +107,7 @@ impl<'a> PixelGrads<'a> {
     }
 
     /// The same with dL/d alpha.
+    #[must_use]
     pub fn with_alpha(self, alpha: &'a [f32]) -> Self {
         Self {
             alpha: Some(alpha),
@@ -115,6 +116,7 @@ impl<'a> PixelGrads<'a> {
     }
 
     /// The same with dL/d depth.
+    #[must_use]
     pub fn with_depth(self, depth: &'a [f32]) -> Self {
         Self {
             depth: Some(depth),

@@ -129,7 +129,7 @@ fn gemm_peak<M: Measurement>(c: &mut Criterion<M>) {
     g.finish();
 }
 
-/// Steady state of a training loop: the cache is kept between steps (`forward_reusing`).
+/// Steady state of a training loop: the cache is kept between steps (`forward_into`).
 fn phi_benches<M: Measurement>(c: &mut Criterion<M>) {
     let mut g = c.benchmark_group(format!("{}phi", clock_prefix::<M>()));
     for (combine, sizes) in [
@@ -146,13 +146,13 @@ fn phi_benches<M: Measurement>(c: &mut Criterion<M>) {
                 let name = format!("{combine:?}/{prec:?}");
                 g.bench_function(BenchmarkId::new(format!("{name}/fwd"), rows), |b| {
                     b.iter(|| {
-                        net.forward_reusing(black_box(&p), &t, rows, &mut cache)
+                        net.forward_into(black_box(&p), &t, rows, &mut cache)
                             .unwrap()
                     });
                 });
                 g.bench_function(BenchmarkId::new(format!("{name}/fwd+bwd"), rows), |b| {
                     b.iter(|| {
-                        net.forward_reusing(black_box(&p), &t, rows, &mut cache)
+                        net.forward_into(black_box(&p), &t, rows, &mut cache)
                             .unwrap();
                         net.backward(&cache, &d, false).unwrap()
                     });
@@ -176,11 +176,11 @@ fn decoder_benches<M: Measurement>(c: &mut Criterion<M>) {
         |r0: usize, nr: usize, buf: &mut [f32]| buf.copy_from_slice(&x[r0 * ni..(r0 + nr) * ni]);
     g.throughput(Throughput::Elements(rows as u64));
     g.bench_function(BenchmarkId::new("F32/fwd", rows), |b| {
-        b.iter(|| mlp.forward_reusing(rows, fill, &mut cache));
+        b.iter(|| mlp.forward_into(rows, fill, &mut cache));
     });
     g.bench_function(BenchmarkId::new("F32/fwd+bwd(dx)", rows), |b| {
         b.iter(|| {
-            mlp.forward_reusing(rows, fill, &mut cache);
+            mlp.forward_into(rows, fill, &mut cache);
             mlp.backward(&cache, &d, true).unwrap()
         });
     });
@@ -198,13 +198,13 @@ fn d3dgs_benches<M: Measurement>(c: &mut Criterion<M>) {
             let (_, mut cache) = net.forward(&p, &t, rows).unwrap();
             g.bench_function(BenchmarkId::new(format!("{prec:?}/fwd"), rows), |b| {
                 b.iter(|| {
-                    net.forward_reusing(black_box(&p), &t, rows, &mut cache)
+                    net.forward_into(black_box(&p), &t, rows, &mut cache)
                         .unwrap()
                 });
             });
             g.bench_function(BenchmarkId::new(format!("{prec:?}/fwd+bwd"), rows), |b| {
                 b.iter(|| {
-                    net.forward_reusing(black_box(&p), &t, rows, &mut cache)
+                    net.forward_into(black_box(&p), &t, rows, &mut cache)
                         .unwrap();
                     net.backward(&cache, &d, false).unwrap()
                 });

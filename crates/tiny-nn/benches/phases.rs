@@ -83,7 +83,7 @@ fn decoder(c: &mut Criterion<CpuTime>) {
         };
         g.throughput(Throughput::Elements(rows as u64));
         g.bench_function(BenchmarkId::new("fwd", rows), |b| {
-            b.iter(|| pool.install(|| mlp.forward_reusing(rows, fill, &mut cache)));
+            b.iter(|| pool.install(|| mlp.forward_into(rows, fill, &mut cache)));
         });
         g.bench_function(BenchmarkId::new("bwd_with_dx", rows), |b| {
             b.iter(|| pool.install(|| mlp.backward(&cache, &d, true).unwrap()));
@@ -116,7 +116,7 @@ fn phi(c: &mut Criterion<CpuTime>) {
     let (_, mut cache) = net.forward(&p, &t, rows).unwrap();
     g.throughput(Throughput::Elements(rows as u64));
     g.bench_function(BenchmarkId::new("fwd", rows), |b| {
-        b.iter(|| net.forward_reusing(&p, &t, rows, &mut cache).unwrap());
+        b.iter(|| net.forward_into(&p, &t, rows, &mut cache).unwrap());
     });
     g.bench_function(BenchmarkId::new("bwd", rows), |b| {
         b.iter(|| net.backward(&cache, &d, false).unwrap());

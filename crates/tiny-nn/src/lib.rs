@@ -19,7 +19,7 @@
 //!   D-3DGS skip, zero-initialised output layer, precision, seed). `forward` returns outputs and a
 //!   [`MlpCache`]; `backward` returns [`MlpGrads`] (parameters, and inputs when asked).
 //!   `forward_with` / `backward_with` let an encoder fill input blocks and consume input-gradient
-//!   blocks without materialising them; `forward_reusing` keeps a cache's memory across steps.
+//!   blocks without materialising them; `forward_into` keeps a cache's memory across steps.
 //! - [`encoding`]: [`Sinusoidal`] (D-3DGS ordering), [`TriPlane`] (concat or product, gradients to
 //!   planes and positions; with a [`TimeAxis`] the six-plane HexPlane of 4DGaussians and its
 //!   regularisers), [`BSplineTime`] (uniform cubic, exact at t = 0 and t = 1), [`HashGrid`]

@@ -164,7 +164,7 @@ pub struct Mlp {
 
 /// What [`Mlp::forward`] keeps for [`Mlp::backward`]: the input and every layer's output, in the
 /// network's storage precision. `MlpCache::default()` is an empty cache for
-/// [`Mlp::forward_reusing`].
+/// [`Mlp::forward_into`].
 #[derive(Clone, Debug, Default)]
 pub struct MlpCache {
     rows: usize,
@@ -332,14 +332,14 @@ impl Mlp {
         F: Fn(usize, usize, &mut [f32]) + Sync,
     {
         let mut cache = MlpCache::default();
-        let out = self.forward_reusing(rows, fill, &mut cache);
+        let out = self.forward_into(rows, fill, &mut cache);
         (out, cache)
     }
 
     /// [`Mlp::forward_with`] writing into an existing cache, whose buffers are reused (a training
     /// loop that keeps its cache avoids reallocating, and page-faulting, hundreds of MB per
     /// step). Any cache may be passed; it is overwritten.
-    pub fn forward_reusing<F>(&self, rows: usize, fill: F, cache: &mut MlpCache) -> Vec<f32>
+    pub fn forward_into<F>(&self, rows: usize, fill: F, cache: &mut MlpCache) -> Vec<f32>
     where
         F: Fn(usize, usize, &mut [f32]) + Sync,
     {
@@ -347,7 +347,7 @@ impl Mlp {
         cache.acts.last().map(Store::to_f32_vec).unwrap_or_default()
     }
 
-    /// [`Mlp::forward_reusing`] without copying the outputs out of the cache (read them with
+    /// [`Mlp::forward_into`] without copying the outputs out of the cache (read them with
     /// [`MlpCache::output`]).
     pub(crate) fn forward_cached<F>(&self, rows: usize, fill: F, cache: &mut MlpCache)
     where

@@ -40,7 +40,7 @@ pub struct ObservationNet {
     pub mlp: Mlp,
 }
 
-/// Cache of [`ObservationNet::forward`] (`default()` is empty, for `forward_reusing`).
+/// Cache of [`ObservationNet::forward`] (`default()` is empty, for `forward_into`).
 ///
 /// The decoder runs over the rows in the tri-plane's spatial order (see
 /// [`ObservationNet::forward`]): `order[i]` is the input row of decoder row `i`, and the cached
@@ -129,12 +129,12 @@ impl ObservationNet {
         rows: usize,
     ) -> Result<(Vec<f32>, ObservationCache), NnError> {
         let mut cache = ObservationCache::default();
-        let out = self.forward_reusing(positions, times, rows, &mut cache)?;
+        let out = self.forward_into(positions, times, rows, &mut cache)?;
         Ok((out, cache))
     }
 
     /// [`ObservationNet::forward`] into an existing cache whose buffers are reused.
-    pub fn forward_reusing(
+    pub fn forward_into(
         &self,
         positions: &[f32],
         times: &[f32],
@@ -415,7 +415,7 @@ pub struct DeformNet {
     pub mlp: Mlp,
 }
 
-/// Cache of [`DeformNet::forward`] (`default()` is empty, for `forward_reusing`).
+/// Cache of [`DeformNet::forward`] (`default()` is empty, for `forward_into`).
 #[derive(Clone, Debug, Default)]
 pub struct DeformCache {
     positions: Vec<f32>,
@@ -472,12 +472,12 @@ impl DeformNet {
         rows: usize,
     ) -> Result<(Vec<f32>, DeformCache), NnError> {
         let mut cache = DeformCache::default();
-        let out = self.forward_reusing(positions, times, rows, &mut cache)?;
+        let out = self.forward_into(positions, times, rows, &mut cache)?;
         Ok((out, cache))
     }
 
     /// [`DeformNet::forward`] into an existing cache whose buffers are reused.
-    pub fn forward_reusing(
+    pub fn forward_into(
         &self,
         positions: &[f32],
         times: &[f32],
@@ -498,7 +498,7 @@ impl DeformNet {
             )));
         }
         let (wx, wt) = (self.xyz.output_width(), self.t.output_width());
-        let out = self.mlp.forward_reusing(
+        let out = self.mlp.forward_into(
             rows,
             |r0, _, buf| {
                 for (i, row) in buf.chunks_exact_mut(wx + wt).enumerate() {

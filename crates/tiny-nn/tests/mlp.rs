@@ -275,13 +275,13 @@ fn reused_cache_gives_the_same_results() {
     let mut cache = tiny_nn::MlpCache::default();
     // Fill the cache from another network and a larger batch first.
     let x_big = vals(900 * 5, 1, 1.0);
-    let _ = b.forward_reusing(
+    let _ = b.forward_into(
         900,
         |r0, nr, buf| buf.copy_from_slice(&x_big[r0 * 5..(r0 + nr) * 5]),
         &mut cache,
     );
     let x = vals(300 * 5, 2, 1.0);
-    let y = a.forward_reusing(
+    let y = a.forward_into(
         300,
         |r0, nr, buf| buf.copy_from_slice(&x[r0 * 5..(r0 + nr) * 5]),
         &mut cache,

@@ -87,6 +87,7 @@ impl CpuRasterizer {
 
     /// The same rasterizer running `kernel`. A backward pass runs the kernels its forward pass
     /// ran, whatever this says.
+    #[must_use]
     pub fn with_kernel(self, kernel: CpuKernel) -> Self {
         Self {
             kernels: Kernels::of(kernel),

@@ -118,13 +118,13 @@ mod tests {
                     size_of::<ScanParams>(),
                     &src,
                     "ScanParams",
-                )
+                );
             })
         };
         assert!(scan(swapped).is_err());
         assert!(scan(dropped).is_err());
         let sort = std::panic::catch_unwind(move || {
-            check(Params::FIELDS, size_of::<Params>(), &retyped, "Params")
+            check(Params::FIELDS, size_of::<Params>(), &retyped, "Params");
         });
         assert!(sort.is_err());
     }
