@@ -78,7 +78,7 @@ pub struct PlanSummary {
     pub split: usize,
     /// Children created by splits (before pruning).
     pub children: usize,
-    /// Removed for opacity < min_opacity (old or new rows).
+    /// Removed for opacity < `min_opacity` (old or new rows).
     pub pruned_opacity: usize,
     /// Removed for a screen radius above the limit (old rows only: new rows have no screen
     /// statistics yet).

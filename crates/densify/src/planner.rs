@@ -9,7 +9,7 @@
 //!    (all first children, then all second children, as `repeat(N, 1)` orders them) at
 //!    `mean + R(q) (s ⊙ n)`, `n ~ N(0, I)`, i.e. sampled from N(mean, Σ) in world space, with
 //!    scale `s / (0.8 N)`; the parent is removed;
-//! 4. prune, over the resulting set, opacity < min_opacity, and after the first opacity reset
+//! 4. prune, over the resulting set, opacity < `min_opacity`, and after the first opacity reset
 //!    also max screen radius > 20 px and max scale > 0.1 · extent.
 //!
 //! One deliberate difference: in the original code `densification_postfix` zeroes

@@ -60,8 +60,8 @@
 //! # Choices beyond the paper (DESIGN §4)
 //!
 //! - **History window.** A query at time t sits at frame position p = #{k : t_k < t}; k1 is the
-//!   latest valid frame with p - k1 <= max_gap, k2 the latest valid with k1 - k2 <= max_gap, and so
-//!   on. A query beyond the last frame extrapolates from the last frames.
+//!   latest valid frame with p - k1 <= `max_gap`, k2 the latest valid with k1 - k2 <= `max_gap`,
+//!   and so on. A query beyond the last frame extrapolates from the last frames.
 //! - **Residual memory.** Defined where a prior exists (h >= 2): `m = β M[k1] + (1-β)(z - d̂)`
 //!   (the paper's `m^t = β m^{t-1} + (1-β) r^t`, with the history frame k1 as t-1). Ψ sees this m
 //!   as a constant; a commit writes it to M[k], or zero when the step had no prior (h < 2).

@@ -3,7 +3,7 @@
 //! One thread accepts connections and hands them to [`Limits::workers`] workers through a
 //! channel of [`Limits::backlog`] places; when every place is taken the connection is answered
 //! `503` at once and closed, so the number of open connections and threads stays bounded
-//! whatever arrives. (tiny_http, the usual small synchronous server, starts a thread per
+//! whatever arrives. (`tiny_http`, the usual small synchronous server, starts a thread per
 //! connection without a limit, its issue #221; owning the accept loop is what bounds it here.)
 //! A worker reads one request head (at most [`Limits::max_head`] bytes, within
 //! [`Limits::timeout`]), parses it with `httparse`, refuses bodies, calls the handler and writes

@@ -74,7 +74,7 @@ pub enum StoreMut<'a> {
     F16(&'a mut [f16]),
 }
 
-/// Clamps every finite-or-infinite value of `xs` into [-F16_MAX, F16_MAX] and returns how many
+/// Clamps every finite-or-infinite value of `xs` into `[-F16_MAX, F16_MAX]` and returns how many
 /// were clamped. NaN is left as it is (and not counted).
 pub fn saturate_for_f16(xs: &mut [f32]) -> u64 {
     // Selects and a count of flags rather than a branch, so the loop vectorises.

@@ -7,8 +7,8 @@
 //! DIR/images/<name>                            the images named in images.bin/txt
 //! ```
 //!
-//! - `.bin` is preferred when both exist. Camera models PINHOLE, SIMPLE_PINHOLE, OPENCV and
-//!   SIMPLE_RADIAL are read; distortion (k1, k2, p1, p2, or SIMPLE_RADIAL's k) is kept in
+//! - `.bin` is preferred when both exist. Camera models `PINHOLE`, `SIMPLE_PINHOLE`, `OPENCV` and
+//!   `SIMPLE_RADIAL` are read; distortion (k1, k2, p1, p2, or `SIMPLE_RADIAL`'s k) is kept in
 //!   [`CameraInfo`](crate::CameraInfo) and reported, never applied. Any other model is an error
 //!   naming the file and the model.
 //! - COLMAP's `qvec` (w, x, y, z) and `tvec` are world-to-camera in OpenCV axes, and its pixel

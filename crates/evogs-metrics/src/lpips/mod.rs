@@ -2,7 +2,7 @@
 //! Metric", version 0.1), with the AlexNet or the VGG16 backbone and the published weights.
 //!
 //! For a pair of RGB images in `[0, 1]` of the same size: each is mapped to `[-1, 1]`, shifted
-//! and scaled per channel by LPIPS's ScalingLayer (`(x − shift) / scale`, shift
+//! and scaled per channel by LPIPS's `ScalingLayer` (`(x − shift) / scale`, shift
 //! `[−0.030, −0.088, −0.188]`, scale `[0.458, 0.448, 0.450]`) and run through the backbone's
 //! features ([`network`]); at each of the five feature layers every pixel's channel vector is
 //! divided by its norm plus `1e−10` (as `lpips.normalize_tensor`), the two images' normalised
@@ -34,9 +34,9 @@ use layers::{Conv, Maps};
 /// Two RGB images of one size, as LPIPS compares them.
 pub type ImagePair<'a> = (&'a [[f32; 3]], &'a [[f32; 3]]);
 
-/// LPIPS ScalingLayer shift, per RGB channel, applied to images in `[-1, 1]`.
+/// LPIPS `ScalingLayer` shift, per RGB channel, applied to images in `[-1, 1]`.
 pub const SHIFT: [f32; 3] = [-0.030, -0.088, -0.188];
-/// LPIPS ScalingLayer scale, per RGB channel.
+/// LPIPS `ScalingLayer` scale, per RGB channel.
 pub const SCALE: [f32; 3] = [0.458, 0.448, 0.450];
 /// Added to each feature vector's norm before dividing by it (`lpips.normalize_tensor`).
 pub const NORM_EPS: f32 = 1e-10;

@@ -1,7 +1,8 @@
 //! The two LPIPS backbones as torchvision defines their `features` (AlexNet: conv1..conv5 with
 //! max pools 3/2 after conv1 and conv2; VGG16: thirteen 3×3 convolutions in five blocks with
 //! max pools 2/2 between them), ReLU fused into each convolution, cut after the fifth feature
-//! layer (AlexNet's relu1..relu5, VGG16's relu1_2, relu2_2, relu3_3, relu4_3, relu5_3).
+//! layer (AlexNet's `relu1`..`relu5`, VGG16's `relu1_2`, `relu2_2`, `relu3_3`, `relu4_3`,
+//! `relu5_3`).
 //!
 //! Not here: loading the weights ([`super::weights`]) and the distance ([`super::Lpips`]).
 
