@@ -6,6 +6,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use evogs_experiments::gain_table::gain_table;
+use evogs_experiments::motion_report::MotionReport;
 use evogs_train::{TrainConfig, TrainRequest, TrainSummary, train};
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -106,7 +108,7 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
     let mut said_backend = false;
     // The estimate at the most Gaussians the run had, to compare with the measured peak.
     let mut peak: Option<(usize, u64)> = None;
-    let mut motion: Option<evogs_train::motion_report::MotionReport> = None;
+    let mut motion: Option<MotionReport> = None;
     let summary = train(&request, &mut |report, trainer| {
         if !said_backend {
             println!("{}", trainer.backend());
@@ -128,7 +130,7 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
             && let Some(stats) = trainer.motion_stats()
         {
             motion
-                .get_or_insert_with(|| trainer.new_motion_report())
+                .get_or_insert_with(|| MotionReport::for_run(trainer))
                 .add(stats);
         }
         let total = trainer.config.iterations;
@@ -171,7 +173,7 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
     }
     if args.gain_report {
         match &summary.gain {
-            Some(g) => print!("{}", g.table()),
+            Some(g) => print!("{}", gain_table(g)),
             None => println!(
                 "gain K: no gain-stage steps in the last quarter (EvoGS with evolution only)"
             ),

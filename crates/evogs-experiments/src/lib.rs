@@ -5,6 +5,9 @@
 //!   one-method piece `evogs demo` shares;
 //! - [`bench`], [`bench_plot`]: the D-NeRF benchmark (scenes × methods, table with the published
 //!   figures, PSNR-against-time plot, pictures);
+//! - [`motion_report`]: a diagnostic of EvoGS's motion statistics during training (speeds and θ
+//!   by decade; `evogs train --motion-report`); [`gain_table`]: the table of K's distribution
+//!   that the run accumulates (`evogs train --gain-report`);
 //! - [`train_plot`]: the training plot of `evogs plot` (from `train_log.jsonl`);
 //!   [`plotting`]: what the plots share (text-less fallback, axis ranges);
 //! - [`error`]: [`ExperimentError`], the crate's one error type.
@@ -17,6 +20,8 @@ pub mod ablate_plot;
 pub mod bench;
 pub mod bench_plot;
 pub mod error;
+pub mod gain_table;
+pub mod motion_report;
 pub mod plotting;
 pub mod train_plot;
 mod write;

@@ -8,8 +8,7 @@
 //! otherwise. Steps with a fixed gain are counted too: their distribution is a single value.
 //!
 //! This is a diagnostic, not a metric of quality: it shows whether Ψ separates Gaussians at all.
-
-use std::fmt::Write as _;
+//! Its table (`evogs train --gain-report`) is `evogs-experiments`' `gain_table`.
 
 use evo_state::{Gains, Step};
 use serde::{Deserialize, Serialize};
@@ -185,38 +184,6 @@ impl GainReport {
     /// Clears the samples.
     pub fn reset(&mut self) {
         *self = Self::new(self.still_below);
-    }
-}
-
-impl GainSummary {
-    /// A plain-text table: all, moving, still, then one line per frame with samples.
-    pub fn table(&self) -> String {
-        let mut out = String::from("gain K (gain-stage steps):\n");
-        let _ = writeln!(
-            out,
-            "  {:>8} {:>10} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7}",
-            "set", "samples", "mean", "std", "p5", "p25", "p50", "p75", "p95"
-        );
-        let mut line = |name: &str, s: &Option<GainStats>| {
-            if let Some(s) = s {
-                let _ = write!(
-                    out,
-                    "  {name:>8} {:>10} {:>7.4} {:>7.4}",
-                    s.samples, s.mean, s.std
-                );
-                for p in &s.percentiles {
-                    let _ = write!(out, " {p:>7.4}");
-                }
-                out.push('\n');
-            }
-        };
-        line("all", &self.all);
-        line("moving", &self.moving);
-        line("still", &self.still);
-        for (k, s) in self.per_frame.iter().enumerate() {
-            line(&format!("frame {k}"), s);
-        }
-        out
     }
 }
 

@@ -10,8 +10,9 @@
 //! - [`state`]: canonical Gaussians, Adam groups and statistics, aligned through densify's plans;
 //! - [`trainer`]: the training loop; [`run`]: run directories, `train` and resume;
 //! - [`checkpoint`]: exact checkpoints; [`eval`], [`render`]: evaluation, rendering, export;
-//! - [`motion_report`]: a diagnostic of EvoGS's motion statistics (speeds and θ by decade);
-//!   [`gain_report`]: K's distribution (overall, moving vs still, per frame);
+//! - [`gain_report`]: K's distribution (overall, moving vs still, per frame), accumulated by the
+//!   run and saved in `train_metrics.json` (its table and the motion report, a diagnostic of
+//!   EvoGS's motion statistics, are in `evogs-experiments`);
 //! - [`train_log`]: `train_log.jsonl` (its plot, `evogs plot`, is in `evogs-experiments`).
 //!
 //! The recipe follows Deformable-3D-Gaussians (`ingra14m/Deformable-3D-Gaussians`: `train.py`,
@@ -41,7 +42,6 @@ pub mod gain_report;
 pub mod hex_backbone;
 pub mod init;
 pub mod memory;
-pub mod motion_report;
 pub mod render;
 pub mod run;
 pub mod state;

@@ -40,7 +40,6 @@ use crate::evo_settings::DensifyPolicy;
 use crate::gain_report::GainReport;
 use crate::init::random_gaussians;
 use crate::memory::{MemoryEstimate, MemoryInputs};
-use crate::motion_report::{MotionReport, pixels_per_unit};
 use crate::state::SceneState;
 use crate::timers::{Phase, PhaseTimes};
 use evogs_metrics::{ImageSize, LossWorkspace, psnr_from_mse};
@@ -382,26 +381,10 @@ impl Trainer {
         })
     }
 
-    /// An empty [`MotionReport`] for this run: its extent, the training cameras' pixels per
-    /// scene unit at the centroid of the canonical means, and the trigger's τ_θ (densify's
-    /// default when the run has no trigger).
-    pub fn new_motion_report(&self) -> MotionReport {
-        let means = &self.state.gaussians.means;
-        let centre = if means.is_empty() {
-            glam::Vec3::ZERO
-        } else {
-            means
-                .iter()
-                .map(|m| glam::Vec3::from(*m))
-                .sum::<glam::Vec3>()
-                / means.len() as f32
-        };
-        let tau = self.densify.trigger.unwrap_or_default().tau_theta;
-        MotionReport::new(
-            self.extent,
-            pixels_per_unit(&self.train.cameras(), centre),
-            tau,
-        )
+    /// The densification settings the run uses (the schedule, and EvoGS's trigger and
+    /// deformation-aware clone/split when on).
+    pub fn densify(&self) -> &DensifyConfig {
+        &self.densify
     }
 
     /// An empty [`GainReport`] for this run: still below the motion floor in scene units per
@@ -415,7 +398,8 @@ impl Trainer {
         self.backbone.latest_step()
     }
 
-    /// Motion statistics of the last training step (EvoGS with three history frames only).
+    /// Motion statistics of the last training step (EvoGS with three history frames only);
+    /// `evogs-experiments`' motion report accumulates them.
     pub fn motion_stats(&self) -> Option<&[evo_state::Stats]> {
         self.backbone.motion_stats()
     }

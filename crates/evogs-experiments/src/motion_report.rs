@@ -7,12 +7,16 @@
 //! trigger's τ_θ, and the speed in pixels per frame spacing at the bin's lower edge for the
 //! training cameras ([`pixels_per_unit`]). θ of directions drawn at random averages π/2, so bins
 //! whose mean θ sits near π/2 hold noise, not motion: the motion floor belongs above them.
+//!
+//! The trainer only exposes the data ([`Trainer::motion_stats`], one step's statistics); the
+//! report is filled by the caller (`evogs train --motion-report`).
 
 use std::fmt::Write as _;
 
 use evo_state::Stats;
+use evogs_train::Trainer;
 use glam::Vec3;
-use splat_raster::Camera;
+use splat_core::Camera;
 
 /// Lower edge of the lowest decade bin (speed / extent); slower samples go to the first bin.
 const LOWEST_DECADE: i32 = -7;
@@ -58,6 +62,24 @@ impl MotionReport {
             theta_sum: [0.0; BINS],
             below_tau: [0; BINS],
         }
+    }
+
+    /// An empty report for `trainer`'s run: its extent, the training cameras' pixels per scene
+    /// unit at the centroid of the canonical means, and the trigger's τ_θ (densify's default
+    /// when the run has no trigger).
+    pub fn for_run(trainer: &Trainer) -> Self {
+        let means = &trainer.state.gaussians.means;
+        let centre = if means.is_empty() {
+            Vec3::ZERO
+        } else {
+            means.iter().map(|m| Vec3::from(*m)).sum::<Vec3>() / means.len() as f32
+        };
+        let tau = trainer.densify().trigger.unwrap_or_default().tau_theta;
+        Self::new(
+            trainer.extent,
+            pixels_per_unit(&trainer.train.cameras(), centre),
+            tau,
+        )
     }
 
     /// The bin of a speed relative to the extent.
