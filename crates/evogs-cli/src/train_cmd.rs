@@ -133,7 +133,7 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
                 .get_or_insert_with(|| MotionReport::for_run(trainer))
                 .add(stats);
         }
-        let total = trainer.config.iterations;
+        let total = trainer.config().iterations;
         let start = *first.get_or_insert(report.iteration - 1);
         bar.set_length(total);
         bar.set_position(report.iteration);

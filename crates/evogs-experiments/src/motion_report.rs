@@ -68,7 +68,7 @@ impl MotionReport {
     /// unit at the centroid of the canonical means, and the trigger's τ_θ (densify's default
     /// when the run has no trigger).
     pub fn for_run(trainer: &Trainer) -> Self {
-        let means = &trainer.state.gaussians.means;
+        let means = &trainer.state().gaussians().means;
         let centre = if means.is_empty() {
             Vec3::ZERO
         } else {
@@ -76,8 +76,8 @@ impl MotionReport {
         };
         let tau = trainer.densify().trigger.unwrap_or_default().tau_theta;
         Self::new(
-            trainer.extent,
-            pixels_per_unit(&trainer.train.cameras(), centre),
+            trainer.extent(),
+            pixels_per_unit(&trainer.train_views().cameras(), centre),
             tau,
         )
     }

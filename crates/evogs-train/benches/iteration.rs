@@ -19,7 +19,6 @@ use criterion::measurement::Measurement;
 use criterion::{Criterion, criterion_group, criterion_main};
 use evogs_io::Split;
 use evogs_train::data::load_split;
-use evogs_train::timers::PhaseTimes;
 use evogs_train::{Method, Preset, TrainConfig, Trainer};
 
 /// The fixture's training frame the bench trains on.
@@ -41,7 +40,7 @@ fn trainer(method: Method) -> Trainer {
     assert_eq!(views.views.len(), 1, "fixture frame {FRAME}");
     assert_eq!(views.views[0].camera.width, 400);
     let mut t = Trainer::new(c, views).unwrap();
-    while t.iteration < 60 {
+    while t.iteration() < 60 {
         t.step().unwrap();
     }
     t
@@ -52,16 +51,16 @@ fn bench<M: Measurement>(c: &mut Criterion<M>) {
     group.sample_size(10);
     for method in [Method::Baseline, Method::Evogs] {
         let mut t = trainer(method);
-        let n = t.state.len();
-        t.times = PhaseTimes::default();
-        let start = t.iteration;
+        let n = t.state().len();
+        t.reset_times();
+        let start = t.iteration();
         group.bench_function(format!("{method} ({n} Gaussians)"), |b| {
             b.iter(|| t.step().unwrap());
         });
-        let steps = (t.iteration - start).max(1) as f64;
-        let total = t.times.total();
+        let steps = (t.iteration() - start).max(1) as f64;
+        let total = t.times().total();
         let phases: Vec<String> = t
-            .times
+            .times()
             .entries()
             .iter()
             .map(|(name, s)| {

@@ -26,7 +26,7 @@ fn trainer(method: Method, components: Layout, data: &std::path::Path) -> Traine
     )
     .unwrap();
     let mut t = Trainer::new(c, views).unwrap();
-    while t.iteration < 200 {
+    while t.iteration() < 200 {
         t.step().unwrap();
     }
     t
@@ -45,14 +45,14 @@ fn bench(c: &mut Criterion) {
         (Method::Evogs, every, " +opacity,colour"),
     ] {
         let mut t = trainer(method, components, &data);
-        let n = t.state.len();
+        let n = t.state().len();
         group.bench_function(format!("{method}{label} ({n} Gaussians)"), |b| {
             b.iter(|| t.step().unwrap());
         });
         // The NaN/Inf check training runs every log interval, against one step above.
         group.bench_function(
             format!("{method}{label} non-finite check ({n} Gaussians)"),
-            |b| b.iter(|| t.state.first_non_finite(t.backbone.as_ref())),
+            |b| b.iter(|| t.state().first_non_finite(t.backbone())),
         );
     }
     group.finish();

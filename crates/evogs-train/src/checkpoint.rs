@@ -52,7 +52,7 @@ pub fn save_checkpoint(
     iteration: u64,
     seed: u64,
 ) -> Result<(), TrainError> {
-    let g = &state.gaussians;
+    let g = state.gaussians();
     let mut tensors: Vec<(String, Dtype, Vec<u8>)> = vec![
         (
             "gaussians.means".into(),
@@ -76,7 +76,7 @@ pub fn save_checkpoint(
         ),
         ("gaussians.sh".into(), Dtype::F32, f32_bytes(&g.sh)),
     ];
-    let s = &state.stats;
+    let s = state.stats();
     tensors.extend([
         ("stats.grad_sum".into(), Dtype::F32, f32_bytes(&s.grad_sum)),
         ("stats.visible".into(), Dtype::U32, u32_bytes(&s.visible)),
@@ -106,7 +106,7 @@ pub fn save_checkpoint(
             u32_bytes(&s.theta_count),
         ),
     ]);
-    for group in state.adam.groups() {
+    for group in state.adam().groups() {
         tensors.push((
             format!("adam.{}.m", group.name),
             Dtype::F32,
@@ -127,12 +127,12 @@ pub fn save_checkpoint(
     }
     let meta = CheckpointMeta {
         iteration,
-        active_sh: state.active_sh,
+        active_sh: state.active_sh(),
         sh_degree: g.sh_degree,
         gaussians: g.len(),
         seed,
         adam_steps: state
-            .adam
+            .adam()
             .groups()
             .iter()
             .map(|gr| (gr.name.clone(), gr.step))
@@ -243,13 +243,14 @@ pub fn load_checkpoint(
             ),
         ));
     }
-    if meta.sh_degree != state.gaussians.sh_degree {
+    if meta.sh_degree != state.gaussians().sh_degree {
         return Err(TrainError::field(
             path,
             "sh_degree",
             format!(
                 "{}, but the run's config says {}",
-                meta.sh_degree, state.gaussians.sh_degree
+                meta.sh_degree,
+                state.gaussians().sh_degree
             ),
         ));
     }
@@ -279,23 +280,6 @@ pub fn load_checkpoint(
         .iter()
         .map(|(k, v)| (k.as_str(), *v))
         .collect();
-    let ids: Vec<tiny_nn::GroupId> = (0..state.adam.groups().len())
-        .map(tiny_nn::GroupId)
-        .collect();
-    for id in ids {
-        let group = state.adam.group_mut(id);
-        let per_gaussian = !group.name.starts_with("net.");
-        let len = if per_gaussian {
-            n * group.row_width
-        } else {
-            group.m.len()
-        };
-        group.m = r.f32s(&format!("adam.{}.m", group.name), len)?;
-        group.v = r.f32s(&format!("adam.{}.v", group.name), len)?;
-        group.step = *steps.get(group.name.as_str()).ok_or_else(|| {
-            TrainError::field(path, format!("adam_steps.{}", group.name), "missing")
-        })?;
-    }
     for (name, dst) in backbone.params_mut() {
         let key = format!("backbone.{name}");
         match dst {
@@ -311,8 +295,19 @@ pub fn load_checkpoint(
             }
         }
     }
-    state.gaussians = gaussians;
-    state.stats = stats;
-    state.active_sh = meta.active_sh;
+    state.restore(gaussians, stats, meta.active_sh, |group| {
+        let per_gaussian = !group.name.starts_with("net.");
+        let len = if per_gaussian {
+            n * group.row_width
+        } else {
+            group.m.len()
+        };
+        group.m = r.f32s(&format!("adam.{}.m", group.name), len)?;
+        group.v = r.f32s(&format!("adam.{}.v", group.name), len)?;
+        group.step = *steps.get(group.name.as_str()).ok_or_else(|| {
+            TrainError::field(path, format!("adam_steps.{}", group.name), "missing")
+        })?;
+        Ok(())
+    })?;
     Ok(meta)
 }

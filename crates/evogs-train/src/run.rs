@@ -191,14 +191,14 @@ const PENDING_EVO_STATE_PREFIX: &str = "evo_state.";
 /// after it leaves the new checkpoint with its state still pending (which
 /// [`settle_evo_state`] renames). Either way the resumed run continues bit for bit.
 fn save_resumable(paths: &RunPaths, trainer: &Trainer) -> Result<(), TrainError> {
-    let pending = paths.pending_evo_state(trainer.iteration);
-    let has_state = trainer.backbone.save_state(&pending)?;
+    let pending = paths.pending_evo_state(trainer.iteration());
+    let has_state = trainer.backbone().save_state(&pending)?;
     save_checkpoint(
         &paths.checkpoint(),
-        &trainer.state,
-        trainer.backbone.as_ref(),
-        trainer.iteration,
-        trainer.config.seed,
+        trainer.state(),
+        trainer.backbone(),
+        trainer.iteration(),
+        trainer.config().seed,
     )?;
     if has_state {
         std::fs::rename(&pending, paths.evo_state()).map_err(|e| TrainError::io(&pending, e))?;
@@ -308,20 +308,20 @@ pub fn train(
             None => Trainer::new(c.clone(), train)?,
         }
     };
-    let end = request.stop_after.map_or(trainer.config.iterations, |s| {
-        s.min(trainer.config.iterations)
+    let end = request.stop_after.map_or(trainer.config().iterations, |s| {
+        s.min(trainer.config().iterations)
     });
     let mut log = TrainLog::open(
         &paths.train_log(),
-        trainer.config.log_every,
-        trainer.iteration,
+        trainer.config().log_every,
+        trainer.iteration(),
     )?;
-    let start_iteration = trainer.iteration;
+    let start_iteration = trainer.iteration();
     let started = Instant::now();
     let mut last = None;
     let mut gain = trainer.new_gain_report();
-    let last_quarter_from = trainer.config.iterations - trainer.config.iterations / 4;
-    while trainer.iteration < end {
+    let last_quarter_from = trainer.config().iterations - trainer.config().iterations / 4;
+    while trainer.iteration() < end {
         let report = trainer.step()?;
         if report.iteration > last_quarter_from
             && let Some(step) = trainer.evolution_step()
@@ -335,11 +335,11 @@ pub fn train(
             report.loss,
             report.psnr,
             report.gaussians,
-            trainer.backbone.gain_stats(),
+            trainer.backbone().gain_stats(),
             report.iteration == end,
         )?;
-        if (report.iteration.is_multiple_of(trainer.config.log_every) || report.iteration == end)
-            && let Some((group, index)) = trainer.state.first_non_finite(trainer.backbone.as_ref())
+        if (report.iteration.is_multiple_of(trainer.config().log_every) || report.iteration == end)
+            && let Some((group, index)) = trainer.state().first_non_finite(trainer.backbone())
         {
             // Before the checkpoint: the last one written stays the last finite state.
             return Err(TrainError::NonFinite {
@@ -350,7 +350,7 @@ pub fn train(
         }
         if report
             .iteration
-            .is_multiple_of(trainer.config.checkpoint_every)
+            .is_multiple_of(trainer.config().checkpoint_every)
             && report.iteration < end
         {
             save_resumable(&paths, &trainer)?;
@@ -359,20 +359,20 @@ pub fn train(
     }
     let seconds = started.elapsed().as_secs_f64();
     save_resumable(&paths, &trainer)?;
-    evogs_io::write_ply(&paths.canonical(), trainer.state.gaussians.view())?;
-    trainer.backbone.save(&paths.weights())?;
-    let done = trainer.iteration - start_iteration;
+    evogs_io::write_ply(&paths.canonical(), trainer.state().gaussians().view())?;
+    trainer.backbone().save(&paths.weights())?;
+    let done = trainer.iteration() - start_iteration;
     let summary = TrainSummary {
-        iteration: trainer.iteration,
-        iterations: trainer.config.iterations,
+        iteration: trainer.iteration(),
+        iterations: trainer.config().iterations,
         iterations_this_process: done,
         seconds,
         iterations_per_second: done as f64 / seconds.max(1e-9),
         last_loss: last.map_or(f64::NAN, |r| r.loss),
         last_psnr: last.map_or(f64::NAN, |r| r.psnr),
-        gaussians: trainer.state.len(),
-        net_width: trainer.config.net.width,
-        phases: trainer.times,
+        gaussians: trainer.state().len(),
+        net_width: trainer.config().net.width,
+        phases: *trainer.times(),
         gain: (gain.samples() > 0).then(|| gain.summary()),
     };
     write_json(&paths.train_metrics(), &summary)?;

@@ -51,20 +51,26 @@ impl GaussianGroups {
 }
 
 /// Canonical Gaussians, their optimiser and statistics, and the network's optimiser groups.
+///
+/// The invariant: the Gaussians, the densification statistics and the moments of the six
+/// per-Gaussian Adam groups have one row per Gaussian, in the same order. The fields are private
+/// so that it holds: the rows change only through [`SceneState::apply_plan`] (densify's one
+/// mechanism, which also remaps the backbone's rows) and [`SceneState::restore`] (a checkpoint,
+/// checked), and the values through the Adam steps and the statistics' accumulation.
 #[derive(Clone, Debug)]
 pub struct SceneState {
     /// Canonical Gaussians at the maximum SH degree.
-    pub gaussians: Gaussians,
+    gaussians: Gaussians,
     /// SH bands in use (raised during training).
-    pub active_sh: u32,
+    active_sh: u32,
     /// Densification statistics.
-    pub stats: DensifyStats,
+    stats: DensifyStats,
     /// Adam over every group.
-    pub adam: Adam,
+    adam: Adam,
     /// The per-Gaussian groups.
-    pub groups: GaussianGroups,
+    groups: GaussianGroups,
     /// One group per backbone parameter buffer, in the backbone's order.
-    pub net_groups: Vec<GroupId>,
+    net_groups: Vec<GroupId>,
 }
 
 /// Per-Gaussian lr schedules (3DGS `training_setup` with D-3DGS's `spatial_lr_scale`).
@@ -158,6 +164,74 @@ impl SceneState {
     /// Number of Gaussians.
     pub fn len(&self) -> usize {
         self.gaussians.len()
+    }
+
+    /// The canonical Gaussians (at the maximum SH degree).
+    pub fn gaussians(&self) -> &Gaussians {
+        &self.gaussians
+    }
+
+    /// SH bands in use.
+    pub fn active_sh(&self) -> u32 {
+        self.active_sh
+    }
+
+    /// Uses one more SH band, up to `max` (3DGS's `oneupSHdegree`).
+    pub fn raise_active_sh(&mut self, max: u32) {
+        if self.active_sh < max {
+            self.active_sh += 1;
+        }
+    }
+
+    /// The densification statistics.
+    pub fn stats(&self) -> &DensifyStats {
+        &self.stats
+    }
+
+    /// Adds one view's projected-mean gradients and radii to the statistics.
+    pub fn add_view_stats(
+        &mut self,
+        means2d: &[[f32; 2]],
+        radii: &[f32],
+        width: u32,
+        height: u32,
+    ) -> Result<(), TrainError> {
+        Ok(self.stats.add_view(means2d, radii, width, height)?)
+    }
+
+    /// Adds one step's evolution cues (EvoGS's residual norms and θ) to the statistics.
+    pub fn add_evolution_stats(
+        &mut self,
+        residual_norm: Option<&[f32]>,
+        theta: Option<&[f32]>,
+    ) -> Result<(), TrainError> {
+        Ok(self.stats.add_evolution(residual_norm, theta)?)
+    }
+
+    /// The optimiser (every group, per-Gaussian and network).
+    pub fn adam(&self) -> &Adam {
+        &self.adam
+    }
+
+    /// Replaces the Gaussians, the statistics and the active SH bands with a checkpoint's, after
+    /// `moments` has filled every Adam group (called once per group, in order; the checkpoint
+    /// reads each per-Gaussian group's moments for the checkpoint's Gaussians, so the rows stay
+    /// aligned). On an error nothing of the Gaussians or the statistics has changed.
+    pub(crate) fn restore(
+        &mut self,
+        gaussians: Gaussians,
+        stats: DensifyStats,
+        active_sh: u32,
+        mut moments: impl FnMut(&mut AdamGroup) -> Result<(), TrainError>,
+    ) -> Result<(), TrainError> {
+        let ids: Vec<GroupId> = (0..self.adam.groups().len()).map(GroupId).collect();
+        for id in ids {
+            moments(self.adam.group_mut(id))?;
+        }
+        self.gaussians = gaussians;
+        self.stats = stats;
+        self.active_sh = active_sh;
+        Ok(())
     }
 
     /// The first parameter group holding a NaN or an infinity, with the index of the value:

@@ -117,21 +117,26 @@ fn memory_estimate(
 }
 
 /// A training run in memory.
+///
+/// Its fields are private: the Gaussians' rows and the backbone's per-Gaussian rows stay aligned
+/// (every densification goes through [`SceneState::apply_plan`] with this backbone), and the
+/// settings, views and extent the densification, memory limit and backbone were prepared with
+/// stay the ones in use. Other crates read them through the accessors below.
 pub struct Trainer {
     /// Settings.
-    pub config: TrainConfig,
+    config: TrainConfig,
     /// Training views.
-    pub train: SplitViews,
+    train: SplitViews,
     /// Scene extent (3DGS: 1.1 × the largest camera distance from the cameras' mean).
-    pub extent: f32,
+    extent: f32,
     /// Gaussians, optimiser, statistics.
-    pub state: SceneState,
+    state: SceneState,
     /// The deformation backbone.
-    pub backbone: Box<dyn Backbone>,
+    backbone: Box<dyn Backbone>,
     /// Iterations completed.
-    pub iteration: u64,
+    iteration: u64,
     /// Time spent per phase (this process only).
-    pub times: PhaseTimes,
+    times: PhaseTimes,
     raster: DynRasterizer,
     backend: BackendInfo,
     densify: DensifyConfig,
@@ -221,6 +226,46 @@ impl Trainer {
         })
     }
 
+    /// The run's settings.
+    pub fn config(&self) -> &TrainConfig {
+        &self.config
+    }
+
+    /// The training views.
+    pub fn train_views(&self) -> &SplitViews {
+        &self.train
+    }
+
+    /// Scene extent (3DGS: 1.1 × the largest camera distance from the cameras' mean).
+    pub fn extent(&self) -> f32 {
+        self.extent
+    }
+
+    /// Gaussians, optimiser, statistics.
+    pub fn state(&self) -> &SceneState {
+        &self.state
+    }
+
+    /// The deformation backbone.
+    pub fn backbone(&self) -> &dyn Backbone {
+        self.backbone.as_ref()
+    }
+
+    /// Iterations completed.
+    pub fn iteration(&self) -> u64 {
+        self.iteration
+    }
+
+    /// Time spent per phase (this process only).
+    pub fn times(&self) -> &PhaseTimes {
+        &self.times
+    }
+
+    /// Starts the phase times again from zero (a bench measures the steps after a warm-up).
+    pub fn reset_times(&mut self) {
+        self.times = PhaseTimes::default();
+    }
+
     /// The estimate of this run's peak memory ([`crate::memory`]); `at(n)` for `n` Gaussians.
     pub fn memory_estimate(&self) -> MemoryEstimate {
         memory_estimate(&self.config, &self.train, self.backbone.as_ref())
@@ -260,9 +305,8 @@ impl Trainer {
     pub fn step(&mut self) -> Result<StepReport, TrainError> {
         let i = self.iteration + 1;
         let mut t = Instant::now();
-        if i.is_multiple_of(self.config.sh_interval) && self.state.active_sh < self.config.sh_degree
-        {
-            self.state.active_sh += 1;
+        if i.is_multiple_of(self.config.sh_interval) {
+            self.state.raise_active_sh(self.config.sh_degree);
         }
         let vi = self.view_at(i);
         let deforms = self.deforms_at(i);
@@ -271,22 +315,22 @@ impl Trainer {
             let view = &self.train.views[vi];
             Some(
                 self.backbone
-                    .forward(self.state.gaussians.view(), view.time, true)?,
+                    .forward(self.state.gaussians().view(), view.time, true)?,
             )
         } else {
             None
         };
         t = self.times.lap(Phase::NetForward, t);
         let geometry = DeformedGeometry::new(
-            &self.state.gaussians,
+            self.state.gaussians(),
             d.as_deref(),
             self.backbone.appearance(),
         );
-        let gview = geometry.view(&self.state.gaussians);
+        let gview = geometry.view(self.state.gaussians());
         let view = &self.train.views[vi];
         let opts = RenderOptions {
             background: self.config.background.rgb(),
-            sh_degree: Some(self.state.active_sh),
+            sh_degree: Some(self.state.active_sh()),
         };
         t = self.times.lap(Phase::Data, t);
         let fwd = self.raster.forward(gview, &view.camera, &opts)?;
@@ -307,7 +351,7 @@ impl Trainer {
             .grads;
         t = self.times.lap(Phase::RasterBackward, t);
         let net_grads = if deforms {
-            let dd = deformation_gradient(&grads, self.state.gaussians.sh_stride());
+            let dd = deformation_gradient(&grads, self.state.gaussians().sh_stride());
             Some(self.backbone.backward(&dd)?)
         } else {
             None
@@ -318,13 +362,11 @@ impl Trainer {
         let schedule = self.densify.schedule;
         if schedule.accumulates(i) {
             self.state
-                .stats
-                .add_view(&grads.means2d, fwd.radii(), w, h)?;
+                .add_view_stats(&grads.means2d, fwd.radii(), w, h)?;
             if deforms {
                 let cues = self.backbone.densify_cues(self.extent)?;
                 self.state
-                    .stats
-                    .add_evolution(cues.residual_norm.as_deref(), cues.theta.as_deref())?;
+                    .add_evolution_stats(cues.residual_norm.as_deref(), cues.theta.as_deref())?;
             }
         }
         let mut densified = false;
@@ -332,8 +374,8 @@ impl Trainer {
             let plan = make_plan(
                 &self.densify,
                 &densify::PlanInput {
-                    gaussians: self.state.gaussians.view(),
-                    stats: &self.state.stats,
+                    gaussians: self.state.gaussians().view(),
+                    stats: self.state.stats(),
                     extent: self.extent,
                     iteration: i,
                     deformation: if deforms {
@@ -408,7 +450,12 @@ impl Trainer {
     /// its warm-up: the network is not used then).
     pub fn deformed_at(&mut self, time: f32) -> Result<Gaussians, TrainError> {
         let deforms = self.deforms_at(self.iteration.max(1));
-        deformed_gaussians(&self.state.gaussians, self.backbone.as_mut(), deforms, time)
+        deformed_gaussians(
+            self.state.gaussians(),
+            self.backbone.as_mut(),
+            deforms,
+            time,
+        )
     }
 
     /// Renders the model at `time` from `camera` on the run's backend and background with every

@@ -94,7 +94,7 @@ fn config(iterations: u64) -> TrainConfig {
 
 /// Mean x displacement of the three Gaussians at `t`.
 fn mean_dx(trainer: &mut Trainer, t: f32) -> f32 {
-    let canonical = trainer.state.gaussians.means.clone();
+    let canonical = trainer.state().gaussians().means.clone();
     let g = trainer.deformed_at(t).unwrap();
     g.means
         .iter()
@@ -116,7 +116,7 @@ fn the_deformation_network_gets_gradient_and_learns_the_motion() {
         .net_grad_norm
         .expect("the network is used from iteration 1");
     assert!(g.is_finite() && g > 0.0, "gradient norm {g}");
-    while trainer.iteration < iterations {
+    while trainer.iteration() < iterations {
         trainer.step().unwrap();
     }
     let travel = mean_dx(&mut trainer, 1.0) - mean_dx(&mut trainer, 0.0);

@@ -39,7 +39,7 @@ fn evogs_training_lowers_the_loss_and_keeps_the_state_aligned() {
     let mut sizes = std::collections::BTreeSet::new();
     let mut gain = trainer.new_gain_report();
     let mut gain_steps = 0;
-    while trainer.iteration < c.iterations {
+    while trainer.iteration() < c.iterations {
         let r = trainer.step().unwrap();
         if r.iteration > 150
             && let Some(step) = trainer.evolution_step()
@@ -52,7 +52,7 @@ fn evogs_training_lowers_the_loss_and_keeps_the_state_aligned() {
             r.iteration
         );
         // The evolution state has one row per Gaussian after every step, densified or not.
-        assert_eq!(trainer.backbone.state_rows(), Some(trainer.state.len()));
+        assert_eq!(trainer.backbone().state_rows(), Some(trainer.state().len()));
         densified += usize::from(r.densified);
         sizes.insert(r.gaussians);
         losses.push(r.loss);
@@ -62,27 +62,27 @@ fn evogs_training_lowers_the_loss_and_keeps_the_state_aligned() {
     let mean = |s: &[f64]| s.iter().sum::<f64>() / s.len() as f64;
     let (first, last) = (mean(&losses[..20]), mean(&losses[losses.len() - 20..]));
     assert!(last < 0.8 * first, "loss {first} -> {last}");
-    let g = &trainer.state.gaussians;
+    let g = trainer.state().gaussians();
     assert!(g.means.as_flattened().iter().all(|v| v.is_finite()));
     assert!(g.log_scales.as_flattened().iter().all(|v| v.is_finite()));
     assert!(g.opacity_logits.iter().all(|v| v.is_finite()));
     // Frames were committed into the buffer and the memory beside it: 2 × 16 frames × N rows ×
     // D = 10 × f32.
     assert_eq!(
-        trainer.backbone.state_bytes(),
-        2 * 16 * trainer.state.len() * 10 * 4
+        trainer.backbone().state_bytes(),
+        2 * 16 * trainer.state().len() * 10 * 4
     );
-    for (_, p) in trainer.backbone.params() {
+    for (_, p) in trainer.backbone().params() {
         assert!(p.to_vec_f32().iter().all(|v| v.is_finite()));
     }
     // Evaluation at times between and beyond the frames works and never writes.
-    let before = trainer.backbone.state_bytes();
+    let before = trainer.backbone().state_bytes();
     for t in [0.03, 0.5, 1.2] {
         let d = trainer.deformed_at(t).unwrap();
-        assert_eq!(d.len(), trainer.state.len());
+        assert_eq!(d.len(), trainer.state().len());
         assert!(d.means.as_flattened().iter().all(|v| v.is_finite()));
     }
-    assert_eq!(trainer.backbone.state_bytes(), before);
+    assert_eq!(trainer.backbone().state_bytes(), before);
     // K's distribution over the gain-stage steps of the last 50 iterations: moving and still
     // Gaussians split the samples, so do the frames, K lies in (0, 1), the percentiles are in
     // order, and the learned gain is not one constant.
@@ -276,12 +276,12 @@ fn every_switch_combination_trains_finitely_and_stays_aligned() {
         let mut c = base.clone();
         edit(&mut c);
         let mut trainer = Trainer::new(c.clone(), views.clone()).unwrap();
-        while trainer.iteration < c.iterations {
+        while trainer.iteration() < c.iterations {
             let r = trainer.step().unwrap_or_else(|e| panic!("{name}: {e}"));
             assert!(r.loss.is_finite(), "{name}: iteration {}", r.iteration);
             assert_eq!(
-                trainer.backbone.state_rows(),
-                Some(trainer.state.len()),
+                trainer.backbone().state_rows(),
+                Some(trainer.state().len()),
                 "{name}"
             );
         }
@@ -297,8 +297,8 @@ fn every_switch_combination_trains_finitely_and_stays_aligned() {
             HistoryMode::Buffer => 2,
         };
         assert_eq!(
-            trainer.backbone.state_bytes(),
-            blocks * 16 * trainer.state.len() * dim * bytes_per,
+            trainer.backbone().state_bytes(),
+            blocks * 16 * trainer.state().len() * dim * bytes_per,
             "{name}"
         );
         let g = trainer.deformed_at(0.45).unwrap();

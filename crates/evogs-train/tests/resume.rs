@@ -84,8 +84,8 @@ fn resumed_run_matches_uninterrupted_run_bit_for_bit() {
     let (b, wb, ib) = final_state(&dir.path().join("resumed"));
     assert_eq!((ia, ib), (60, 60));
     assert_eq!(a.len(), b.len());
-    let ga = &a.gaussians;
-    let gb = &b.gaussians;
+    let ga = a.gaussians();
+    let gb = b.gaussians();
     assert_eq!(bits(ga.means.as_flattened()), bits(gb.means.as_flattened()));
     assert_eq!(
         bits(ga.log_scales.as_flattened()),
@@ -98,18 +98,18 @@ fn resumed_run_matches_uninterrupted_run_bit_for_bit() {
     assert_eq!(bits(&ga.opacity_logits), bits(&gb.opacity_logits));
     assert_eq!(bits(&ga.sh), bits(&gb.sh));
     assert_eq!(bits(&wa), bits(&wb));
-    assert_eq!(a.active_sh, b.active_sh);
-    for (x, y) in a.adam.groups().iter().zip(b.adam.groups()) {
+    assert_eq!(a.active_sh(), b.active_sh());
+    for (x, y) in a.adam().groups().iter().zip(b.adam().groups()) {
         assert_eq!(x.step, y.step, "{}", x.name);
         assert_eq!(bits(&x.m), bits(&y.m), "{}", x.name);
         assert_eq!(bits(&x.v), bits(&y.v), "{}", x.name);
     }
-    assert_eq!(bits(&a.stats.grad_sum), bits(&b.stats.grad_sum));
-    assert_eq!(a.stats.visible, b.stats.visible);
+    assert_eq!(bits(&a.stats().grad_sum), bits(&b.stats().grad_sum));
+    assert_eq!(a.stats().visible, b.stats().visible);
     // The run did train the network (past the warm-up) and densify.
     assert!(config().warm_up < 30);
     assert!(
-        a.adam
+        a.adam()
             .groups()
             .iter()
             .any(|g| g.name.starts_with("net.") && g.step > 0)
