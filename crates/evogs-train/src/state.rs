@@ -55,8 +55,9 @@ impl GaussianGroups {
 /// The invariant: the Gaussians, the densification statistics and the moments of the six
 /// per-Gaussian Adam groups have one row per Gaussian, in the same order. The fields are private
 /// so that it holds: the rows change only through [`SceneState::apply_plan`] (densify's one
-/// mechanism, which also remaps the backbone's rows) and [`SceneState::restore`] (a checkpoint,
-/// checked), and the values through the Adam steps and the statistics' accumulation.
+/// mechanism, which also remaps the backbone's rows) and, when a checkpoint is loaded
+/// ([`crate::checkpoint::load_checkpoint`]), all together; the values through the Adam steps,
+/// [`SceneState::add_view_stats`] and [`SceneState::add_evolution_stats`].
 #[derive(Clone, Debug)]
 pub struct SceneState {
     /// Canonical Gaussians at the maximum SH degree.
