@@ -45,22 +45,25 @@ impl DeformedGeometry {
     /// Canonical + `d` (N × [`DEFORM_DIM`]; the appearance columns only where `appearance` says);
     /// `None` leaves the canonical Gaussians.
     pub fn new(canonical: &Gaussians, d: Option<&[f32]>, appearance: Appearance) -> Self {
+        let mut out = Self::default();
+        out.assign(canonical, d, appearance);
+        out
+    }
+
+    /// [`DeformedGeometry::new`] into `self`, reusing its buffers: the same values, with no
+    /// allocation once the buffers have held as many Gaussians (the trainer keeps one across
+    /// iterations, so it allocates only when densification grows the count).
+    pub fn assign(&mut self, canonical: &Gaussians, d: Option<&[f32]>, appearance: Appearance) {
+        self.means.clear();
+        self.log_scales.clear();
+        self.rotations.clear();
         let Some(d) = d else {
-            return Self {
-                means: canonical.means.clone(),
-                log_scales: canonical.log_scales.clone(),
-                rotations: canonical.rotations.clone(),
-                opacity_logits: None,
-                sh: None,
-            };
-        };
-        let n = canonical.len();
-        let mut out = Self {
-            means: Vec::with_capacity(n),
-            log_scales: Vec::with_capacity(n),
-            rotations: Vec::with_capacity(n),
-            opacity_logits: None,
-            sh: None,
+            self.means.extend_from_slice(&canonical.means);
+            self.log_scales.extend_from_slice(&canonical.log_scales);
+            self.rotations.extend_from_slice(&canonical.rotations);
+            self.opacity_logits = None;
+            self.sh = None;
+            return;
         };
         for (i, r) in d.chunks_exact(DEFORM_DIM).enumerate() {
             let (m, q, s) = (
@@ -68,32 +71,36 @@ impl DeformedGeometry {
                 canonical.rotations[i],
                 canonical.log_scales[i],
             );
-            out.means.push([m[0] + r[0], m[1] + r[1], m[2] + r[2]]);
-            out.rotations
+            self.means.push([m[0] + r[0], m[1] + r[1], m[2] + r[2]]);
+            self.rotations
                 .push([q[0] + r[3], q[1] + r[4], q[2] + r[5], q[3] + r[6]]);
-            out.log_scales.push([s[0] + r[7], s[1] + r[8], s[2] + r[9]]);
+            self.log_scales
+                .push([s[0] + r[7], s[1] + r[8], s[2] + r[9]]);
         }
+        let mut opacity = self.opacity_logits.take().unwrap_or_default();
         if appearance.opacity {
-            out.opacity_logits = Some(
+            opacity.clear();
+            opacity.extend(
                 canonical
                     .opacity_logits
                     .iter()
                     .zip(d.chunks_exact(DEFORM_DIM))
-                    .map(|(o, r)| o + r[OPACITY_COLUMN])
-                    .collect(),
+                    .map(|(o, r)| o + r[OPACITY_COLUMN]),
             );
+            self.opacity_logits = Some(opacity);
         }
+        let mut sh = self.sh.take().unwrap_or_default();
         if appearance.colour {
             let stride = canonical.sh_stride();
-            let mut sh = canonical.sh.clone();
+            sh.clear();
+            sh.extend_from_slice(&canonical.sh);
             for (row, r) in sh.chunks_exact_mut(stride).zip(d.chunks_exact(DEFORM_DIM)) {
                 for c in 0..3 {
                     row[c] += r[COLOUR_COLUMN + c];
                 }
             }
-            out.sh = Some(sh);
+            self.sh = Some(sh);
         }
-        out
     }
 
     /// The deformed Gaussians as the rasterizer reads them (undeformed appearance from
@@ -131,8 +138,17 @@ impl DeformedGeometry {
 /// parameters (the deformation is added, so these are the same gradients): mean, quaternion,
 /// log-scale, opacity logit and the SH DC coefficients (`sh_stride` values per Gaussian).
 pub fn deformation_gradient(grads: &GaussianGrads, sh_stride: usize) -> Vec<f32> {
+    let mut out = Vec::new();
+    deformation_gradient_into(grads, sh_stride, &mut out);
+    out
+}
+
+/// [`deformation_gradient`] into `out` (cleared first; no allocation once it has held as many
+/// rows).
+pub fn deformation_gradient_into(grads: &GaussianGrads, sh_stride: usize, out: &mut Vec<f32>) {
     let n = grads.means.len();
-    let mut out = Vec::with_capacity(n * DEFORM_DIM);
+    out.clear();
+    out.reserve(n * DEFORM_DIM);
     for i in 0..n {
         out.extend_from_slice(&grads.means[i]);
         out.extend_from_slice(&grads.rotations[i]);
@@ -141,7 +157,6 @@ pub fn deformation_gradient(grads: &GaussianGrads, sh_stride: usize) -> Vec<f32>
         let dc = grads.sh.get(i * sh_stride..i * sh_stride + 3);
         out.extend_from_slice(dc.unwrap_or(&[0.0; 3]));
     }
-    out
 }
 
 #[cfg(test)]
@@ -198,6 +213,22 @@ mod tests {
                 + dot(&grads.opacity_logits, view.opacity_logits, &canonical.opacity_logits)
                 + dot(&grads.sh, view.sh, &canonical.sh);
             let rows = deformation_gradient(&grads, canonical.sh_stride());
+            // Into buffers that held twice as many Gaussians, every component deformed: the same.
+            let twice = Gaussians {
+                sh_degree: 1,
+                means: canonical.means.repeat(2),
+                log_scales: canonical.log_scales.repeat(2),
+                rotations: canonical.rotations.repeat(2),
+                opacity_logits: canonical.opacity_logits.repeat(2),
+                sh: canonical.sh.repeat(2),
+            };
+            let every = Appearance { opacity: true, colour: true };
+            let mut reused = DeformedGeometry::new(&twice, Some(&delta.repeat(2)), every);
+            reused.assign(&canonical, Some(&delta), appearance);
+            prop_assert_eq!(&reused, &deformed);
+            let mut into = vec![7.0; 2 * rows.len()];
+            deformation_gradient_into(&grads, canonical.sh_stride(), &mut into);
+            prop_assert_eq!(&into, &rows);
             let predicted: f64 = rows.iter().zip(&delta).map(|(g, d)| f64::from(*g) * f64::from(*d)).sum();
             prop_assert!((change - predicted).abs() < 1e-4, "{change} vs {predicted}");
             prop_assert_eq!(deformed.opacity_logits.is_some(), opacity);

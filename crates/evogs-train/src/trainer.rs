@@ -34,7 +34,7 @@ use splat_raster::{
 use crate::backbone::{Backbone, D3dgsBackbone};
 use crate::config::{BackboneKind, Method, TrainConfig};
 use crate::data::SplitViews;
-use crate::deformed::{DeformedGeometry, deformation_gradient};
+use crate::deformed::{DeformedGeometry, deformation_gradient_into};
 use crate::error::TrainError;
 use crate::evo_settings::DensifyPolicy;
 use crate::gain_report::GainReport;
@@ -143,6 +143,10 @@ pub struct Trainer {
     order: (u64, Vec<usize>),
     /// Buffers of the loss and its gradient, reused every iteration.
     loss: LossWorkspace<f32>,
+    /// The deformed Gaussians of the iteration, reused every iteration.
+    geometry: DeformedGeometry,
+    /// dL/d(deformation) rows of the iteration, reused every iteration.
+    deformation_grad: Vec<f32>,
 }
 
 impl Trainer {
@@ -223,6 +227,8 @@ impl Trainer {
             backend,
             order: (u64::MAX, Vec::new()),
             loss: LossWorkspace::new(),
+            geometry: DeformedGeometry::default(),
+            deformation_grad: Vec::new(),
         })
     }
 
@@ -301,6 +307,15 @@ impl Trainer {
         self.order.1[((iteration - 1) % n) as usize]
     }
 
+    /// Frees the buffers reused across iterations (the deformed Gaussians, the deformation's
+    /// gradient rows, the loss's workspace); the next [`Trainer::step`] allocates them again and
+    /// computes the same values.
+    pub fn release_buffers(&mut self) {
+        self.geometry = DeformedGeometry::default();
+        self.deformation_grad = Vec::new();
+        self.loss = LossWorkspace::new();
+    }
+
     /// Runs one iteration.
     pub fn step(&mut self) -> Result<StepReport, TrainError> {
         let i = self.iteration + 1;
@@ -321,12 +336,12 @@ impl Trainer {
             None
         };
         t = self.times.lap(Phase::NetForward, t);
-        let geometry = DeformedGeometry::new(
+        self.geometry.assign(
             self.state.gaussians(),
             d.as_deref(),
             self.backbone.appearance(),
         );
-        let gview = geometry.view(self.state.gaussians());
+        let gview = self.geometry.view(self.state.gaussians());
         let view = &self.train.views[vi];
         let opts = RenderOptions {
             background: self.config.background.rgb(),
@@ -351,14 +366,14 @@ impl Trainer {
             .grads;
         t = self.times.lap(Phase::RasterBackward, t);
         let net_grads = if deforms {
-            let dd = deformation_gradient(&grads, self.state.gaussians().sh_stride());
-            Some(self.backbone.backward(&dd)?)
+            let stride = self.state.gaussians().sh_stride();
+            deformation_gradient_into(&grads, stride, &mut self.deformation_grad);
+            Some(self.backbone.backward(&self.deformation_grad)?)
         } else {
             None
         };
         t = self.times.lap(Phase::NetBackward, t);
         let (w, h) = (view.camera.width, view.camera.height);
-        drop(geometry);
         let schedule = self.densify.schedule;
         if schedule.accumulates(i) {
             self.state
