@@ -64,7 +64,7 @@
 //!   and so on. A query beyond the last frame extrapolates from the last frames.
 //! - **Residual memory.** Defined where a prior exists (h >= 2): `m = β M[k1] + (1-β)(z - d̂)`
 //!   (the paper's `m^t = β m^{t-1} + (1-β) r^t`, with the history frame k1 as t-1). Ψ sees this m
-//!   as a constant; a commit writes it to M[k], or zero when the step had no prior (h < 2).
+//!   as a constant; a commit writes it to `M[k]`, or zero when the step had no prior (h < 2).
 //! - **Statistics.** `v1 = (x_k1 - x_k2)/(k1 - k2)`, `v2 = (x_k2 - x_k3)/(k2 - k3)` (per frame
 //!   spacing); with the position component disabled, speeds are 0 and θ = 0.
 //! - **Ψ inputs** `[m, |v2|, |v1|, θ]`: m and the speeds are divided per feature by their running

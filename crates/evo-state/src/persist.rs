@@ -1,7 +1,7 @@
 //! Saving and loading the whole state as safetensors, bit-exact. Format `evo-state/2`. Tensors:
 //! `times` (F32 `[T]`), `valid` (U8 `[T]`), `psi` (F32 `[P]`), `psi_input_ema` (F64 `[D+2]`) and
 //! `psi_input_weight` (F64 `[1]`) (the running RMS of Ψ's inputs, [`crate::norm`]), with
-//! evolution on `memory.KKKKK` (the residual memory M[k], F32 or F16 `[N, D]`) per frame, and
+//! evolution on `memory.KKKKK` (the residual memory `M[k]`, F32 or F16 `[N, D]`) per frame, and
 //! with a buffer `buffer.KKKKK` (F32 or F16 `[N, D]`) per frame. The configuration and counters
 //! are string metadata; floats are written in Rust's shortest round-trip form, so they load
 //! bit-exact. The file is written to a temporary file in the same directory and renamed.

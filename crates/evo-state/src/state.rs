@@ -52,7 +52,7 @@ pub struct EvoState {
     /// Present with evolution on and history from the buffer.
     pub(crate) buffer: Option<StateBuffer>,
     pub(crate) valid: Vec<bool>,
-    /// Residual memory M[k], per frame, in the buffer's storage; present with evolution on
+    /// Residual memory `M[k]`, per frame, in the buffer's storage; present with evolution on
     /// (with either history mode: the memory is not part of the "buffer" ablation).
     pub(crate) memory: Option<StateBuffer>,
     pub(crate) psi: GainNet,
@@ -116,7 +116,7 @@ impl EvoState {
         &self.valid
     }
 
-    /// The residual memory M[k] of every frame (evolution on): frame k holds the m committed
+    /// The residual memory `M[k]` of every frame (evolution on): frame k holds the m committed
     /// with frame k's latest training step (zero where that step had no prior, or none was
     /// taken).
     pub fn memory(&self) -> Option<&StateBuffer> {
@@ -419,7 +419,7 @@ impl EvoState {
     }
 
     /// Commits a training step at frame k: writes d̃ to B[k], marks the frame valid, writes the
-    /// step's residual memory m to M[k] (zero when the step had no prior, h < 2) and folds the
+    /// step's residual memory m to `M[k]` (zero when the step had no prior, h < 2) and folds the
     /// step's Ψ-input mean squares into the running RMS (h = 3). Never called for evaluation.
     pub fn commit(&mut self, step: &Step) -> Result<(), EvoError> {
         let k = step.frame.ok_or(EvoError::NotAFrame(step.time))?;

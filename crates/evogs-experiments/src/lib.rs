@@ -3,7 +3,7 @@
 //! - [`ablate`], [`ablate_plot`]: the paper's ablation ladder at equal iterations on one dataset
 //!   (rows, runner, `ablation.md`/`.json`/`.png`), and [`ablate::train_and_evaluate`], the
 //!   one-method piece `evogs demo` shares;
-//! - [`bench`], [`bench_plot`]: the D-NeRF benchmark (scenes × methods, table with the published
+//! - [`bench`](mod@bench), [`bench_plot`]: the D-NeRF benchmark (scenes × methods, table with the published
 //!   figures, PSNR-against-time plot, pictures);
 //! - [`motion_report`]: a diagnostic of EvoGS's motion statistics during training (speeds and θ
 //!   by decade; `evogs train --motion-report`); [`gain_table`]: the table of K's distribution

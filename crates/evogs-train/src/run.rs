@@ -8,7 +8,7 @@
 //! - `deform.safetensors`: the backbone's weights (EvoGS: Φ as `phi.*` and Ψ as `psi`);
 //! - `evo_state.safetensors` (EvoGS only): the evolution state (buffer, valid frames, memory, Ψ),
 //!   evo-state's own format, written together with every checkpoint. The pair is committed so
-//!   that a kill at any moment leaves a matching pair ([`save_resumable`]): the state is first
+//!   that a kill at any moment leaves a matching pair (`save_resumable`): the state is first
 //!   written as `evo_state.<iteration>.safetensors`, then the checkpoint is renamed into place,
 //!   then the state; a resume finishes or discards what a kill interrupted;
 //! - `train_log.jsonl`: one line per `log_every` iterations (loss, PSNR, Gaussians, it/s, peak
@@ -72,7 +72,7 @@ impl RunPaths {
         self.root.join("evo_state.safetensors")
     }
     /// `evo_state.<iteration>.safetensors`: the evolution state of the checkpoint at `iteration`
-    /// while that checkpoint is being written ([`save_resumable`]); renamed to
+    /// while that checkpoint is being written (`save_resumable`); renamed to
     /// [`RunPaths::evo_state`] once the checkpoint is in place.
     pub fn pending_evo_state(&self, iteration: u64) -> PathBuf {
         self.root
