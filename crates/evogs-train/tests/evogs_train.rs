@@ -19,20 +19,25 @@ fn config(iterations: u64) -> TrainConfig {
     c
 }
 
+/// The scene's training views, loaded as `c` asks (time source, background, downscale).
+fn train_views(data: &std::path::Path, c: &TrainConfig) -> evogs_train::data::SplitViews {
+    load_split(
+        data,
+        Split::Train,
+        c.time_from,
+        c.background.rgb(),
+        c.downscale,
+    )
+    .unwrap()
+}
+
 #[test]
 fn evogs_training_lowers_the_loss_and_keeps_the_state_aligned() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("scene");
     common::write_scene(&data);
     let c = config(200);
-    let views = load_split(
-        &data,
-        Split::Train,
-        c.time_from,
-        c.background.rgb(),
-        c.downscale,
-    )
-    .unwrap();
+    let views = train_views(&data, &c);
     let mut trainer = Trainer::new(c.clone(), views).unwrap();
     let mut losses = Vec::new();
     let mut densified = 0;
@@ -245,14 +250,7 @@ fn every_switch_combination_trains_finitely_and_stays_aligned() {
     let data = dir.path().join("scene");
     common::write_scene(&data);
     let base = config(80);
-    let views = load_split(
-        &data,
-        Split::Train,
-        base.time_from,
-        base.background.rgb(),
-        base.downscale,
-    )
-    .unwrap();
+    let views = train_views(&data, &base);
     type Edit = fn(&mut TrainConfig);
     let cases: [(&str, Edit); 6] = [
         ("requery", |c| c.evogs.history = HistoryMode::Requery),
@@ -323,14 +321,7 @@ fn reused_buffers_give_the_same_steps_as_fresh_ones_bit_for_bit() {
     c.densify.schedule.from = 10;
     c.densify.schedule.interval = 10;
     c.evogs.components = "pos,rot,scale,opacity,colour".parse().unwrap();
-    let views = load_split(
-        &data,
-        Split::Train,
-        c.time_from,
-        c.background.rgb(),
-        c.downscale,
-    )
-    .unwrap();
+    let views = train_views(&data, &c);
     let run = |fresh: bool| {
         let mut trainer = Trainer::new(c.clone(), views.clone()).unwrap();
         let mut reports = Vec::new();
