@@ -2,7 +2,6 @@
 //! initial point cloud, and the scene normalisation that was applied. [`detect_format`] tells
 //! the layout of a directory and [`load_dataset`] reads it.
 
-use std::fmt;
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
@@ -13,7 +12,9 @@ use crate::frame_time::TimeFrom;
 pub use crate::neu3d::TimeDenominator;
 use crate::{IoError, colmap, nerfies, nerfstudio, neu3d};
 
-/// The dataset layouts this crate reads.
+/// The dataset layouts this crate reads ([`Display`](std::fmt::Display): the lower-case name).
+#[derive(strum::Display, strum::IntoStaticStr)]
+#[strum(serialize_all = "lowercase")]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Format {
     /// COLMAP sparse reconstruction (`sparse/0/` or `sparse/`, `.bin` or `.txt`) with `images/`.
@@ -31,19 +32,7 @@ pub enum Format {
 impl Format {
     /// A short lower-case name.
     pub fn name(self) -> &'static str {
-        match self {
-            Self::Colmap => "colmap",
-            Self::Dnerf => "dnerf",
-            Self::Nerfies => "nerfies",
-            Self::Neu3d => "neu3d",
-            Self::Nerfstudio => "nerfstudio",
-        }
-    }
-}
-
-impl fmt::Display for Format {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
+        self.into()
     }
 }
 

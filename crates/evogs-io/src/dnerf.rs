@@ -5,12 +5,9 @@
 //! top-level `w`/`h` keys when present, otherwise from each image file's header. The writer of the
 //! same layout is [`write_dnerf_split`] (module [`write`]).
 
-use std::fmt;
-use std::path::{Path, PathBuf};
-use std::str::FromStr;
-
 use glam::{Mat3, Vec3};
 use splat_core::Camera;
+use std::path::{Path, PathBuf};
 
 use crate::IoError;
 use crate::camera_json::image_side;
@@ -20,7 +17,10 @@ pub mod write;
 
 pub use write::{DnerfImage, dnerf_camera_angle_x, opengl_c2w, write_dnerf_split};
 
-/// A dataset split.
+/// A dataset split, spelled `train`, `test` or `val` (its [`Display`](std::fmt::Display) and
+/// [`FromStr`](std::str::FromStr)).
+#[derive(strum::Display, strum::EnumString, strum::IntoStaticStr, strum::VariantNames)]
+#[strum(serialize_all = "lowercase", parse_err_ty = String, parse_err_fn = unknown_split)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Split {
     /// `transforms_train.json`.
@@ -37,11 +37,7 @@ impl Split {
 
     /// The split's name as used in file names.
     pub fn name(self) -> &'static str {
-        match self {
-            Self::Train => "train",
-            Self::Test => "test",
-            Self::Val => "val",
-        }
+        self.into()
     }
 
     /// The split's transforms file in a dataset directory.
@@ -50,21 +46,9 @@ impl Split {
     }
 }
 
-impl fmt::Display for Split {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for Split {
-    type Err = String;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Self::ALL
-            .into_iter()
-            .find(|split| split.name() == s)
-            .ok_or_else(|| format!("unknown split `{s}`; expected train, test or val"))
-    }
+/// The error of [`Split`]'s `from_str`.
+fn unknown_split(s: &str) -> String {
+    crate::names::unknown("split", s, <Split as strum::VariantNames>::VARIANTS)
 }
 
 /// One frame: an image, its time and its camera.

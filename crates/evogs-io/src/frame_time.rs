@@ -17,12 +17,12 @@
 //! Put `frame` before the frame number when a camera number follows it (`0120_cam03.png` reads
 //! 3; `frame0120_cam03.png` reads 120).
 
-use std::fmt;
-use std::str::FromStr;
-
 use serde::{Deserialize, Serialize};
 
-/// Where a frame's time comes from when the dataset stores none.
+/// Where a frame's time comes from when the dataset stores none, spelled `order`, `name` or
+/// `none` on the command line and in files.
+#[derive(strum::Display, strum::EnumString, strum::IntoStaticStr, strum::VariantNames)]
+#[strum(serialize_all = "lowercase", parse_err_ty = String, parse_err_fn = unknown_time_rule)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum TimeFrom {
@@ -45,11 +45,7 @@ impl TimeFrom {
 
     /// The rule's name on the command line and in files.
     pub fn name(self) -> &'static str {
-        match self {
-            Self::Order => "order",
-            Self::Name => "name",
-            Self::None => "none",
-        }
+        self.into()
     }
 
     /// One line of help.
@@ -65,21 +61,9 @@ impl TimeFrom {
     }
 }
 
-impl fmt::Display for TimeFrom {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for TimeFrom {
-    type Err = String;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Self::ALL
-            .into_iter()
-            .find(|t| t.name() == s)
-            .ok_or_else(|| format!("unknown time rule `{s}`; expected order, name or none"))
-    }
+/// The error of [`TimeFrom`]'s `from_str`.
+fn unknown_time_rule(s: &str) -> String {
+    crate::names::unknown("time rule", s, <TimeFrom as strum::VariantNames>::VARIANTS)
 }
 
 /// The frame number in an image name (see the [module docs](self)), `None` when it has none or

@@ -26,6 +26,7 @@ pub mod error;
 pub mod frame_time;
 pub mod image_io;
 mod json_fields;
+mod names;
 pub mod nerfies;
 pub mod nerfstudio;
 pub mod neu3d;

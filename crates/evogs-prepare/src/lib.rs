@@ -23,9 +23,7 @@ pub mod frames;
 pub mod sfm;
 pub mod tools;
 
-use std::fmt;
 use std::path::{Path, PathBuf};
-use std::str::FromStr;
 use std::time::Instant;
 
 use serde::Serialize;
@@ -50,7 +48,9 @@ impl Source {
     }
 }
 
-/// Which frame pairs COLMAP matches.
+/// Which frame pairs COLMAP matches, spelled `sequential` or `exhaustive`.
+#[derive(strum::Display, strum::EnumString, strum::IntoStaticStr, strum::VariantNames)]
+#[strum(serialize_all = "lowercase", parse_err_ty = String, parse_err_fn = unknown_matcher)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Matcher {
@@ -67,10 +67,7 @@ impl Matcher {
 
     /// The name on the command line.
     pub fn name(self) -> &'static str {
-        match self {
-            Self::Sequential => "sequential",
-            Self::Exhaustive => "exhaustive",
-        }
+        self.into()
     }
 
     /// One line of help.
@@ -90,15 +87,10 @@ impl Matcher {
     }
 }
 
-impl FromStr for Matcher {
-    type Err = String;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Self::ALL
-            .into_iter()
-            .find(|m| m.name() == s)
-            .ok_or_else(|| format!("unknown matcher `{s}`; expected sequential or exhaustive"))
-    }
+/// The error of [`Matcher`]'s `from_str`.
+fn unknown_matcher(s: &str) -> String {
+    let names: &[&str] = <Matcher as strum::VariantNames>::VARIANTS;
+    format!("unknown matcher `{s}`; expected {}", names.join(" or "))
 }
 
 /// What `prepare` is asked to do.
@@ -170,7 +162,9 @@ impl PrepareRequest {
     }
 }
 
-/// A stage of the pipeline.
+/// A stage of the pipeline ([`Display`](std::fmt::Display): its lower-case name).
+#[derive(strum::Display, strum::IntoStaticStr)]
+#[strum(serialize_all = "lowercase")]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Stage {
@@ -201,14 +195,7 @@ impl Stage {
 
     /// The stage's name (its log is `logs/<name>.log`).
     pub fn name(self) -> &'static str {
-        match self {
-            Self::Frames => "frames",
-            Self::Features => "features",
-            Self::Matching => "matching",
-            Self::Mapping => "mapping",
-            Self::Undistortion => "undistortion",
-            Self::Dataset => "dataset",
-        }
+        self.into()
     }
 
     /// 1-based position.
@@ -226,12 +213,6 @@ impl Stage {
             Self::Undistortion => "undistorting to pinhole images (colmap image_undistorter)",
             Self::Dataset => "writing the dataset",
         }
-    }
-}
-
-impl fmt::Display for Stage {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
     }
 }
 
@@ -535,4 +516,33 @@ pub fn prepare(
     // Renamed: the TempDir guard must not delete anything now.
     let _ = temp.keep();
     Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Matcher, Stage};
+
+    #[test]
+    fn spellings_round_trip_and_unknown_ones_list_every_matcher() {
+        for matcher in Matcher::ALL {
+            assert_eq!(matcher.to_string().parse::<Matcher>(), Ok(matcher));
+            assert_eq!(matcher.name(), matcher.to_string());
+        }
+        assert_eq!(
+            "seq".parse::<Matcher>().unwrap_err(),
+            "unknown matcher `seq`; expected sequential or exhaustive"
+        );
+        let names: Vec<String> = Stage::ALL.iter().map(ToString::to_string).collect();
+        assert_eq!(
+            names,
+            [
+                "frames",
+                "features",
+                "matching",
+                "mapping",
+                "undistortion",
+                "dataset"
+            ]
+        );
+    }
 }

@@ -6,7 +6,6 @@
 //! adapter there is, software included, and without one is an error, never a panic.
 
 use std::fmt;
-use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
@@ -17,7 +16,9 @@ use crate::error::RasterError;
 /// A rasterizer usable from any thread, as [`select_rasterizer`] returns it.
 pub type DynRasterizer = Box<dyn Rasterizer + Send + Sync>;
 
-/// The backend a user asks for.
+/// The backend a user asks for, spelled `cpu`, `wgpu` or `auto`.
+#[derive(strum::Display, strum::EnumString, strum::IntoStaticStr)]
+#[strum(serialize_all = "lowercase", parse_err_ty = RasterError, parse_err_fn = RasterError::unknown_backend)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum BackendChoice {
@@ -36,47 +37,19 @@ impl BackendChoice {
 
     /// Its name on the command line and in files.
     pub fn name(self) -> &'static str {
-        match self {
-            Self::Cpu => "cpu",
-            Self::Wgpu => "wgpu",
-            Self::Auto => "auto",
-        }
+        self.into()
     }
 }
 
-impl fmt::Display for BackendChoice {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for BackendChoice {
-    type Err = RasterError;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Self::ALL
-            .into_iter()
-            .find(|c| c.name() == s)
-            .ok_or_else(|| RasterError::UnknownBackend(s.to_string()))
-    }
-}
-
-/// The backend that runs.
+/// The backend that runs ([`Display`](fmt::Display): `cpu` or `wgpu`).
+#[derive(strum::Display)]
+#[strum(serialize_all = "lowercase")]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum BackendKind {
     /// The CPU backend.
     Cpu,
     /// The wgpu backend.
     Wgpu,
-}
-
-impl fmt::Display for BackendKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Self::Cpu => "cpu",
-            Self::Wgpu => "wgpu",
-        })
-    }
 }
 
 /// What [`select_rasterizer`] chose, on which adapter, and why.

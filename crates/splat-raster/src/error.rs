@@ -95,3 +95,11 @@ pub enum RasterError {
         message: String,
     },
 }
+
+impl RasterError {
+    /// [`RasterError::UnknownBackend`] for `name` (the error of
+    /// [`BackendChoice`](crate::BackendChoice)'s `from_str`).
+    pub(crate) fn unknown_backend(name: &str) -> Self {
+        Self::UnknownBackend(name.to_string())
+    }
+}

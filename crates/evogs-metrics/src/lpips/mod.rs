@@ -41,7 +41,9 @@ pub const SCALE: [f32; 3] = [0.458, 0.448, 0.450];
 /// Added to each feature vector's norm before dividing by it (`lpips.normalize_tensor`).
 pub const NORM_EPS: f32 = 1e-10;
 
-/// The network whose features LPIPS compares.
+/// The network whose features LPIPS compares ([`Display`](fmt::Display): `alex` or `vgg`).
+#[derive(strum::Display, strum::IntoStaticStr)]
+#[strum(serialize_all = "lowercase")]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Backbone {
     /// torchvision's AlexNet (LPIPS's default, `net='alex'`).
@@ -56,10 +58,7 @@ impl Backbone {
 
     /// `alex` or `vgg`, as LPIPS names them.
     pub fn name(self) -> &'static str {
-        match self {
-            Backbone::Alex => "alex",
-            Backbone::Vgg => "vgg",
-        }
+        self.into()
     }
 
     /// The metric's name in reports: `lpips_alex` or `lpips_vgg`.
@@ -73,12 +72,6 @@ impl Backbone {
     /// Smallest image side (either direction) the backbone takes: 31 (AlexNet), 16 (VGG16).
     pub fn min_side(self) -> usize {
         network::min_side(self)
-    }
-}
-
-impl fmt::Display for Backbone {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
     }
 }
 
