@@ -59,7 +59,9 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     if let Some(v) = args.psi_lr {
         e.psi_lr = Some(v);
     }
-    config.densify.max_gaussians = args.max_gaussians;
+    if let Some(v) = args.max_gaussians {
+        config.densify.max_gaussians = Some(v);
+    }
     config.memory_limit = args.memory_limit;
     if let Some(n) = args.checkpoint_every {
         config.checkpoint_every = n;

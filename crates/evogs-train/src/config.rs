@@ -24,7 +24,9 @@
 //! and `tiny` presets decay the network lr over the run; the `dnerf` preset (the D-NeRF
 //! benchmark, issue Q) keeps D-3DGS's phases at the same fractions of a 12 000-iteration run but
 //! decays the network lr over 40 000·N/12 000 steps. Why: decayed over a run 13× shorter than
-//! D-3DGS's, the network lr falls 500× within a few thousand steps. It initialises the network
+//! D-3DGS's, the network lr falls 500× within a few thousand steps. It caps the Gaussians at
+//! [`DNERF_MAX_GAUSSIANS`]: uncapped, lego's Gaussians multiplied before the width-64 network
+//! had learned any motion and the baseline's shovel stayed a static blur. It initialises the network
 //! as D-3DGS does ([`NetInit::Torch`]): He initialisation with zero heads moves the deformation
 //! by ~0.024 world units in its first Adam step and, with a short warm-up, diverged (lego,
 //! `results/dnerf/`). What these choices do on lego is measured in `results/dnerf/`.
@@ -34,6 +36,10 @@ use serde::{Deserialize, Serialize};
 use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 
 use crate::error::TrainError;
+
+/// The `dnerf` preset's cap on the Gaussian count (densify's `max_gaussians`): the initial
+/// point count, which densification may refill after pruning but not exceed.
+pub const DNERF_MAX_GAUSSIANS: usize = 10_000;
 
 /// A setting spelled by one word (on the command line and in `config.json`): the field its
 /// parse errors name.
@@ -148,10 +154,11 @@ pub enum Preset {
     /// The D-NeRF benchmark at 400×400 on 2 CPU cores (issue Q): D-3DGS's recipe with its phases
     /// at the same fractions of a 12 000-iteration run (warm-up, SH steps, position decay,
     /// densification window), D-3DGS's per-step densification statistics (every 100 iterations,
-    /// opacity reset every 3 000), width 64, D-3DGS's initialisation ([`NetInit::Torch`]), and one
-    /// deliberate difference: a network lr that decays over 40 000·N/12 000 steps instead of the
+    /// opacity reset every 3 000), width 64, D-3DGS's initialisation ([`NetInit::Torch`]), and two
+    /// deliberate differences: a network lr that decays over 40 000·N/12 000 steps instead of the
     /// run's N (it ends at 8e-4·500^-0.3 ≈ 1.2e-4 rather than 1.6e-6), as D-3DGS's 40 000-step
-    /// decay does over the first 12 000 of its steps.
+    /// decay does over the first 12 000 of its steps; and at most [`DNERF_MAX_GAUSSIANS`]
+    /// Gaussians (uncapped, the baseline did not learn lego's motion; issue Q).
     Dnerf,
 }
 
@@ -439,8 +446,14 @@ impl TrainConfig {
                     deform_max_steps: 40_000,
                     ..LrSettings::default()
                 },
-                // D-3DGS's 500..15 000 of 40 000; interval and reset per step as D-3DGS.
-                densify: densify_window(150, 4_500, 100, 3_000),
+                // D-3DGS's 500..15 000 of 40 000; interval and reset per step as D-3DGS. At most
+                // DNERF_MAX_GAUSSIANS: uncapped, lego grew to ~40 000 Gaussians before the
+                // network had learned any motion, and the baseline's shovel stayed a static blur;
+                // capped, it learns the shovel's motion (issue Q, `results/dnerf/`).
+                densify: DensifyConfig {
+                    max_gaussians: Some(DNERF_MAX_GAUSSIANS),
+                    ..densify_window(150, 4_500, 100, 3_000)
+                },
                 checkpoint_every: 1_000,
                 ..paper
             },
@@ -642,6 +655,18 @@ mod tests {
             "tiff".parse::<ExportFormat>().unwrap_err(),
             "unknown export format `tiff`; expected ply, compressed-ply or splat"
         );
+    }
+
+    #[test]
+    fn dnerf_preset_caps_the_gaussians_at_any_length() {
+        for n in [12_000, 3_000, 300] {
+            let c = TrainConfig::preset(Preset::Dnerf).with_iterations(n);
+            assert_eq!(c.densify.max_gaussians, Some(DNERF_MAX_GAUSSIANS));
+            let back: TrainConfig =
+                serde_json::from_str(&serde_json::to_string(&c).unwrap()).unwrap();
+            assert_eq!(back, c);
+        }
+        assert_eq!(TrainConfig::preset(Preset::Cpu).densify.max_gaussians, None);
     }
 
     #[test]
