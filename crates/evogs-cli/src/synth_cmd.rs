@@ -1,11 +1,12 @@
-//! `evogs synth`: generate a procedural dynamic scene in the D-NeRF layout, with ground truth.
+//! `evogs synth`: generate a procedural dynamic scene in the D-NeRF layout, with ground truth,
+//! under a capture protocol (`--protocol dnerf|monocular`) and optional capture noise.
 
 use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::builder::PossibleValue;
 use clap::{Args, ValueEnum};
-use evogs_synth::{Preset, SceneSpec, SceneSummary, generate, write_dnerf};
+use evogs_synth::{CaptureNoise, Preset, Protocol, SceneSpec, SceneSummary, generate, write_dnerf};
 
 /// A preset as a command-line value; names and help come from the library.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -28,13 +29,53 @@ impl ValueEnum for PresetArg {
     }
 }
 
+/// A capture protocol as a command-line value; names and help come from the library.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ProtocolArg(pub Protocol);
+
+const PROTOCOL_ARGS: [ProtocolArg; 2] = [
+    ProtocolArg(Protocol::Dnerf),
+    ProtocolArg(Protocol::Monocular),
+];
+
+impl ValueEnum for ProtocolArg {
+    fn value_variants<'a>() -> &'a [Self] {
+        &PROTOCOL_ARGS
+    }
+
+    fn to_possible_value(&self) -> Option<PossibleValue> {
+        Some(PossibleValue::new(self.0.name()).help(self.0.help()))
+    }
+}
+
+/// A noise level: a finite number in `0..=max`.
+fn sigma(text: &str, max: f32) -> Result<f32, String> {
+    let v: f32 = text
+        .parse()
+        .map_err(|_| format!("`{text}` is not a number"))?;
+    if !(0.0..=max).contains(&v) {
+        return Err(format!("{v} is outside 0..={max}"));
+    }
+    Ok(v)
+}
+
+fn pose_sigma(text: &str) -> Result<f32, String> {
+    sigma(text, CaptureNoise::MAX_POSE)
+}
+
+fn image_sigma(text: &str) -> Result<f32, String> {
+    sigma(text, CaptureNoise::MAX_IMAGE)
+}
+
 /// Arguments of `evogs synth`.
 #[derive(Debug, Args)]
 #[command(
     after_help = "Writes DIR/transforms_{train,test,val}.json and DIR/{train,test,val}/r_NNN.png \
                   (RGBA), the canonical Gaussians DIR/canonical.ply, the per-frame ground truth \
                   DIR/ground_truth.safetensors (times, means, and rotations or SH DC only when \
-                  the scene changes them) and the index DIR/scene.json. Same seed, same files."
+                  the scene changes them) and the index DIR/scene.json; monocular scenes add the \
+                  fixed-camera sequence as the D-NeRF dataset DIR/fixed/ (its train split). Same seed, same \
+                  files."
 )]
 pub struct SynthArgs {
     /// Which scene: each preset enables only the effects listed.
@@ -58,13 +99,31 @@ pub struct SynthArgs {
     #[arg(long, value_name = "F", default_value_t = 40,
           value_parser = clap::value_parser!(u32).range(3..=10000))]
     pub frames: u32,
+
+    /// Capture protocol: where the cameras of each split are.
+    #[arg(long, value_name = "NAME", default_value = "dnerf")]
+    pub protocol: ProtocolArg,
+
+    /// Pose jitter σ of the training cameras, in units of the camera distance (each coordinate
+    /// of the recorded centre and look-at target; images come from the true cameras).
+    #[arg(long, value_name = "σ", default_value_t = 0.0, value_parser = pose_sigma)]
+    pub pose_noise: f32,
+
+    /// Image noise σ added to the training images' object colour (straight RGB in [0, 1]).
+    #[arg(long, value_name = "σ", default_value_t = 0.0, value_parser = image_sigma)]
+    pub image_noise: f32,
 }
 
 /// Generates and writes the scene; returns its summary.
 pub fn run_synth(args: &SynthArgs) -> anyhow::Result<SceneSummary> {
     let spec = SceneSpec::preset(args.preset.0)
         .with_size(args.size)
-        .with_frames(args.frames as usize);
+        .with_frames(args.frames as usize)
+        .with_protocol(args.protocol.0)
+        .with_noise(CaptureNoise {
+            pose: args.pose_noise,
+            image: args.image_noise,
+        });
     let scene = generate(&spec, args.seed)
         .with_context(|| format!("generating preset `{}`", args.preset.0.name()))?;
     write_dnerf(&scene, &args.out)
@@ -79,7 +138,7 @@ pub fn report_line(args: &SynthArgs, summary: &SceneSummary) -> String {
         .iter()
         .map(|s| s.frames.to_string())
         .collect();
-    format!(
+    let mut line = format!(
         "wrote {}: {} Gaussians, {} frames (train/test/val) at {}x{}, effects: {}",
         args.out.display(),
         summary.gaussians,
@@ -87,5 +146,19 @@ pub fn report_line(args: &SynthArgs, summary: &SceneSummary) -> String {
         summary.image_size,
         summary.image_size,
         summary.effects.join(", ")
-    )
+    );
+    if !summary.protocol.is_dnerf() {
+        line += &format!(
+            "; protocol {} ({} fixed-camera frames)",
+            summary.protocol.name(),
+            summary.fixed_camera_frames
+        );
+    }
+    if !summary.noise.is_off() {
+        line += &format!(
+            "; noise: pose {}, image {}",
+            summary.noise.pose, summary.noise.image
+        );
+    }
+    line
 }

@@ -65,3 +65,75 @@ fn unknown_preset_and_bad_size_are_one_line_errors() {
     let out = evogs(&["synth", "--preset", "rigid", "--out", "x", "--size", "4"]);
     assert_eq!(out.status.code(), Some(2));
 }
+
+#[test]
+fn monocular_protocol_with_noise_is_written_and_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("scene");
+    let out = evogs(&[
+        "synth",
+        "--preset",
+        "wave",
+        "--out",
+        out_dir.to_str().unwrap(),
+        "--size",
+        "16",
+        "--frames",
+        "5",
+        "--protocol",
+        "monocular",
+        "--pose-noise",
+        "0.01",
+        "--image-noise",
+        "0.02",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        stdout
+            .contains("; protocol monocular (5 fixed-camera frames); noise: pose 0.01, image 0.02"),
+        "{stdout}"
+    );
+    let index: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("scene.json")).unwrap()).unwrap();
+    assert_eq!(index["spec"]["protocol"], "monocular");
+    assert_eq!(
+        index["spec"]["noise"],
+        serde_json::json!({"pose": 0.01f32, "image": 0.02f32})
+    );
+    assert!(out_dir.join("fixed/transforms_train.json").is_file());
+}
+
+#[test]
+fn bad_protocol_and_noise_levels_are_one_line_errors() {
+    for (flag, value, want) in [
+        (
+            "--protocol",
+            "nerfds",
+            "invalid value 'nerfds' for '--protocol <NAME>'",
+        ),
+        ("--pose-noise", "-0.1", "-0.1 is outside 0..=0.5"),
+        ("--pose-noise", "NaN", "NaN is outside 0..=0.5"),
+        ("--image-noise", "2", "2 is outside 0..=1"),
+        ("--image-noise", "loud", "`loud` is not a number"),
+    ] {
+        // `--flag=value`: a separate "-0.1" would be read as a flag.
+        let out = evogs(&[
+            "synth",
+            "--preset",
+            "wave",
+            "--out",
+            "x",
+            &format!("{flag}={value}"),
+        ]);
+        assert_eq!(out.status.code(), Some(2), "{flag} {value}");
+        let err = String::from_utf8(out.stderr).unwrap();
+        assert!(err.contains(want), "{flag} {value}: {err}");
+        assert!(err.contains(flag), "{err}");
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+    }
+}

@@ -14,9 +14,11 @@
 //! | [`AppearanceChange`] | the body's colour blends towards a tint and back | per-frame SH DC |
 //! | [`Occlusion`] | an extra panel of Gaussians orbits the object, passing in front of every camera | rotations, the panel's Gaussians |
 //!
-//! Positions are always stored. [`generate`] renders every frame with `splat-raster` from a
-//! seeded camera on a sphere around the object (D-NeRF style: one camera per frame, train times
-//! uniform in [0, 1], test and val at held-out times and cameras); [`write_dnerf`] writes the
+//! Positions are always stored. [`generate`] renders every frame with `splat-raster` from the
+//! cameras of the scene's capture [`Protocol`]: `dnerf` (a seeded random camera on a sphere per
+//! frame, train times uniform in [0, 1], test and val at held-out times and cameras) or
+//! `monocular` (one camera along a short arc, test and val at training times from rig cameras,
+//! plus a fixed-camera sequence), with optional [`CaptureNoise`]; [`write_dnerf`] writes the
 //! D-NeRF layout plus the ground truth (see [`write`](write_dnerf) for the files). Generation is
 //! deterministic for a seed. [`embedded_scene`] is a small scene built in memory, with no files.
 //!
@@ -36,6 +38,7 @@ mod ground_truth;
 mod motion;
 mod object;
 mod preset;
+mod protocol;
 mod scene;
 mod summary;
 mod write;
@@ -46,6 +49,7 @@ pub use error::SynthError;
 pub use ground_truth::read_ground_truth;
 pub use motion::{MotionModel, Part};
 pub use preset::{Preset, SceneSpec};
-pub use scene::{SynthFrame, SyntheticScene, Trajectories, generate};
+pub use protocol::{CaptureNoise, MONOCULAR_ARC, MONOCULAR_BOB, Protocol, RIG_OFFSET};
+pub use scene::{FIXED_SPLIT, SynthFrame, SyntheticScene, Trajectories, generate};
 pub use summary::{SceneSummary, SplitSummary};
-pub use write::{GROUND_TRUTH_FILE, PLY_FILE, SCENE_FILE, write_dnerf};
+pub use write::{FIXED_DIR, GROUND_TRUTH_FILE, PLY_FILE, SCENE_FILE, write_dnerf};

@@ -4,6 +4,7 @@ use serde::Serialize;
 
 use super::SynthError;
 use super::effects::{AppearanceChange, Jump, LargeMotion, Occlusion, RigidMotion, Wave};
+use super::protocol::{CaptureNoise, Protocol};
 
 /// A named scene recipe.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
@@ -86,6 +87,12 @@ pub struct SceneSpec {
     pub appearance: Option<AppearanceChange>,
     /// Occlusion, if enabled.
     pub occlusion: Option<Occlusion>,
+    /// How the scene is captured (DESIGN §10.2); left out of `scene.json` when `dnerf`.
+    #[serde(skip_serializing_if = "Protocol::is_dnerf")]
+    pub protocol: Protocol,
+    /// Capture noise of the training frames; left out of `scene.json` when off.
+    #[serde(skip_serializing_if = "CaptureNoise::is_off")]
+    pub noise: CaptureNoise,
 }
 
 /// Default image side.
@@ -112,6 +119,8 @@ impl SceneSpec {
             jump: None,
             appearance: None,
             occlusion: None,
+            protocol: Protocol::Dnerf,
+            noise: CaptureNoise::default(),
         }
     }
 
@@ -187,6 +196,20 @@ impl SceneSpec {
         self
     }
 
+    /// Sets the capture protocol.
+    #[must_use]
+    pub fn with_protocol(mut self, protocol: Protocol) -> Self {
+        self.protocol = protocol;
+        self
+    }
+
+    /// Sets the capture noise of the training frames.
+    #[must_use]
+    pub fn with_noise(mut self, noise: CaptureNoise) -> Self {
+        self.noise = noise;
+        self
+    }
+
     /// Scales every Gaussian count by `factor` (at least 6 each).
     #[must_use]
     pub fn with_gaussian_scale(mut self, factor: f32) -> Self {
@@ -232,6 +255,20 @@ impl SceneSpec {
             .collect()
     }
 
+    /// Rig times (monocular protocol): `count` training times at indices `⌊(j + shift)·F/count⌋`,
+    /// so test (`shift` 0.5) and val (`shift` 0) use different training times where they can.
+    pub(crate) fn rig_times(&self, count: usize, shift: f32) -> Vec<f32> {
+        let train = self.train_times();
+        let frames = train.len();
+        (0..count)
+            .map(|j| {
+                let k =
+                    (((j as f32 + shift) * frames as f32 / count as f32) as usize).min(frames - 1);
+                train[k]
+            })
+            .collect()
+    }
+
     /// Checks ranges; errors name the field.
     pub fn validate(&self) -> Result<(), SynthError> {
         let bad = |field, problem: String| Err(SynthError::Spec { field, problem });
@@ -268,6 +305,14 @@ impl SceneSpec {
         ] {
             if !(6..=2_000_000).contains(&n) {
                 return bad(field, format!("{n} is outside 6..=2000000"));
+            }
+        }
+        for (field, sigma, max) in [
+            ("noise.pose", self.noise.pose, CaptureNoise::MAX_POSE),
+            ("noise.image", self.noise.image, CaptureNoise::MAX_IMAGE),
+        ] {
+            if !(0.0..=max).contains(&sigma) {
+                return bad(field, format!("{sigma} is outside 0..={max}"));
             }
         }
         if let Some(jump) = &self.jump {

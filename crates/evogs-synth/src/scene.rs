@@ -8,7 +8,16 @@ use splat_raster::{Camera, CpuRasterizer, Gaussians, Rasterizer, RenderOptions};
 use super::cameras::sample_camera;
 use super::motion::{MotionModel, Part};
 use super::object;
+use super::protocol::{
+    Protocol, RIG_OFFSET, add_image_noise, jitter_pose, monocular_camera, monocular_start,
+};
 use super::{SceneSpec, SynthError};
+
+/// Name of the fixed-camera sequence in errors and on disk (the D-NeRF dataset `DIR/fixed/`).
+pub const FIXED_SPLIT: &str = "fixed";
+
+/// ChaCha stream of the capture noise (stream 0 draws the cameras).
+const NOISE_STREAM: u64 = 1;
 
 /// One rendered frame.
 #[derive(Clone, Debug, PartialEq)]
@@ -61,12 +70,17 @@ pub struct SyntheticScene {
     pub canonical: Gaussians,
     /// Part of each Gaussian.
     pub parts: Vec<Part>,
-    /// Training frames, times `k / (F − 1)`.
+    /// Training frames, times `k / (F − 1)`. With pose noise their cameras are the recorded
+    /// (jittered) ones; the images were rendered from the true cameras.
     pub train: Vec<SynthFrame>,
-    /// Test frames (held-out times and cameras).
+    /// Test frames (held-out times and cameras under `dnerf`; training times and the `+` rig
+    /// camera under `monocular`).
     pub test: Vec<SynthFrame>,
     /// Validation frames (held-out times and cameras).
     pub val: Vec<SynthFrame>,
+    /// The fixed-camera sequence (`monocular` only, empty otherwise): every training time seen
+    /// from the middle of the arc, never noisy; the ground truth of fixed-camera flicker.
+    pub fixed: Vec<SynthFrame>,
     /// Ground truth at every distinct frame time.
     pub trajectories: Trajectories,
 }
@@ -110,8 +124,16 @@ pub fn generate(spec: &SceneSpec, seed: u64) -> Result<SyntheticScene, SynthErro
     let motion = MotionModel::of(spec);
 
     let train_times = spec.train_times();
-    let test_times = spec.held_out_times(spec.test_frames, 0.5);
-    let val_times = spec.held_out_times(spec.val_frames, 0.0);
+    let (test_times, val_times) = match spec.protocol {
+        Protocol::Dnerf => (
+            spec.held_out_times(spec.test_frames, 0.5),
+            spec.held_out_times(spec.val_frames, 0.0),
+        ),
+        Protocol::Monocular => (
+            spec.rig_times(spec.test_frames, 0.5),
+            spec.rig_times(spec.val_frames, 0.0),
+        ),
+    };
     let mut times: Vec<f32> = [&train_times, &test_times, &val_times]
         .into_iter()
         .flatten()
@@ -140,23 +162,58 @@ pub fn generate(spec: &SceneSpec, seed: u64) -> Result<SyntheticScene, SynthErro
         + 3.0 * max_sigma;
     let distance = 1.1 * bound / (0.5 * spec.camera_angle_x).sin();
 
+    // The cameras of each split (the fixed-camera sequence only under `monocular`).
+    let (size, fov) = (spec.image_size, spec.camera_angle_x);
+    let (train_cameras, test_cameras, val_cameras, fixed) = match spec.protocol {
+        Protocol::Dnerf => {
+            let mut draw = |n: usize| -> Vec<Camera> {
+                (0..n)
+                    .map(|_| sample_camera(&mut rng, size, fov, distance))
+                    .collect()
+            };
+            let train = draw(train_times.len());
+            let test = draw(test_times.len());
+            let val = draw(val_times.len());
+            (train, test, val, Vec::new())
+        }
+        Protocol::Monocular => {
+            let start = monocular_start(&mut rng);
+            let arc = |times: &[f32], offset: f32| -> Vec<Camera> {
+                times
+                    .iter()
+                    .map(|&t| monocular_camera(start, t, offset, size, fov, distance))
+                    .collect()
+            };
+            let middle = monocular_camera(start, 0.5, 0.0, size, fov, distance);
+            let fixed = train_times.iter().map(|&t| (t, middle)).collect();
+            (
+                arc(&train_times, 0.0),
+                arc(&test_times, RIG_OFFSET),
+                arc(&val_times, -RIG_OFFSET),
+                fixed,
+            )
+        }
+    };
+
     let state_at = |t: f32| {
         let k = times.partition_point(|&x| x < t);
         &states[k]
     };
     let raster = CpuRasterizer::new();
     let options = RenderOptions::default();
-    let mut render = |split: Split, split_times: &[f32]| -> Result<Vec<SynthFrame>, SynthError> {
+    let render = |split: &'static str,
+                  split_times: &[f32],
+                  cameras: Vec<Camera>|
+     -> Result<Vec<SynthFrame>, SynthError> {
         split_times
             .iter()
+            .zip(cameras)
             .enumerate()
-            .map(|(index, &time)| {
-                let camera =
-                    sample_camera(&mut rng, spec.image_size, spec.camera_angle_x, distance);
+            .map(|(index, (&time, camera))| {
                 let out = raster
                     .forward(state_at(time).view(), &camera, &options)
                     .map_err(|source| SynthError::Render {
-                        split: split.name(),
+                        split,
                         index,
                         source,
                     })?;
@@ -169,9 +226,27 @@ pub fn generate(spec: &SceneSpec, seed: u64) -> Result<SyntheticScene, SynthErro
             })
             .collect()
     };
-    let train = render(Split::Train, &train_times)?;
-    let test = render(Split::Test, &test_times)?;
-    let val = render(Split::Val, &val_times)?;
+    let mut train = render(Split::Train.name(), &train_times, train_cameras)?;
+    let test = render(Split::Test.name(), &test_times, test_cameras)?;
+    let val = render(Split::Val.name(), &val_times, val_cameras)?;
+    let (fixed_times, fixed_cameras): (Vec<f32>, Vec<Camera>) = fixed.into_iter().unzip();
+    let fixed = render(FIXED_SPLIT, &fixed_times, fixed_cameras)?;
+
+    // Capture noise on the training frames, from its own random stream so that the cameras
+    // and colours of a noise-free scene do not depend on it.
+    if !spec.noise.is_off() {
+        let mut noise_rng = ChaCha8Rng::seed_from_u64(seed);
+        noise_rng.set_stream(NOISE_STREAM);
+        for frame in &mut train {
+            if spec.noise.pose > 0.0 {
+                frame.camera =
+                    jitter_pose(&mut noise_rng, &frame.camera, spec.noise.pose, distance);
+            }
+            if spec.noise.image > 0.0 {
+                add_image_noise(&mut noise_rng, frame, spec.noise.image);
+            }
+        }
+    }
 
     let trajectories = Trajectories {
         means: states.iter().map(|g| g.means.clone()).collect(),
@@ -194,6 +269,7 @@ pub fn generate(spec: &SceneSpec, seed: u64) -> Result<SyntheticScene, SynthErro
         train,
         test,
         val,
+        fixed,
         trajectories,
     })
 }

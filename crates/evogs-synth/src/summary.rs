@@ -6,7 +6,7 @@ use std::fmt;
 use evogs_io::Split;
 use serde::Serialize;
 
-use super::{Part, SyntheticScene};
+use super::{CaptureNoise, Part, Protocol, SyntheticScene};
 
 /// Statistics of one split.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -48,6 +48,19 @@ pub struct SceneSummary {
     pub jump_time: Option<f32>,
     /// Per split.
     pub splits: Vec<SplitSummary>,
+    /// Capture protocol; left out when `dnerf`.
+    #[serde(skip_serializing_if = "Protocol::is_dnerf")]
+    pub protocol: Protocol,
+    /// Capture noise of the training frames; left out when off.
+    #[serde(skip_serializing_if = "CaptureNoise::is_off")]
+    pub noise: CaptureNoise,
+    /// Frames of the fixed-camera sequence; left out when there is none.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub fixed_camera_frames: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 fn round4(v: f64) -> f64 {
@@ -114,6 +127,9 @@ impl SceneSummary {
             stored,
             jump_time: scene.spec.jump.map(|j| j.time),
             splits,
+            protocol: scene.spec.protocol,
+            noise: scene.spec.noise,
+            fixed_camera_frames: scene.fixed.len(),
         }
     }
 }

@@ -7,6 +7,8 @@
 //! DIR/canonical.ply                      canonical Gaussians, 3DGS PLY layout (DESIGN §2.2)
 //! DIR/ground_truth.safetensors           per-frame state, f32 little-endian (see below)
 //! DIR/scene.json                         index: summary, spec, seed, tensor names and shapes
+//! DIR/fixed/transforms_train.json,      monocular scenes only: every training time from one fixed
+//! DIR/fixed/train/r_NNN.png              camera (the flicker ground truth; a D-NeRF dataset itself)
 //! ```
 //!
 //! `ground_truth.safetensors` holds `times` `[T]`, `means` `[T, N, 3]`, and only when the scene
@@ -24,7 +26,8 @@ use evogs_io::{DnerfImage, IoError, Split, dnerf_camera_angle_x, write_dnerf_spl
 use safetensors::{Dtype, tensor::TensorView};
 use serde_json::json;
 
-use super::{Part, SceneSummary, SynthError, SyntheticScene};
+use super::scene::FIXED_SPLIT;
+use super::{Part, SceneSummary, SynthError, SynthFrame, SyntheticScene};
 
 /// File name of the canonical Gaussians.
 pub const PLY_FILE: &str = "canonical.ply";
@@ -32,6 +35,9 @@ pub const PLY_FILE: &str = "canonical.ply";
 pub const GROUND_TRUTH_FILE: &str = "ground_truth.safetensors";
 /// File name of the scene index.
 pub const SCENE_FILE: &str = "scene.json";
+/// Directory of the fixed-camera sequence (`monocular` scenes only): a D-NeRF dataset whose
+/// `train` split holds every training time seen from one fixed camera.
+pub const FIXED_DIR: &str = FIXED_SPLIT;
 
 fn io_error(path: &Path, cause: std::io::Error) -> IoError {
     IoError::Io {
@@ -49,26 +55,39 @@ fn f32_bytes(values: impl IntoIterator<Item = f32>) -> Vec<u8> {
     values.into_iter().flat_map(f32::to_le_bytes).collect()
 }
 
+/// Writes `frames` as the split `split` of the D-NeRF dataset `dir`.
+fn write_frames(
+    scene: &SyntheticScene,
+    dir: &Path,
+    split: Split,
+    frames: &[SynthFrame],
+) -> Result<(), SynthError> {
+    let images: Vec<DnerfImage<'_>> = frames
+        .iter()
+        .map(|f| DnerfImage {
+            time: f.time,
+            camera: &f.camera,
+            color: &f.color,
+            alpha: &f.alpha,
+        })
+        .collect();
+    let angle = frames
+        .first()
+        .map_or(f64::from(scene.spec.camera_angle_x), |f| {
+            dnerf_camera_angle_x(&f.camera)
+        });
+    write_dnerf_split(dir, split, &images, angle)?;
+    Ok(())
+}
+
 /// Writes `scene` into `dir` (created if missing) in the D-NeRF layout with its ground truth.
 pub fn write_dnerf(scene: &SyntheticScene, dir: &Path) -> Result<(), SynthError> {
     std::fs::create_dir_all(dir).map_err(|e| io_error(dir, e))?;
     for split in Split::ALL {
-        let frames = scene.split(split);
-        let images: Vec<DnerfImage<'_>> = frames
-            .iter()
-            .map(|f| DnerfImage {
-                time: f.time,
-                camera: &f.camera,
-                color: &f.color,
-                alpha: &f.alpha,
-            })
-            .collect();
-        let angle = frames
-            .first()
-            .map_or(f64::from(scene.spec.camera_angle_x), |f| {
-                dnerf_camera_angle_x(&f.camera)
-            });
-        write_dnerf_split(dir, split, &images, angle)?;
+        write_frames(scene, dir, split, scene.split(split))?;
+    }
+    if !scene.fixed.is_empty() {
+        write_frames(scene, &dir.join(FIXED_DIR), Split::Train, &scene.fixed)?;
     }
 
     write_ply(&dir.join(PLY_FILE), scene.canonical.view())?;

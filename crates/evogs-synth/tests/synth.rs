@@ -7,8 +7,9 @@ use std::path::Path;
 
 use evogs_io::{Split, load_image, read_dnerf_split};
 use evogs_synth::{
-    GROUND_TRUTH_FILE, Part, Preset, SceneSpec, SceneSummary, SyntheticScene, embedded_scene,
-    generate, read_ground_truth, write_dnerf,
+    CaptureNoise, FIXED_DIR, GROUND_TRUTH_FILE, MONOCULAR_ARC, Part, Preset, Protocol, RIG_OFFSET,
+    SceneSpec, SceneSummary, SyntheticScene, embedded_scene, generate, read_ground_truth,
+    write_dnerf,
 };
 use glam::{Quat, Vec3};
 
@@ -345,6 +346,226 @@ fn embedded_scene_summary_snapshot() {
 fn small_mixed_scene_summary_snapshot() {
     let scene = generate(&small(Preset::Mixed), 11).unwrap();
     insta::assert_snapshot!("small_mixed_summary", SceneSummary::of(&scene).to_string());
+}
+
+fn azimuth(c: Vec3) -> f32 {
+    c.y.atan2(c.x)
+}
+
+/// Angle difference wrapped to (−π, π].
+fn wrap(a: f32) -> f32 {
+    let t = std::f32::consts::TAU;
+    a - t * ((a + 0.5 * t) / t).floor()
+}
+
+#[test]
+fn monocular_protocol_places_one_arc_rig_cameras_at_training_times_and_a_fixed_camera() {
+    let spec = small(Preset::Wave).with_protocol(Protocol::Monocular);
+    let scene = generate(&spec, 4).unwrap();
+    let train_times: Vec<f32> = scene.train.iter().map(|f| f.time).collect();
+    assert_eq!(train_times, spec.train_times());
+    // One camera moving smoothly: every centre at the same distance, azimuth growing linearly
+    // by the arc over the sequence, consecutive steps equal.
+    let centres: Vec<Vec3> = scene.train.iter().map(|f| f.camera.center()).collect();
+    let d = centres[0].length();
+    assert!(centres.iter().all(|c| (c.length() - d).abs() < 1e-3 * d));
+    let steps: Vec<f32> = centres
+        .windows(2)
+        .map(|w| wrap(azimuth(w[1]) - azimuth(w[0])))
+        .collect();
+    let step = MONOCULAR_ARC / (spec.train_frames - 1) as f32;
+    assert!(steps.iter().all(|s| (s - step).abs() < 1e-4), "{steps:?}");
+    // Test (+offset) and val (−offset) at training timestamps, different ones.
+    for (frames, offset) in [(&scene.test, RIG_OFFSET), (&scene.val, -RIG_OFFSET)] {
+        assert_eq!(frames.len(), 2);
+        for f in frames {
+            let k = train_times
+                .iter()
+                .position(|&t| t == f.time)
+                .expect("a training time");
+            let train = scene.train[k].camera.center();
+            let got = wrap(azimuth(f.camera.center()) - azimuth(train));
+            assert!((got - offset).abs() < 1e-4, "{got} vs {offset}");
+            assert!((f.camera.center().z - train.z).abs() < 1e-4);
+        }
+    }
+    let test_times: Vec<f32> = scene.test.iter().map(|f| f.time).collect();
+    assert!(scene.val.iter().all(|f| !test_times.contains(&f.time)));
+    // Ground truth only at the training times (test and val add none).
+    assert_eq!(scene.trajectories.times, train_times);
+    // The fixed-camera sequence: every training time, one camera, exact images.
+    assert_eq!(scene.fixed.len(), spec.train_frames);
+    assert!(
+        scene
+            .fixed
+            .iter()
+            .all(|f| f.camera == scene.fixed[0].camera)
+    );
+    let fixed_times: Vec<f32> = scene.fixed.iter().map(|f| f.time).collect();
+    assert_eq!(fixed_times, train_times);
+    // The object moves in the fixed view (a wave), so ground-truth flicker is not zero.
+    assert_ne!(scene.fixed[0].color, scene.fixed[5].color);
+    // The D-NeRF protocol has none.
+    assert!(generate(&small(Preset::Wave), 4).unwrap().fixed.is_empty());
+}
+
+#[test]
+fn monocular_scene_and_files_are_deterministic_for_a_seed() {
+    let spec = small(Preset::Jump).with_protocol(Protocol::Monocular);
+    let (a, b) = (generate(&spec, 8).unwrap(), generate(&spec, 8).unwrap());
+    assert_eq!(a, b);
+    let c = generate(&spec, 9).unwrap();
+    assert_ne!(
+        a.train[0].camera, c.train[0].camera,
+        "the seed places the arc"
+    );
+    let (d1, d2) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    write_dnerf(&a, d1.path()).unwrap();
+    write_dnerf(&b, d2.path()).unwrap();
+    assert_eq!(hash_dir(d1.path()), hash_dir(d2.path()));
+}
+
+#[test]
+fn monocular_scene_is_written_with_its_fixed_sequence_and_recorded_protocol() {
+    let spec = small(Preset::Jump).with_protocol(Protocol::Monocular);
+    let scene = generate(&spec, 2).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    write_dnerf(&scene, dir.path()).unwrap();
+    let test = read_dnerf_split(dir.path(), Split::Test).unwrap();
+    let train = read_dnerf_split(dir.path(), Split::Train).unwrap();
+    assert!(
+        test.iter()
+            .all(|f| train.iter().any(|t| (t.time - f.time).abs() < 1e-6))
+    );
+    let fixed: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(dir.path().join(FIXED_DIR).join("transforms_train.json")).unwrap(),
+    )
+    .unwrap();
+    let frames = fixed["frames"].as_array().unwrap();
+    assert_eq!(frames.len(), spec.train_frames);
+    assert_eq!(frames[3]["file_path"], "./train/r_003");
+    assert!(dir.path().join("fixed/train/r_003.png").is_file());
+    let read = read_dnerf_split(&dir.path().join(FIXED_DIR), Split::Train).unwrap();
+    assert_eq!(read.len(), spec.train_frames);
+    let index: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("scene.json")).unwrap()).unwrap();
+    assert_eq!(index["spec"]["protocol"], "monocular");
+    assert_eq!(index["summary"]["protocol"], "monocular");
+    assert_eq!(index["summary"]["fixed_camera_frames"], spec.train_frames);
+    assert!(
+        index["spec"].get("noise").is_none(),
+        "noise off is not recorded"
+    );
+
+    // A D-NeRF scene records neither, and writes no fixed sequence (its files are unchanged).
+    let dnerf = tempfile::tempdir().unwrap();
+    write_dnerf(&generate(&small(Preset::Jump), 2).unwrap(), dnerf.path()).unwrap();
+    let index: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dnerf.path().join("scene.json")).unwrap()).unwrap();
+    for key in ["protocol", "noise"] {
+        assert!(index["spec"].get(key).is_none(), "{key}");
+        assert!(index["summary"].get(key).is_none(), "{key}");
+    }
+    assert!(index["summary"].get("fixed_camera_frames").is_none());
+    assert!(!dnerf.path().join("fixed").exists());
+}
+
+#[test]
+fn capture_noise_is_seeded_reproducible_and_touches_only_the_training_captures() {
+    for protocol in Protocol::ALL {
+        let clean_spec = small(Preset::Rigid).with_protocol(protocol);
+        let clean = generate(&clean_spec, 6).unwrap();
+        let pose = clean_spec.clone().with_noise(CaptureNoise {
+            pose: 0.01,
+            image: 0.0,
+        });
+        let image = clean_spec.clone().with_noise(CaptureNoise {
+            pose: 0.0,
+            image: 0.05,
+        });
+        let (p, i) = (generate(&pose, 6).unwrap(), generate(&image, 6).unwrap());
+        // Reproducible for a seed, different for another.
+        assert_eq!(p, generate(&pose, 6).unwrap());
+        assert_eq!(i, generate(&image, 6).unwrap());
+        assert_ne!(
+            i.train[0].color,
+            generate(&image, 7).unwrap().train[0].color
+        );
+        // Test, val and the fixed sequence stay exact.
+        for scene in [&p, &i] {
+            assert_eq!(scene.test, clean.test);
+            assert_eq!(scene.val, clean.val);
+            assert_eq!(scene.fixed, clean.fixed);
+            assert_eq!(scene.trajectories, clean.trajectories);
+        }
+        // Pose noise: same images (rendered from the true cameras), recorded cameras moved by
+        // about σ·distance.
+        let distance = clean.train[0].camera.center().length();
+        let mut moved = 0.0f32;
+        for (a, b) in p.train.iter().zip(&clean.train) {
+            assert_eq!((&a.color, &a.alpha), (&b.color, &b.alpha));
+            moved = moved.max(a.camera.center().distance(b.camera.center()));
+        }
+        assert!(
+            moved > 0.002 * distance && moved < 0.1 * distance,
+            "{moved} of {distance}"
+        );
+        // Image noise: same cameras, colours changed by about σ on the object only, never
+        // outside [0, α].
+        let (mut sq, mut count) = (0.0f64, 0usize);
+        for (a, b) in i.train.iter().zip(&clean.train) {
+            assert_eq!(a.camera, b.camera);
+            assert_eq!(a.alpha, b.alpha);
+            for ((ca, cb), &alpha) in a.color.iter().zip(&b.color).zip(&b.alpha) {
+                for k in 0..3 {
+                    assert!(ca[k] >= 0.0 && ca[k] <= alpha, "{ca:?} {alpha}");
+                    if alpha == 0.0 {
+                        assert_eq!(ca[k], cb[k]);
+                    } else if alpha > 0.99 && cb[k] > 0.2 && cb[k] < 0.8 {
+                        sq += f64::from((ca[k] - cb[k]) / alpha).powi(2);
+                        count += 1;
+                    }
+                }
+            }
+        }
+        let rms = (sq / count as f64).sqrt();
+        assert!((rms - 0.05).abs() < 0.01, "{rms} over {count}");
+    }
+}
+
+#[test]
+fn noise_levels_out_of_range_are_errors_naming_the_field() {
+    for (noise, field) in [
+        (
+            CaptureNoise {
+                pose: -0.1,
+                image: 0.0,
+            },
+            "noise.pose",
+        ),
+        (
+            CaptureNoise {
+                pose: f32::NAN,
+                image: 0.0,
+            },
+            "noise.pose",
+        ),
+        (
+            CaptureNoise {
+                pose: 0.0,
+                image: 1.5,
+            },
+            "noise.image",
+        ),
+    ] {
+        let err = generate(&small(Preset::Wave).with_noise(noise), 0).unwrap_err();
+        let text = err.to_string();
+        assert!(
+            text.starts_with(&format!("scene spec field `{field}`")),
+            "{text}"
+        );
+        assert_eq!(text.lines().count(), 1);
+    }
 }
 
 mod varied {
