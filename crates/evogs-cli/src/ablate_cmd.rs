@@ -7,7 +7,9 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use evogs_experiments::ablate::{AblationRequest, AblationResult, Progress, run_ablation, select};
+use evogs_experiments::ablate::{
+    AblationRequest, AblationResult, Progress, run_ablation, seeds_from, select,
+};
 use evogs_metrics::lpips::Backbone;
 use evogs_train::eval::EvalLpips;
 use evogs_train::{Preset, TrainConfig};
@@ -32,9 +34,15 @@ pub struct AblateArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub iterations: Option<u64>,
 
-    /// Random seed for every row.
+    /// Random seed for every row (the first seed with --seeds) [default: the preset's].
     #[arg(long, value_name = "S")]
     pub seed: Option<u64>,
+
+    /// Runs every row with N training seeds (S, S+1, …; the scene stays the same) and reports
+    /// mean ± sample standard deviation; run directories become OUT/<row>/seed<S>.
+    #[arg(long, value_name = "N", default_value_t = 1,
+          value_parser = clap::value_parser!(u64).range(1..=100))]
+    pub seeds: u64,
 
     /// Rows to run, comma-separated, in the ladder's order whatever the order given [default:
     /// all]: baseline, phi, evo-requery, evo-buffer, trigger, full, k0, k0.5, k1, net-f16,
@@ -58,19 +66,29 @@ pub fn run_ablate(args: &AblateArgs) -> Result<Vec<AblationResult>> {
         config.seed = s;
     }
     let rows = select(&args.rows)?;
+    let seeds = seeds_from(config.seed, args.seeds as usize);
     let request = AblationRequest {
         data: args.data.clone(),
         out: args.out.clone(),
         config,
         rows,
+        seeds,
+    };
+    let multi = request.seeds.len() > 1;
+    let seed_note = |seed: u64| {
+        if multi {
+            format!(" seed {seed}")
+        } else {
+            String::new()
+        }
     };
     let bar = if std::io::stderr().is_terminal() {
-        ProgressBar::new(request.rows.len() as u64)
+        ProgressBar::new((request.rows.len() * request.seeds.len()) as u64)
     } else {
         ProgressBar::hidden()
     };
     bar.set_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} rows, ETA {eta} | {msg}")
+        ProgressStyle::with_template("{bar:30} {pos}/{len} runs, ETA {eta} | {msg}")
             .context("progress bar template")?,
     );
     let lpips = EvalLpips::find(&[Backbone::Alex], args.lpips_weights.as_deref())?;
@@ -78,12 +96,18 @@ pub fn run_ablate(args: &AblateArgs) -> Result<Vec<AblationResult>> {
         eprintln!("evogs ablate: {line}; the lpips_alex columns stay empty");
     }
     let results = run_ablation(&request, &lpips, &mut |p| match p {
-        Progress::Started { index, total, row } => {
+        Progress::Started {
+            index,
+            total,
+            row,
+            seed,
+        } => {
             bar.suspend(|| {
                 eprintln!(
-                    "row {}/{total} {}: started ({})",
+                    "row {}/{total} {}{}: started ({})",
                     index + 1,
                     row.name,
+                    seed_note(seed),
                     row.switches()
                 );
             });
@@ -92,15 +116,17 @@ pub fn run_ablate(args: &AblateArgs) -> Result<Vec<AblationResult>> {
         Progress::Finished {
             index,
             total,
-            result,
+            row,
+            run,
         } => {
             bar.suspend(|| {
                 eprintln!(
-                    "row {}/{total} {}: finished in {:.1} s, test PSNR {:.2} dB",
+                    "row {}/{total} {}{}: finished in {:.1} s, test PSNR {:.2} dB",
                     index + 1,
-                    result.name,
-                    result.scores.seconds,
-                    result.scores.psnr
+                    row.name,
+                    seed_note(run.seed),
+                    run.scores.seconds,
+                    run.scores.psnr
                 );
             });
             bar.inc(1);

@@ -110,3 +110,78 @@ fn unknown_row_is_a_one_line_error() {
     assert_eq!(e.trim().lines().count(), 1, "{e}");
     assert!(e.contains("rows") && e.contains("bogus"), "{e}");
 }
+
+#[test]
+fn seeds_run_every_row_per_seed_on_a_monocular_scene_and_report_mean_and_std() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("scene");
+    let o = evogs(&[
+        "synth",
+        "--preset",
+        "wave",
+        "--protocol",
+        "monocular",
+        "--out",
+        s(&data),
+        "--size",
+        "24",
+        "--frames",
+        "8",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("ablation");
+    let o = evogs(&[
+        "ablate",
+        "--data",
+        s(&data),
+        "--out",
+        s(&out),
+        "--preset",
+        "tiny",
+        "--iterations",
+        "20",
+        "--seed",
+        "3",
+        "--seeds",
+        "2",
+        "--rows",
+        "k0,phi",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let log = stderr(&o);
+    for name in ["phi", "k0"] {
+        for seed in [3, 4] {
+            assert!(
+                log.contains(&format!("{name} seed {seed}: finished")),
+                "{log}"
+            );
+            let run = out.join(name).join(format!("seed{seed}"));
+            let config: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(run.join("config.json")).unwrap())
+                    .unwrap();
+            assert_eq!(config["train"]["seed"], seed, "{config}");
+        }
+    }
+    let table = std::fs::read_to_string(out.join("ablation.md")).unwrap();
+    assert!(
+        table.contains("20 iterations per row, seeds 3, 4 (mean ± sample std over seeds)"),
+        "{table}"
+    );
+    let phi = table.lines().find(|l| l.starts_with("| phi ")).unwrap();
+    assert!(phi.contains(" | 2 | ") && phi.contains(" ± "), "{phi}");
+    // K = 0 is a prior-only row with standard densification, and its mean K is 0.
+    let k0 = table.lines().find(|l| l.starts_with("| k0 ")).unwrap();
+    assert!(k0.contains("densify=standard gain=0 "), "{k0}");
+    assert!(k0.contains("| 0.000 ± 0.000 |"), "{k0}");
+
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("ablation.json")).unwrap()).unwrap();
+    assert_eq!(json["seeds"], serde_json::json!([3, 4]));
+    for row in json["rows"].as_array().unwrap() {
+        let runs = row["seeds"].as_array().unwrap();
+        assert_eq!(runs.len(), 2, "{row}");
+        let mean = (runs[0]["psnr"].as_f64().unwrap() + runs[1]["psnr"].as_f64().unwrap()) / 2.0;
+        assert!((row["psnr"].as_f64().unwrap() - mean).abs() < 1e-9, "{row}");
+        assert!(row["std"]["psnr"].as_f64().unwrap() >= 0.0, "{row}");
+    }
+}

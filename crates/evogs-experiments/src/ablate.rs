@@ -55,7 +55,8 @@ impl LadderRow {
 
 /// The ladder, in the paper's order: baseline; Φ alone; evolution with re-queried history; with
 /// the buffer; + uncertainty trigger; + deformation-aware clone/split (the full method, learned
-/// K, f32); K fixed at 0, 0.5, 1; f16 network; f16 buffer.
+/// K, f32); K fixed at 0 (prior only, with standard densification), 0.5, 1 (both on the full
+/// method); f16 network; f16 buffer.
 pub fn ladder() -> Vec<LadderRow> {
     let full = EvoSettings::default();
     let standard = EvoSettings {
@@ -105,12 +106,16 @@ pub fn ladder() -> Vec<LadderRow> {
             "+ deformation-aware clone/split (EvoGS, learned K)",
             full.clone(),
         ),
+        // Prior only, with standard densification: under the trigger a K = 0 run keeps about
+        // 200 Gaussians (the buffer extrapolates a straight line, the residual and angle gates
+        // then refuse every densification; results/evolution-ablation), which measures the
+        // trigger, not the prior.
         evo(
             "k0",
-            "K fixed at 0 (prior only)",
+            "K fixed at 0 (prior only; standard densification, not the trigger)",
             EvoSettings {
                 gain: Gain::Fixed(0.0),
-                ..full.clone()
+                ..standard.clone()
             },
         ),
         evo(
@@ -205,6 +210,16 @@ pub struct Scores {
     /// Bytes of the evolution state: buffer and per-frame residual memory (0 for the baseline
     /// and with evolution off; the memory alone with history re-queried).
     pub state_bytes: usize,
+    /// Mean of the gain K over the last quarter's training steps (`train_metrics.json`'s
+    /// `gain.all`); `None` without evolution.
+    pub k_mean: Option<f64>,
+    /// Standard deviation of K over those samples (Gaussians × steps): how much "learned K"
+    /// varies inside one run.
+    pub k_std: Option<f64>,
+    /// Mean K of the moving Gaussians (both speeds at or above the motion floor).
+    pub k_moving: Option<f64>,
+    /// Mean K of the still Gaussians.
+    pub k_still: Option<f64>,
 }
 
 /// Trains `config` on `data` into the run directory `out`, then evaluates it on the test split
@@ -243,6 +258,7 @@ pub fn train_and_evaluate(
         (None, None, None)
     };
     let temporal = report.temporal.as_ref();
+    let gain = summary.gain.as_ref();
     Ok(Scores {
         psnr: report.mean_psnr,
         ssim: report.mean_ssim,
@@ -255,6 +271,10 @@ pub fn train_and_evaluate(
         seconds: summary.seconds,
         gaussians: summary.gaussians,
         state_bytes: run.backbone.state_bytes(),
+        k_mean: gain.and_then(|g| g.all.as_ref()).map(|s| s.mean),
+        k_std: gain.and_then(|g| g.all.as_ref()).map(|s| s.std),
+        k_moving: gain.and_then(|g| g.moving.as_ref()).map(|s| s.mean),
+        k_still: gain.and_then(|g| g.still.as_ref()).map(|s| s.mean),
     })
 }
 
@@ -263,15 +283,75 @@ pub fn train_and_evaluate(
 pub struct AblationRequest {
     /// Dataset directory.
     pub data: PathBuf,
-    /// Output directory: one run directory per row, and the tables and plot.
+    /// Output directory: one run directory per row (per row and seed with several seeds), and
+    /// the tables and plot.
     pub out: PathBuf,
-    /// Preset, iterations, seed and the rest; each row sets `method` and `evogs`.
+    /// Preset, iterations and the rest; each row sets `method` and `evogs`, each seed `seed`.
     pub config: TrainConfig,
     /// The rows, in order.
     pub rows: Vec<LadderRow>,
+    /// The training seeds: every row runs once per seed (the scene stays the same).
+    pub seeds: Vec<u64>,
 }
 
-/// One row's result.
+impl AblationRequest {
+    /// The run directory of `row` for `seed`: `OUT/<row>` with one seed, `OUT/<row>/seed<S>`
+    /// with several.
+    pub fn run_dir(&self, row: &LadderRow, seed: u64) -> PathBuf {
+        let dir = self.out.join(row.name);
+        if self.seeds.len() > 1 {
+            dir.join(format!("seed{seed}"))
+        } else {
+            dir
+        }
+    }
+}
+
+/// `count` consecutive seeds from `first`: `first, first + 1, …` (wrapping).
+pub fn seeds_from(first: u64, count: usize) -> Vec<u64> {
+    (0..count as u64).map(|i| first.wrapping_add(i)).collect()
+}
+
+/// One trained and evaluated run of a row.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SeedRun {
+    /// The training seed.
+    pub seed: u64,
+    /// Its run directory.
+    pub run: PathBuf,
+    /// Its scores.
+    #[serde(flatten)]
+    pub scores: Scores,
+}
+
+/// Sample standard deviations over seeds of the [`Scores`] (n − 1 in the denominator).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Spread {
+    /// Of the test PSNR (dB).
+    pub psnr: f64,
+    /// Of the test SSIM.
+    pub ssim: f64,
+    /// Of the val PSNR.
+    pub val_psnr: Option<f64>,
+    /// Of the val SSIM.
+    pub val_ssim: Option<f64>,
+    /// Of the test LPIPS (AlexNet).
+    pub lpips_alex: Option<f64>,
+    /// Of the val LPIPS (AlexNet).
+    pub val_lpips_alex: Option<f64>,
+    /// Of the flicker.
+    pub flicker: f64,
+    /// Of the jitter.
+    pub jitter: f64,
+    /// Of the training time (s).
+    pub seconds: f64,
+    /// Of the final Gaussian count.
+    pub gaussians: f64,
+    /// Of the run's mean K.
+    pub k_mean: Option<f64>,
+}
+
+/// One row's result over its seeds.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct AblationResult {
     /// The row's name.
@@ -280,39 +360,117 @@ pub struct AblationResult {
     pub description: String,
     /// Its switches ([`LadderRow::switches`]).
     pub switches: String,
-    /// Its run directory.
+    /// Its run directory (of the first seed).
     pub run: PathBuf,
-    /// Its scores.
+    /// Mean scores over the seeds (Gaussian count and state bytes rounded; an optional score
+    /// only where every seed has it).
     #[serde(flatten)]
     pub scores: Scores,
+    /// Sample standard deviation over the seeds; `None` with one seed.
+    pub std: Option<Spread>,
+    /// Each seed's run.
+    pub seeds: Vec<SeedRun>,
 }
 
-/// Progress of [`run_ablation`].
+fn mean(values: &[f64]) -> f64 {
+    values.iter().sum::<f64>() / values.len() as f64
+}
+
+/// Sample standard deviation (n − 1); 0 for one value.
+fn sample_std(values: &[f64]) -> f64 {
+    if values.len() < 2 {
+        return 0.0;
+    }
+    let m = mean(values);
+    (values.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (values.len() - 1) as f64).sqrt()
+}
+
+/// The values of `field` over `runs`, when every run has one.
+fn all_some(runs: &[SeedRun], field: impl Fn(&Scores) -> Option<f64>) -> Option<Vec<f64>> {
+    runs.iter().map(|r| field(&r.scores)).collect()
+}
+
+impl AblationResult {
+    /// The result of `row` over `runs` (at least one): means and, with two or more, sample
+    /// standard deviations.
+    pub fn of(row: &LadderRow, runs: Vec<SeedRun>) -> Self {
+        assert!(!runs.is_empty(), "a row's result needs a run");
+        let values = |f: fn(&Scores) -> f64| runs.iter().map(|r| f(&r.scores)).collect::<Vec<_>>();
+        let opt_mean = |f: fn(&Scores) -> Option<f64>| all_some(&runs, f).map(|v| mean(&v));
+        let opt_std = |f: fn(&Scores) -> Option<f64>| all_some(&runs, f).map(|v| sample_std(&v));
+        let gaussians = values(|s| s.gaussians as f64);
+        let scores = Scores {
+            psnr: mean(&values(|s| s.psnr)),
+            ssim: mean(&values(|s| s.ssim)),
+            val_psnr: opt_mean(|s| s.val_psnr),
+            val_ssim: opt_mean(|s| s.val_ssim),
+            lpips_alex: opt_mean(|s| s.lpips_alex),
+            val_lpips_alex: opt_mean(|s| s.val_lpips_alex),
+            flicker: mean(&values(|s| s.flicker)),
+            jitter: mean(&values(|s| s.jitter)),
+            seconds: mean(&values(|s| s.seconds)),
+            gaussians: mean(&gaussians).round() as usize,
+            state_bytes: mean(&values(|s| s.state_bytes as f64)).round() as usize,
+            k_mean: opt_mean(|s| s.k_mean),
+            k_std: opt_mean(|s| s.k_std),
+            k_moving: opt_mean(|s| s.k_moving),
+            k_still: opt_mean(|s| s.k_still),
+        };
+        let std = (runs.len() > 1).then(|| Spread {
+            psnr: sample_std(&values(|s| s.psnr)),
+            ssim: sample_std(&values(|s| s.ssim)),
+            val_psnr: opt_std(|s| s.val_psnr),
+            val_ssim: opt_std(|s| s.val_ssim),
+            lpips_alex: opt_std(|s| s.lpips_alex),
+            val_lpips_alex: opt_std(|s| s.val_lpips_alex),
+            flicker: sample_std(&values(|s| s.flicker)),
+            jitter: sample_std(&values(|s| s.jitter)),
+            seconds: sample_std(&values(|s| s.seconds)),
+            gaussians: sample_std(&gaussians),
+            k_mean: opt_std(|s| s.k_mean),
+        });
+        Self {
+            name: row.name.to_string(),
+            description: row.description.to_string(),
+            switches: row.switches(),
+            run: runs[0].run.clone(),
+            scores,
+            std,
+            seeds: runs,
+        }
+    }
+}
+
+/// Progress of [`run_ablation`]: one run is a row for one seed.
 #[derive(Debug)]
 pub enum Progress<'a> {
-    /// Row `index` (0-based) of `total` is starting.
+    /// Run `index` (0-based) of `total` is starting.
     Started {
-        /// 0-based.
+        /// 0-based, over rows × seeds.
         index: usize,
-        /// Rows in all.
+        /// Runs in all.
         total: usize,
         /// The row.
         row: &'a LadderRow,
+        /// The seed.
+        seed: u64,
     },
-    /// Row `index` of `total` is done.
+    /// Run `index` of `total` is done.
     Finished {
         /// 0-based.
         index: usize,
-        /// Rows in all.
+        /// Runs in all.
         total: usize,
-        /// Its result.
-        result: &'a AblationResult,
+        /// The row.
+        row: &'a LadderRow,
+        /// Its run.
+        run: &'a SeedRun,
     },
 }
 
-/// Runs every row of `request` (train, evaluate on test, and on val when the dataset has one;
-/// LPIPS with the networks of `lpips`), writes the outputs ([`write_outputs`]) and returns the
-/// results.
+/// Runs every row of `request` for every seed (seed by seed, so that a stopped sweep has whole
+/// ladders; train, evaluate on test, and on val when the dataset has one; LPIPS with the networks
+/// of `lpips`), writes the outputs ([`write_outputs`]) after every run, and returns the results.
 pub fn run_ablation(
     request: &AblationRequest,
     lpips: &EvalLpips,
@@ -321,49 +479,104 @@ pub fn run_ablation(
     if request.rows.is_empty() {
         return Err(ExperimentError::config("rows", "no rows to run"));
     }
+    if request.seeds.is_empty() {
+        return Err(ExperimentError::config("seeds", "no seeds to run"));
+    }
     let dataset = evogs_train::data::open_dataset(&request.data, request.config.time_from)?;
     let with_val = !dataset.split(Split::Val).is_empty();
     std::fs::create_dir_all(&request.out).map_err(|e| ExperimentError::dir(&request.out, e))?;
-    let total = request.rows.len();
-    let mut results = Vec::with_capacity(total);
-    for (index, row) in request.rows.iter().enumerate() {
-        progress(Progress::Started { index, total, row });
-        let mut config = request.config.clone();
-        config.method = row.method;
-        config.evogs = row.evo.clone();
-        let run = request.out.join(row.name);
-        let scores = train_and_evaluate(&request.data, &run, config, with_val, lpips)?;
-        results.push(AblationResult {
-            name: row.name.to_string(),
-            description: row.description.to_string(),
-            switches: row.switches(),
-            run,
-            scores,
-        });
-        progress(Progress::Finished {
-            index,
-            total,
-            result: results.last().expect("just pushed"),
-        });
+    let total = request.rows.len() * request.seeds.len();
+    let mut runs: Vec<Vec<SeedRun>> = vec![Vec::new(); request.rows.len()];
+    let mut index = 0;
+    let mut results = Vec::new();
+    for &seed in &request.seeds {
+        for (r, row) in request.rows.iter().enumerate() {
+            progress(Progress::Started {
+                index,
+                total,
+                row,
+                seed,
+            });
+            let mut config = request.config.clone();
+            config.method = row.method;
+            config.evogs = row.evo.clone();
+            config.seed = seed;
+            let run = request.run_dir(row, seed);
+            let scores = train_and_evaluate(&request.data, &run, config, with_val, lpips)?;
+            runs[r].push(SeedRun { seed, run, scores });
+            progress(Progress::Finished {
+                index,
+                total,
+                row,
+                run: runs[r].last().expect("just pushed"),
+            });
+            index += 1;
+            results = request
+                .rows
+                .iter()
+                .zip(&runs)
+                .filter(|(_, v)| !v.is_empty())
+                .map(|(row, v)| AblationResult::of(row, v.clone()))
+                .collect();
+            write_outputs(&request.out, &request.config, &results)?;
+        }
     }
-    write_outputs(&request.out, &request.config, &results)?;
     Ok(results)
 }
 
-/// The markdown table of `results` under a heading naming the preset and budget.
+/// `mean` with `digits` decimals, followed by ` ± std` where there is a spread.
+fn cell(mean: f64, std: Option<f64>, digits: usize) -> String {
+    match std {
+        Some(s) => format!("{mean:.digits$} ± {s:.digits$}"),
+        None => format!("{mean:.digits$}"),
+    }
+}
+
+fn opt_cell(mean: Option<f64>, std: Option<Option<f64>>, digits: usize) -> String {
+    mean.map_or("-".into(), |m| cell(m, std.flatten(), digits))
+}
+
+/// The seeds of `results` as the heading says them: `seed 3`, or `seeds 0, 1, 2 (mean ± sample
+/// std over seeds)`.
+fn seeds_heading(config: &TrainConfig, results: &[AblationResult]) -> String {
+    let mut seeds: Vec<u64> = results
+        .iter()
+        .flat_map(|r| r.seeds.iter().map(|s| s.seed))
+        .collect();
+    seeds.sort_unstable();
+    seeds.dedup();
+    match seeds.as_slice() {
+        [] => format!("seed {}", config.seed),
+        [one] => format!("seed {one}"),
+        many => format!(
+            "seeds {} (mean ± sample std over seeds)",
+            many.iter()
+                .map(u64::to_string)
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    }
+}
+
+/// The markdown table of `results` under a heading naming the preset, budget and seeds. With
+/// several seeds every score is `mean ± sample std` and a `seeds` column counts the runs. The K
+/// columns (mean K, and its standard deviation inside a run) are `-` without evolution.
 pub fn table(config: &TrainConfig, results: &[AblationResult]) -> String {
     let with_val = results.iter().any(|r| r.scores.val_psnr.is_some());
+    let multi = results.iter().any(|r| r.seeds.len() > 1);
     let mut s = format!(
-        "# evogs ablate: {} iterations per row, seed {}\n\n\
-         | row | switches | PSNR (dB) | SSIM | lpips_alex |{} flicker | jitter | training (s) | Gaussians | state (KiB) |\n\
-         | --- | --- | ---: | ---: | ---: |{} ---: | ---: | ---: | ---: | ---: |\n",
+        "# evogs ablate: {} iterations per row, {}\n\n\
+         | row | switches |{} PSNR (dB) | SSIM | lpips_alex |{} flicker | jitter | training (s) | Gaussians | state (KiB) | K mean | K std (in run) | K moving / still |\n\
+         | --- | --- |{} ---: | ---: | ---: |{} ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
         config.iterations,
-        config.seed,
+        seeds_heading(config, results),
+        if multi { " seeds |" } else { "" },
         if with_val {
             " val PSNR (dB) | val SSIM | val lpips_alex |"
         } else {
             ""
         },
+        if multi { " ---: |" } else { "" },
         if with_val {
             " ---: | ---: | ---: |"
         } else {
@@ -372,35 +585,55 @@ pub fn table(config: &TrainConfig, results: &[AblationResult]) -> String {
     );
     for r in results {
         let c = &r.scores;
+        let d = r.std.as_ref();
         let val = if with_val {
             format!(
                 " {} | {} | {} |",
-                c.val_psnr.map_or("-".into(), |v| format!("{v:.2}")),
-                c.val_ssim.map_or("-".into(), |v| format!("{v:.4}")),
-                c.val_lpips_alex.map_or("-".into(), |v| format!("{v:.4}"))
+                opt_cell(c.val_psnr, d.map(|d| d.val_psnr), 2),
+                opt_cell(c.val_ssim, d.map(|d| d.val_ssim), 4),
+                opt_cell(c.val_lpips_alex, d.map(|d| d.val_lpips_alex), 4),
             )
         } else {
             String::new()
         };
+        let seeds = if multi {
+            format!(" {} |", r.seeds.len())
+        } else {
+            String::new()
+        };
+        let jitter = match d {
+            Some(d) => format!("{:.3e} ± {:.1e}", c.jitter, d.jitter),
+            None => format!("{:.3e}", c.jitter),
+        };
+        let moving_still = match (c.k_moving, c.k_still) {
+            (None, None) => "-".to_string(),
+            (m, s) => format!(
+                "{} / {}",
+                m.map_or("-".into(), |v| format!("{v:.3}")),
+                s.map_or("-".into(), |v| format!("{v:.3}"))
+            ),
+        };
         s += &format!(
-            "| {} | {} | {:.2} | {:.4} | {} |{val} {:.5} | {:.3e} | {:.1} | {} | {:.1} |\n",
+            "| {} | {} |{seeds} {} | {} | {} |{val} {} | {jitter} | {} | {} | {:.1} | {} | {} | {moving_still} |\n",
             r.name,
             r.switches,
-            c.psnr,
-            c.ssim,
-            c.lpips_alex.map_or("-".into(), |v| format!("{v:.4}")),
-            c.flicker,
-            c.jitter,
-            c.seconds,
-            c.gaussians,
-            c.state_bytes as f64 / 1024.0
+            cell(c.psnr, d.map(|d| d.psnr), 2),
+            cell(c.ssim, d.map(|d| d.ssim), 4),
+            opt_cell(c.lpips_alex, d.map(|d| d.lpips_alex), 4),
+            cell(c.flicker, d.map(|d| d.flicker), 5),
+            cell(c.seconds, d.map(|d| d.seconds), 1),
+            cell(c.gaussians as f64, d.map(|d| d.gaussians), 0),
+            c.state_bytes as f64 / 1024.0,
+            opt_cell(c.k_mean, d.map(|d| d.k_mean), 3),
+            c.k_std.map_or("-".into(), |v| format!("{v:.3}")),
         );
     }
     s
 }
 
 /// Writes `ablation.md`, `ablation.json` and `ablation.png` (PSNR against training time, one
-/// labelled point per row) into `out`, each atomically.
+/// labelled point per row, with error bars of ± one standard deviation over seeds) into `out`,
+/// each atomically.
 pub fn write_outputs(
     out: &Path,
     config: &TrainConfig,
@@ -411,7 +644,7 @@ pub fn write_outputs(
         &out.join("ablation.json"),
         &serde_json::json!({
             "iterations": config.iterations,
-            "seed": config.seed,
+            "seeds": results.first().map(|r| r.seeds.iter().map(|s| s.seed).collect::<Vec<_>>()),
             "rows": results,
         }),
     )?;
@@ -501,7 +734,7 @@ mod tests {
                 Method::Evogs,
                 true,
                 Buffer,
-                TriggerDeform,
+                Standard,
                 Fixed(0.0),
                 P::F32,
                 S::F32,
@@ -605,6 +838,179 @@ mod tests {
             rows[7].switches(),
             "evogs evolution=on history=buffer densify=trigger+deform gain=0.5 net=f32 buffer=f32"
         );
+    }
+
+    fn scores(psnr: f64, gaussians: usize, k: Option<f64>) -> Scores {
+        Scores {
+            psnr,
+            ssim: 0.9,
+            val_psnr: Some(psnr - 1.0),
+            val_ssim: Some(0.8),
+            lpips_alex: None,
+            val_lpips_alex: None,
+            flicker: 0.001,
+            jitter: 1e-4,
+            seconds: 10.0,
+            gaussians,
+            state_bytes: 2048,
+            k_mean: k,
+            k_std: k.map(|_| 0.1),
+            k_moving: k,
+            k_still: None,
+        }
+    }
+
+    fn run(seed: u64, s: Scores) -> SeedRun {
+        SeedRun {
+            seed,
+            run: PathBuf::from(format!("out/full/seed{seed}")),
+            scores: s,
+        }
+    }
+
+    #[test]
+    fn a_row_over_seeds_reports_the_mean_and_the_sample_std() {
+        let row = ladder().into_iter().find(|r| r.name == "full").unwrap();
+        let r = AblationResult::of(
+            &row,
+            vec![
+                run(0, scores(20.0, 100, Some(0.4))),
+                run(1, scores(21.0, 200, Some(0.5))),
+                run(2, scores(22.0, 301, Some(0.6))),
+            ],
+        );
+        assert!((r.scores.psnr - 21.0).abs() < 1e-12);
+        assert_eq!(r.scores.val_psnr, Some(20.0));
+        assert_eq!(r.scores.gaussians, 200); // 601 / 3 rounded
+        assert!((r.scores.k_mean.unwrap() - 0.5).abs() < 1e-12);
+        let d = r.std.as_ref().unwrap();
+        // Sample std of 20, 21, 22 is 1; of 0.4, 0.5, 0.6 is 0.1.
+        assert!((d.psnr - 1.0).abs() < 1e-12);
+        assert!((d.val_psnr.unwrap() - 1.0).abs() < 1e-12);
+        assert!((d.k_mean.unwrap() - 0.1).abs() < 1e-12);
+        assert_eq!(d.lpips_alex, None);
+        assert_eq!(d.ssim, 0.0);
+        assert_eq!(r.seeds.len(), 3);
+        assert_eq!(r.run, PathBuf::from("out/full/seed0"));
+        // A score only some seeds have is left out of the mean.
+        let mixed = AblationResult::of(
+            &row,
+            vec![
+                run(0, scores(20.0, 1, Some(0.4))),
+                run(1, scores(20.0, 1, None)),
+            ],
+        );
+        assert_eq!(mixed.scores.k_mean, None);
+        // One seed: no spread.
+        let one = AblationResult::of(&row, vec![run(5, scores(20.0, 7, None))]);
+        assert!(one.std.is_none());
+        assert_eq!(one.scores, scores(20.0, 7, None));
+    }
+
+    #[test]
+    fn table_with_seeds_shows_mean_plus_minus_std_and_the_k_columns() {
+        let rows = ladder();
+        let (phi, full) = (&rows[1], &rows[5]);
+        let config = TrainConfig::preset(evogs_train::Preset::Tiny);
+        let results = vec![
+            AblationResult::of(
+                phi,
+                vec![
+                    run(0, scores(20.0, 100, None)),
+                    run(1, scores(22.0, 300, None)),
+                ],
+            ),
+            AblationResult::of(
+                full,
+                vec![
+                    run(0, scores(21.0, 100, Some(0.25))),
+                    run(1, scores(21.5, 100, Some(0.75))),
+                ],
+            ),
+        ];
+        let t = table(&config, &results);
+        assert!(
+            t.contains("seeds 0, 1 (mean ± sample std over seeds)"),
+            "{t}"
+        );
+        assert!(t.contains("| row | switches | seeds | PSNR (dB) |"), "{t}");
+        let phi_line = t.lines().find(|l| l.starts_with("| phi ")).unwrap();
+        assert!(phi_line.contains("| 2 | 21.00 ± 1.41 |"), "{phi_line}");
+        assert!(phi_line.contains("| 200 ± 141 |"), "{phi_line}");
+        assert!(phi_line.ends_with("| - | - | - |"), "{phi_line}");
+        let full_line = t.lines().find(|l| l.starts_with("| full ")).unwrap();
+        assert!(full_line.contains("| 21.25 ± 0.35 |"), "{full_line}");
+        assert!(
+            full_line.ends_with("| 0.500 ± 0.354 | 0.100 | 0.500 / - |"),
+            "{full_line}"
+        );
+        // One seed: the heading names it and the cells carry no spread.
+        let single = vec![AblationResult::of(phi, vec![run(4, scores(20.0, 1, None))])];
+        let t = table(&config, &single);
+        assert!(t.contains("per row, seed 4\n"), "{t}");
+        assert!(!t.contains('±'), "{t}");
+    }
+
+    /// The table's format over three seeds (with val, LPIPS on some rows only, and rows with and
+    /// without evolution), and with one seed.
+    #[test]
+    fn table_format_snapshot() {
+        let rows = ladder();
+        let config = TrainConfig::preset(evogs_train::Preset::Tiny);
+        let with_lpips = |mut s: Scores, v: f64| {
+            s.lpips_alex = Some(v);
+            s.val_lpips_alex = Some(v + 0.01);
+            s
+        };
+        let results = vec![
+            AblationResult::of(
+                &rows[1],
+                vec![
+                    run(0, with_lpips(scores(22.0, 3000, None), 0.06)),
+                    run(1, with_lpips(scores(22.5, 3100, None), 0.07)),
+                    run(2, with_lpips(scores(21.5, 2900, None), 0.05)),
+                ],
+            ),
+            AblationResult::of(
+                &rows[5],
+                vec![
+                    run(0, scores(22.25, 3050, Some(0.5))),
+                    run(1, scores(22.5, 3150, Some(0.6))),
+                    run(2, scores(22.0, 2950, Some(0.7))),
+                ],
+            ),
+            AblationResult::of(
+                &rows[6],
+                vec![
+                    run(0, scores(20.0, 3400, Some(0.0))),
+                    run(1, scores(20.5, 3300, Some(0.0))),
+                    run(2, scores(19.5, 3500, Some(0.0))),
+                ],
+            ),
+        ];
+        insta::assert_snapshot!("table_three_seeds", table(&config, &results));
+        let single = vec![AblationResult::of(
+            &rows[5],
+            vec![run(3, scores(22.25, 3050, Some(0.5)))],
+        )];
+        insta::assert_snapshot!("table_one_seed", table(&config, &single));
+    }
+
+    #[test]
+    fn run_directories_gain_a_seed_level_only_with_several_seeds() {
+        let row = &ladder()[0];
+        let mut request = AblationRequest {
+            data: PathBuf::from("d"),
+            out: PathBuf::from("o"),
+            config: TrainConfig::preset(evogs_train::Preset::Tiny),
+            rows: vec![row.clone()],
+            seeds: seeds_from(7, 1),
+        };
+        assert_eq!(request.run_dir(row, 7), PathBuf::from("o/baseline"));
+        request.seeds = seeds_from(7, 3);
+        assert_eq!(request.seeds, [7, 8, 9]);
+        assert_eq!(request.run_dir(row, 8), PathBuf::from("o/baseline/seed8"));
+        assert_eq!(seeds_from(u64::MAX, 2), [u64::MAX, 0]);
     }
 
     #[test]

@@ -1,5 +1,6 @@
-//! The ablation plot: test PSNR against training time, one labelled point per row (`plotters`,
-//! bitmap backend). Text is drawn with the system's sans-serif font; where none can be found the
+//! The ablation plot: test PSNR against training time, one labelled point per row with a
+//! vertical error bar of ± one sample standard deviation over seeds where there are several
+//! (`plotters`, bitmap backend). Text is drawn with the system's sans-serif font; where none can be found the
 //! plot is drawn again without text (points and axes only).
 
 use crate::plotting::{draw_with_fallback, padded_range};
@@ -26,7 +27,12 @@ fn draw(results: &[AblationResult], buf: &mut [u8], text: bool) -> Result<(), St
     let root = BitMapBackend::with_buffer(buf, (WIDTH, HEIGHT)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let (x0, x1) = range(results.iter().map(|r| r.scores.seconds));
-    let (y0, y1) = range(results.iter().map(|r| r.scores.psnr));
+    let spread = |r: &AblationResult| r.std.as_ref().map_or(0.0, |d| d.psnr);
+    let (y0, y1) = range(
+        results
+            .iter()
+            .flat_map(|r| [r.scores.psnr - spread(r), r.scores.psnr + spread(r)]),
+    );
     let mut builder = ChartBuilder::on(&root);
     builder.margin(20);
     if text {
@@ -55,6 +61,28 @@ fn draw(results: &[AblationResult], buf: &mut [u8], text: bool) -> Result<(), St
         .filter(|r| r.scores.seconds.is_finite() && r.scores.psnr.is_finite())
         .map(|r| (r.scores.seconds, r.scores.psnr, r.name.as_str()))
         .collect();
+    let bars: Vec<(f64, f64, f64)> = results
+        .iter()
+        .filter(|r| r.scores.seconds.is_finite() && r.scores.psnr.is_finite())
+        .map(|r| (r.scores.seconds, r.scores.psnr, spread(r)))
+        .collect();
+    chart
+        .draw_series(
+            bars.iter()
+                .enumerate()
+                .filter(|(_, b)| b.2 > 0.0 && b.2.is_finite())
+                .map(|(i, &(x, y, d))| {
+                    ErrorBar::new_vertical(
+                        x,
+                        y - d,
+                        y,
+                        y + d,
+                        Palette99::pick(i).stroke_width(2),
+                        10,
+                    )
+                }),
+        )
+        .map_err(|e| err(&e))?;
     chart
         .draw_series(
             points
