@@ -1,0 +1,66 @@
+//! Evaluation catches non-finite *deformed* Gaussians (issue Q): a run whose canonical
+//! Gaussians are finite but whose deformation network overflows at every time is reported as
+//! such (views and Gaussians counted, a line in the table), and a healthy run reports none.
+
+use crate::common;
+
+use evogs_io::Split;
+use evogs_train::eval::{EvalLpips, evaluate, markdown, non_finite_gaussians};
+use evogs_train::{LoadedRun, Preset, TrainConfig, TrainRequest, train};
+
+fn tiny_run(dir: &std::path::Path) -> LoadedRun {
+    let data = dir.join("scene");
+    common::write_scene(&data);
+    let out = dir.join("run");
+    let mut config = TrainConfig::preset(Preset::Tiny).with_iterations(40);
+    config.init_points = 300;
+    train(
+        &TrainRequest {
+            data,
+            out: out.clone(),
+            config,
+            resume: false,
+            stop_after: None,
+            resume_backend: None,
+        },
+        &mut |_, _| {},
+    )
+    .unwrap();
+    LoadedRun::open(&out).unwrap()
+}
+
+#[test]
+fn an_exploding_deformation_is_reported_and_a_healthy_one_is_not() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut run = tiny_run(dir.path());
+    assert!(run.deforms());
+    let lpips = EvalLpips::default();
+    let healthy = evaluate(&mut run, Split::Val, &lpips).unwrap();
+    assert_eq!(
+        (healthy.non_finite_views, healthy.non_finite_gaussians),
+        (0, 0)
+    );
+    assert!(!markdown(&healthy).contains("Non-finite"));
+
+    // Every network weight 1e30: the hidden activations overflow, the deformations are ±inf or
+    // NaN, while the canonical Gaussians stay finite.
+    assert_eq!(non_finite_gaussians(&run.canonical), 0);
+    for (_, mut p) in run.backbone.params_mut() {
+        let huge = vec![1e30f32; p.len()];
+        p.write_from(&huge);
+    }
+    let n = run.canonical.len();
+    let exploded = evaluate(&mut run, Split::Val, &lpips).unwrap();
+    // 4 val views plus the temporal metrics' 4 distinct times.
+    assert_eq!(exploded.non_finite_views, 8, "{exploded:?}");
+    assert!(
+        exploded.non_finite_gaussians > n / 2 && exploded.non_finite_gaussians <= n,
+        "{} of {n}",
+        exploded.non_finite_gaussians
+    );
+    assert!(markdown(&exploded).contains("**Non-finite deformed Gaussians** at 8"));
+    // The JSON report carries the counts.
+    let json = std::fs::read_to_string(run.paths.eval_json(Split::Val)).unwrap();
+    let back: evogs_train::eval::EvalReport = serde_json::from_str(&json).unwrap();
+    assert_eq!(back.non_finite_views, 8);
+}

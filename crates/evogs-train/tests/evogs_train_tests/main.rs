@@ -1,0 +1,18 @@
+//! evogs-train's integration tests, built as one binary: each module below was its own test
+//! binary before (one link instead of one per file, and the harness runs the tests of every
+//! module on its threads together). One module alone:
+//! `cargo test -p evogs-train --test evogs_train_tests <module>::`.
+
+mod appearance_gradients;
+// Shared with evogs-cli's tests (they include it by path), so it stays at tests/common.
+#[path = "../common/mod.rs"]
+mod common;
+mod datasets;
+mod deformation_learns;
+mod eval_non_finite;
+mod eval_table;
+mod evogs_gradients;
+mod evogs_train;
+mod motion_floor;
+mod resume;
+mod train_log;

@@ -1,0 +1,13 @@
+//! tiny-nn's integration tests, built as one binary: each module below was its own test
+//! binary before (one link instead of one per file, and the harness runs the tests of every
+//! module on its threads together). One module alone:
+//! `cargo test -p tiny-nn --test tiny_nn_tests <module>::`.
+
+mod adam;
+mod common;
+mod encoders;
+mod hashgrid;
+mod hexfield;
+mod hexplane;
+mod mlp;
+mod nets;
