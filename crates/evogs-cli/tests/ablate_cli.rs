@@ -2,40 +2,15 @@
 //! the table, the JSON and the PNG exist, the table and JSON hold exactly those rows, the PNG
 //! decodes; and bad `--rows` gives a one-line error naming the setting.
 
-use std::path::Path;
-use std::process::{Command, Output};
+mod support;
 
-fn evogs(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_evogs"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use support::{evogs, s, stderr, synth};
 
 #[test]
 fn ablates_three_rows_of_a_tiny_scene() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("scene");
-    let o = evogs(&[
-        "synth",
-        "--preset",
-        "jump",
-        "--out",
-        s(&data),
-        "--size",
-        "32",
-        "--frames",
-        "12",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    synth("jump", &data, 32, 12);
     let out = dir.path().join("ablation");
     let o = evogs(&[
         "ablate",

@@ -3,8 +3,9 @@
 //! level), on random small scenes with SH degrees 0–3, an off-centre principal point and hard
 //! cases (behind the camera, zero quaternion, NaN).
 
+mod support;
+
 use std::path::Path;
-use std::process::Command;
 
 use evogs_io::{CameraInfo, read_nerfies_camera, write_nerfies_camera, write_ply};
 use glam::Vec3;
@@ -13,6 +14,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use splat_raster::{Camera, Gaussians};
 use splat_reference::{Params, RefCam};
+use support::s;
 
 type V3 = [f64; 3];
 
@@ -62,23 +64,17 @@ fn render_via_cli(
     write_ply(&ply, g.view()).unwrap();
     write_nerfies_camera(&cam_path, info).unwrap();
     let bg = format!("{},{},{}", background[0], background[1], background[2]);
-    let result = Command::new(env!("CARGO_BIN_EXE_evogs"))
-        .args([
-            "render",
-            "--ply",
-            ply.to_str().unwrap(),
-            "--camera",
-            cam_path.to_str().unwrap(),
-        ])
-        .args(["--out", out.to_str().unwrap(), "--background", &bg])
-        .output()
-        .unwrap();
-    assert!(
-        result.status.success(),
-        "{}",
-        String::from_utf8_lossy(&result.stderr)
-    );
-    let stdout = String::from_utf8_lossy(&result.stdout);
+    let stdout = support::evogs_ok(&[
+        "render",
+        "--ply",
+        s(&ply),
+        "--camera",
+        s(&cam_path),
+        "--out",
+        s(&out),
+        "--background",
+        &bg,
+    ]);
     assert!(
         stdout.contains("2 non-finite") && stdout.contains("zero quaternion"),
         "{stdout}"

@@ -5,42 +5,14 @@
 mod support;
 
 use std::path::Path;
-use support::{evogs, s, stderr};
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
+use support::{evogs, json, rigid_scene, s, stderr, train_tiny};
 
 #[test]
 fn the_4dgs_backbone_trains_a_tiny_scene_and_is_recorded() {
     let dir = tempfile::tempdir().unwrap();
-    let data = dir.path().join("scene");
-    let o = evogs(&[
-        "synth",
-        "--preset",
-        "rigid",
-        "--out",
-        s(&data),
-        "--size",
-        "32",
-        "--frames",
-        "16",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let data = rigid_scene(dir.path(), 32, 16);
     let train = |out: &Path, extra: &[&str]| {
-        let mut a = vec![
-            "train",
-            "--data",
-            s(&data),
-            "--out",
-            s(out),
-            "--preset",
-            "tiny",
-            "--backbone",
-            "4dgs",
-        ];
-        a.extend_from_slice(extra);
-        let o = evogs(&a);
+        let o = train_tiny(&data, out, &[&["--backbone", "4dgs"][..], extra].concat());
         assert!(o.status.success(), "{}", stderr(&o));
         let o = evogs(&["eval", "--run", s(out), "--split", "test"]);
         assert!(o.status.success(), "{}", stderr(&o));

@@ -6,57 +6,18 @@
 mod support;
 
 use std::path::Path;
-use std::process::Command;
 
-use support::{evogs, s, stderr};
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
-
-fn stdout(o: &std::process::Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn synth(dir: &Path) -> std::path::PathBuf {
-    let data = dir.join("scene");
-    let o = evogs(&[
-        "synth",
-        "--preset",
-        "rigid",
-        "--out",
-        s(&data),
-        "--size",
-        "32",
-        "--frames",
-        "8",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    data
-}
+use support::{command, evogs, json, rigid_scene, s, stderr, stdout, train_tiny};
 
 fn train(data: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
-    let mut args = vec![
-        "train",
-        "--data",
-        s(data),
-        "--out",
-        s(out),
-        "--preset",
-        "tiny",
-        "--iterations",
-        "60",
-        "--seed",
-        "5",
-    ];
-    args.extend_from_slice(extra);
-    evogs(&args)
+    let args = ["--iterations", "60", "--seed", "5"];
+    train_tiny(data, out, &[&args[..], extra].concat())
 }
 
 #[test]
 fn wgpu_training_matches_cpu_training_and_resume_keeps_the_backend() {
     let dir = tempfile::tempdir().unwrap();
-    let data = synth(dir.path());
+    let data = rigid_scene(dir.path(), 32, 8);
 
     let cpu_run = dir.path().join("cpu");
     let o = train(&data, &cpu_run, &["--backend", "cpu"]);
@@ -178,21 +139,9 @@ fn auto_says_what_it_chose_and_why() {
     assert!(out.is_file());
 
     // Training says the same, and records `auto` (not what it resolved to).
-    let data = synth(dir.path());
+    let data = rigid_scene(dir.path(), 32, 8);
     let run = dir.path().join("auto");
-    let o = evogs(&[
-        "train",
-        "--data",
-        s(&data),
-        "--out",
-        s(&run),
-        "--preset",
-        "tiny",
-        "--iterations",
-        "2",
-        "--backend",
-        "auto",
-    ]);
+    let o = train_tiny(&data, &run, &["--iterations", "2", "--backend", "auto"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = stdout(&o);
     let expected = if adapter.hardware {
@@ -238,7 +187,7 @@ fn wgpu_without_an_adapter_is_a_one_line_error() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("demo.png");
     // Only Vulkan, and a driver list that names no existing driver: no adapter at all.
-    let o = Command::new(env!("CARGO_BIN_EXE_evogs"))
+    let o = command()
         .args([
             "render",
             "--backend",
@@ -264,7 +213,7 @@ fn wgpu_without_an_adapter_is_a_one_line_error() {
     assert!(!out.exists());
 
     // auto falls back to the CPU instead.
-    let o = Command::new(env!("CARGO_BIN_EXE_evogs"))
+    let o = command()
         .args([
             "render",
             "--backend",

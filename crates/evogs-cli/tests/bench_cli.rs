@@ -3,46 +3,17 @@
 //! their curves and peak memory, the plot and one picture per scene decode; bad input gives a
 //! one-line error naming the setting.
 
-use std::path::Path;
-use std::process::{Command, Output};
+mod support;
 
-fn evogs(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_evogs"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn synth(preset: &str, out: &Path) {
-    let o = evogs(&[
-        "synth",
-        "--preset",
-        preset,
-        "--out",
-        s(out),
-        "--size",
-        "32",
-        "--frames",
-        "8",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-}
+use support::{evogs, s, stderr, synth};
 
 #[test]
 fn benches_two_scenes_with_both_methods() {
     let dir = tempfile::tempdir().unwrap();
     // `dnerf-` is dropped from the scene's name, as for the real D-NeRF folders.
     let (a, b) = (dir.path().join("dnerf-jump"), dir.path().join("wave"));
-    synth("jump", &a);
-    synth("wave", &b);
+    synth("jump", &a, 32, 8);
+    synth("wave", &b, 32, 8);
     let out = dir.path().join("bench");
     let data = format!("{},{}", s(&a), s(&b));
     let o = evogs(&[

@@ -1,18 +1,21 @@
 //! `evogs demo` with a tiny iteration budget: both methods are trained, evaluated and swept, the
 //! table names both with finite metrics, and only EvoGS holds an evolution buffer.
 
-use std::process::Command;
+mod support;
+
+use support::{ok, s};
 
 #[test]
 fn demo_compares_both_methods_and_writes_renders() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("demo");
-    let o = Command::new(env!("CARGO_BIN_EXE_evogs"))
-        .args(["demo", "--iterations", "40", "--out", out.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let text = String::from_utf8_lossy(&o.stdout);
+    let text = ok(&support::evogs(&[
+        "demo",
+        "--iterations",
+        "40",
+        "--out",
+        s(&out),
+    ]));
     let rows: Vec<Vec<&str>> = text
         .lines()
         .filter(|l| l.starts_with("| baseline") || l.starts_with("| evogs"))

@@ -5,12 +5,7 @@
 mod common;
 mod support;
 
-use std::process::Output;
-use support::{evogs, s};
-
-fn ok(o: &Output) {
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-}
+use support::{evogs, ok, s};
 
 #[test]
 fn evogs_run_trains_evaluates_renders_exports_and_resumes() {
@@ -127,15 +122,7 @@ fn evogs_run_trains_evaluates_renders_exports_and_resumes() {
     assert_ne!(loaded.gaussians.means, canonical.gaussians.means);
 
     let cam = dir.path().join("cam.json");
-    let camera = splat_raster::Camera::look_at(
-        24,
-        20,
-        0.8,
-        glam::Vec3::new(3.0, 0.5, 1.0),
-        glam::Vec3::ZERO,
-        glam::Vec3::Z,
-    );
-    evogs_io::write_nerfies_camera(&cam, &evogs_io::CameraInfo::pinhole(camera)).unwrap();
+    support::write_small_camera(&cam);
     let img = dir.path().join("t.png");
     // Times between training frames (the CLI takes times in [0, 1]).
     for t in ["0.41", "0.99"] {

@@ -18,7 +18,7 @@ use evogs_train::run::{RunFile, RunPaths};
 use evogs_train::state::SceneState;
 use evogs_train::trainer::make_backbone;
 use rand::{RngExt, SeedableRng};
-use support::{evogs, s, stderr};
+use support::{rigid_scene, s, stderr};
 
 /// The files of a finished run that must match the uninterrupted run's byte for byte.
 const FINAL_FILES: [&str; 4] = [
@@ -30,20 +30,7 @@ const FINAL_FILES: [&str; 4] = [
 
 /// A small dynamic scene (rigid motion, 8 training frames of 24×24) in `dir/scene`.
 fn scene(dir: &Path) -> PathBuf {
-    let data = dir.join("scene");
-    let o = evogs(&[
-        "synth",
-        "--preset",
-        "rigid",
-        "--out",
-        s(&data),
-        "--size",
-        "24",
-        "--frames",
-        "8",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    data
+    rigid_scene(dir, 24, 8)
 }
 
 /// `evogs train` of an EvoGS run of the tiny preset (warm-up, network, evolution and
@@ -75,7 +62,7 @@ fn resume_args(out: &Path) -> Vec<String> {
 }
 
 fn command(args: &[String]) -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_evogs"));
+    let mut c = support::command();
     c.args(args).stdout(Stdio::null()).stderr(Stdio::piped());
     c
 }
@@ -250,7 +237,7 @@ fn with_file_limit(kib: u64, args: &[String]) -> Output {
         .arg(r#"trap "" XFSZ; ulimit -f "$1"; shift; exec "$@""#)
         .arg("bash")
         .arg(kib.to_string())
-        .arg(env!("CARGO_BIN_EXE_evogs"))
+        .arg(support::BIN)
         .args(args)
         .output()
         .unwrap()
@@ -313,10 +300,7 @@ fn a_memory_limit_refuses_to_start_below_the_estimate_and_caps_densification_abo
         if let Some(limit) = limit {
             args.extend(["--memory-limit".into(), limit.into()]);
         }
-        Command::new(env!("CARGO_BIN_EXE_evogs"))
-            .args(&args)
-            .output()
-            .unwrap()
+        support::command().args(&args).output().unwrap()
     };
     let free = run("free", None);
     assert!(free.status.success(), "{}", stderr(&free));

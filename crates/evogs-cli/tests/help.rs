@@ -1,19 +1,11 @@
 //! `evogs --help` and each subcommand's help, as snapshots of the real binary's output.
 
-use std::process::Command;
+mod support;
+
+use support::{evogs, ok};
 
 fn help(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_evogs"))
-        .args(args)
-        .env("COLUMNS", "100")
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
+    ok(&evogs(args))
 }
 
 #[test]
@@ -30,7 +22,7 @@ fn render_help() {
 
 #[test]
 fn no_subcommand_shows_usage_and_fails() {
-    let out = Command::new(env!("CARGO_BIN_EXE_evogs")).output().unwrap();
+    let out = evogs(&[]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("Usage: evogs"));
 }

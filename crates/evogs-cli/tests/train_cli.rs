@@ -6,45 +6,18 @@ mod common;
 mod support;
 
 use std::path::Path;
-use std::process::Output;
-use support::{evogs, s, stderr};
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
+use support::{evogs, json, one_line_error, rigid_scene, s, stderr, train_tiny};
 
 #[test]
 fn trains_evaluates_renders_and_exports_a_tiny_scene() {
     let dir = tempfile::tempdir().unwrap();
-    let data = dir.path().join("scene");
     // A small synthetic scene from the synth module (rigid motion, 16 training frames, 32×32).
-    let o = evogs(&[
-        "synth",
-        "--preset",
-        "rigid",
-        "--out",
-        s(&data),
-        "--size",
-        "32",
-        "--frames",
-        "16",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let data = rigid_scene(dir.path(), 32, 16);
     let run = dir.path().join("run");
 
     // An untrained run (0 optimiser steps: one iteration, which never steps) is the floor.
     let untrained = dir.path().join("untrained");
-    let o = evogs(&[
-        "train",
-        "--data",
-        s(&data),
-        "--out",
-        s(&untrained),
-        "--preset",
-        "tiny",
-        "--iterations",
-        "1",
-    ]);
+    let o = train_tiny(&data, &untrained, &["--iterations", "1"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let o = evogs(&["eval", "--run", s(&untrained), "--split", "test"]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -52,17 +25,7 @@ fn trains_evaluates_renders_and_exports_a_tiny_scene() {
         .as_f64()
         .unwrap();
 
-    let o = evogs(&[
-        "train",
-        "--data",
-        s(&data),
-        "--out",
-        s(&run),
-        "--preset",
-        "tiny",
-        "--seed",
-        "3",
-    ]);
+    let o = train_tiny(&data, &run, &["--seed", "3"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(out.contains("trained 300 iterations"), "{out}");
@@ -115,15 +78,7 @@ fn trains_evaluates_renders_and_exports_a_tiny_scene() {
 
     // Render one image and a sweep from a nerfies camera.
     let cam = dir.path().join("cam.json");
-    let camera = splat_raster::Camera::look_at(
-        24,
-        20,
-        0.8,
-        glam::Vec3::new(3.0, 0.5, 1.0),
-        glam::Vec3::ZERO,
-        glam::Vec3::Z,
-    );
-    evogs_io::write_nerfies_camera(&cam, &evogs_io::CameraInfo::pinhole(camera)).unwrap();
+    support::write_small_camera(&cam);
     let img = dir.path().join("t.png");
     let o = evogs(&[
         "render",
@@ -186,31 +141,12 @@ fn trains_evaluates_renders_and_exports_a_tiny_scene() {
     assert!(stderr(&o).contains("not a finite number"), "{}", stderr(&o));
 }
 
-fn one_line_error(o: &Output) -> String {
-    assert!(!o.status.success());
-    let e = stderr(o);
-    assert_eq!(e.trim_end().lines().count(), 1, "not one line: {e}");
-    e
-}
-
 #[test]
 fn bad_input_gives_one_line_errors_naming_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("scene");
     common::write_scene(&data);
-    let train = |data: &Path, out: &Path| {
-        evogs(&[
-            "train",
-            "--data",
-            s(data),
-            "--out",
-            s(out),
-            "--preset",
-            "tiny",
-            "--iterations",
-            "2",
-        ])
-    };
+    let train = |data: &Path, out: &Path| train_tiny(data, out, &["--iterations", "2"]);
 
     // A missing image.
     let broken = dir.path().join("missing");

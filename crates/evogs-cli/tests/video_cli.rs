@@ -6,13 +6,13 @@
 mod support;
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 use evogs_io::{CameraInfo, write_nerfies_camera};
 use evogs_train::LoadedRun;
 use evogs_video::video::{LABEL_BAR, PathSpec, TimeSpec, plan_frames};
 use image::{AnimationDecoder, RgbImage};
-use support::{evogs, s, stderr};
+use support::{command, diff, evogs, ok, one_line_error, png, rigid_scene, s, train_tiny};
 
 struct Fixture {
     dir: tempfile::TempDir,
@@ -21,58 +21,21 @@ struct Fixture {
     data: PathBuf,
 }
 
-fn ok(o: &Output) -> String {
-    assert!(o.status.success(), "{}", stderr(o));
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
 /// A rigid synthetic scene (16 training frames, 32×32), a run trained on it with the tiny preset
 /// and an untrained one (a single iteration).
 fn fixture() -> Fixture {
     let dir = tempfile::tempdir().unwrap();
-    let data = dir.path().join("scene");
-    let size = ["--size", "32", "--frames", "16"];
-    ok(&evogs(
-        &[
-            &["synth", "--preset", "rigid", "--out", s(&data)][..],
-            &size,
-        ]
-        .concat(),
-    ));
+    let data = rigid_scene(dir.path(), 32, 16);
     let run = dir.path().join("trained");
-    ok(&evogs(&[
-        "train",
-        "--data",
-        s(&data),
-        "--out",
-        s(&run),
-        "--preset",
-        "tiny",
-        "--iterations",
-        "100",
-    ]));
+    ok(&train_tiny(&data, &run, &["--iterations", "100"]));
     let untrained = dir.path().join("untrained");
-    ok(&evogs(&[
-        "train",
-        "--data",
-        s(&data),
-        "--out",
-        s(&untrained),
-        "--preset",
-        "tiny",
-        "--iterations",
-        "1",
-    ]));
+    ok(&train_tiny(&data, &untrained, &["--iterations", "1"]));
     Fixture {
         dir,
         run,
         untrained,
         data,
     }
-}
-
-fn png(path: &Path) -> RgbImage {
-    image::open(path).unwrap().to_rgb8()
 }
 
 fn gif_frames(path: &Path) -> Vec<RgbImage> {
@@ -85,19 +48,6 @@ fn gif_frames(path: &Path) -> Vec<RgbImage> {
         .into_iter()
         .map(|f| image::DynamicImage::ImageRgba8(f.into_buffer()).to_rgb8())
         .collect()
-}
-
-/// Mean and largest absolute difference of two images' channels, in 8-bit levels.
-fn diff(a: &RgbImage, b: &RgbImage) -> (f64, u8) {
-    assert_eq!(a.dimensions(), b.dimensions());
-    let d: Vec<u8> = a
-        .as_raw()
-        .iter()
-        .zip(b.as_raw())
-        .map(|(x, y)| x.abs_diff(*y))
-        .collect();
-    let mean = d.iter().map(|&v| v as f64).sum::<f64>() / d.len() as f64;
-    (mean, d.into_iter().max().unwrap())
 }
 
 /// `evogs render` of `run` from `camera` at `time`, written through a nerfies camera file.
@@ -376,13 +326,6 @@ fn videos_equal_renders_at_their_cameras_and_times() {
     }
 }
 
-fn one_line_error(o: &Output) -> String {
-    assert!(!o.status.success());
-    let e = stderr(o);
-    assert_eq!(e.trim_end().lines().count(), 1, "{e}");
-    e
-}
-
 #[test]
 fn bad_input_gives_one_line_errors_and_writes_nothing() {
     let f = fixture();
@@ -444,7 +387,7 @@ fn bad_input_gives_one_line_errors_and_writes_nothing() {
     // ffmpeg missing: the error says so and an existing video is untouched.
     let mp4 = dir.join("old.mp4");
     std::fs::write(&mp4, b"old").unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_evogs"))
+    let o = command()
         .args([
             "video",
             "--run",

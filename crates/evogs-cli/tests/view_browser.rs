@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 use headless_chrome::protocol::cdp::{Input, Page};
 use headless_chrome::{Browser, LaunchOptions, Tab};
 use support::s;
-use support::view::{Viewer, diff, fixture};
+use support::view::{ReplyImage, Viewer, diff, fixture};
 
 /// The Chromium binary: `$EVOGS_CHROMIUM`, or Debian's.
 fn chromium() -> PathBuf {

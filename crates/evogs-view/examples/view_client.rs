@@ -8,42 +8,25 @@
 //! cargo run --release -p evogs-view --example view_client -- 127.0.0.1:8080 50 400 jpeg
 //! ```
 
-use std::io::{Read, Write};
-use std::net::TcpStream;
-use std::time::Instant;
+use std::net::SocketAddr;
+use std::time::{Duration, Instant};
 
-fn get(addr: &str, path: &str) -> (u16, Vec<(String, String)>, Vec<u8>) {
-    let mut s = TcpStream::connect(addr).expect("connect");
-    write!(s, "GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n").expect("write");
-    let mut all = Vec::new();
-    s.read_to_end(&mut all).expect("read");
-    let end = all
-        .windows(4)
-        .position(|w| w == b"\r\n\r\n")
-        .expect("a response head");
-    let head = String::from_utf8_lossy(&all[..end]).to_string();
-    let mut lines = head.split("\r\n");
-    let status = lines
-        .next()
-        .and_then(|l| l.split(' ').nth(1))
-        .and_then(|c| c.parse().ok())
-        .unwrap_or(0);
-    let headers = lines
-        .filter_map(|l| l.split_once(':'))
-        .map(|(k, v)| (k.trim().to_ascii_lowercase(), v.trim().to_string()))
-        .collect();
-    (status, headers, all[end + 4..].to_vec())
-}
+use evogs_view::client::{Reply, get};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let addr = args.get(1).map_or("127.0.0.1:8080", String::as_str);
+    let addr: SocketAddr = args
+        .get(1)
+        .map_or("127.0.0.1:8080", String::as_str)
+        .parse()
+        .expect("ADDR as IP:PORT");
     let n: usize = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(50);
     let side: u32 = args.get(3).and_then(|a| a.parse().ok()).unwrap_or(400);
     let fmt = args.get(4).map_or("jpeg", String::as_str);
-    let (status, _, body) = get(addr, "/api/info");
-    assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
-    let info: serde_json::Value = serde_json::from_slice(&body).expect("info JSON");
+    let timeout = Duration::from_secs(120);
+    let reply = get(addr, "/api/info", timeout).expect("connect");
+    assert_eq!(reply.status, 200, "{}", reply.text());
+    let info: serde_json::Value = serde_json::from_slice(&reply.body).expect("info JSON");
     let run = &info["runs"][0];
     let cams = &run["cameras"]["test"];
     let cam = if cams.as_array().is_some_and(|c| !c.is_empty()) {
@@ -94,9 +77,9 @@ fn main() {
             list(&c.to_array()),
             list(&k)
         );
-        let (status, headers, body) = get(addr, &path);
-        assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
-        if let Some((_, ms)) = headers.iter().find(|(k, _)| k == "x-render-ms") {
+        let reply: Reply = get(addr, &path, timeout).expect("connect");
+        assert_eq!(reply.status, 200, "{}", reply.text());
+        if let Some(ms) = reply.header("x-render-ms") {
             server_ms.push(ms.parse::<f64>().unwrap_or(f64::NAN));
         }
     }

@@ -13,11 +13,13 @@
 //! - [`worker`]: the thread that owns a loaded run, renders, and reloads it (`--watch`);
 //! - [`http`]: the connection layer: a fixed number of worker threads, a bounded backlog,
 //!   request heads parsed by `httparse`, size and time limits;
-//! - [`server`]: the routes and [`start`].
+//! - [`server`]: the routes and [`start`];
+//! - [`client`]: a minimal HTTP client of a running viewer (its tests and timing example).
 //!
 //! What it is not: a renderer (that is `splat-raster`), a trainer, or a file server: no path
 //! from a request ever reaches the file system.
 
+pub mod client;
 pub mod error;
 pub mod http;
 pub mod latest;

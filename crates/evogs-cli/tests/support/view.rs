@@ -1,13 +1,17 @@
-//! What the viewer's tests share: a tiny trained run, a running `evogs view`, and a minimal
-//! HTTP/1.1 client (one request per connection, as the viewer answers).
+//! What the viewer's tests share: a tiny trained run, and a running `evogs view` asked through
+//! the viewer's own minimal HTTP client (`evogs_view::client`).
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::{SocketAddr, TcpStream};
+use std::io::{BufRead, BufReader, Read};
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Stdio};
 use std::time::Duration;
 
-use super::{evogs, s, stderr};
+use evogs_view::client;
+pub use evogs_view::client::Reply;
+
+pub use super::diff;
+use super::{command, evogs_ok, ok, rigid_scene, s, train_tiny};
 
 /// A rigid synthetic scene (16 frames, 32×32) and a run trained on it with the tiny preset,
 /// evaluated on the test split (so that the viewer has a PSNR to show).
@@ -20,39 +24,25 @@ pub struct RunFixture {
     pub run: PathBuf,
 }
 
-fn ok(args: &[&str]) {
-    let o = evogs(args);
-    assert!(o.status.success(), "evogs {args:?}: {}", stderr(&o));
+/// Trains a run of `iterations` on the 32×32 rigid scene of 16 frames in `dir/scene` (written
+/// first if missing) into `dir/name`.
+pub fn train_run(dir: &Path, name: &str, iterations: u32) -> PathBuf {
+    train_run_with(dir, name, iterations, &[])
 }
 
-/// Trains a run of `iterations` on a fresh 32×32 rigid scene in `dir/name`.
-pub fn train_run(dir: &Path, name: &str, iterations: u32) -> PathBuf {
+/// [`train_run`] with more `evogs train` arguments.
+pub fn train_run_with(dir: &Path, name: &str, iterations: u32, extra: &[&str]) -> PathBuf {
     let data = dir.join("scene");
     if !data.exists() {
-        ok(&[
-            "synth",
-            "--preset",
-            "rigid",
-            "--out",
-            s(&data),
-            "--size",
-            "32",
-            "--frames",
-            "16",
-        ]);
+        rigid_scene(dir, 32, 16);
     }
     let run = dir.join(name);
-    ok(&[
-        "train",
-        "--data",
-        s(&data),
-        "--out",
-        s(&run),
-        "--preset",
-        "tiny",
-        "--iterations",
-        &iterations.to_string(),
-    ]);
+    let iterations = iterations.to_string();
+    ok(&train_tiny(
+        &data,
+        &run,
+        &[&["--iterations", &iterations][..], extra].concat(),
+    ));
     run
 }
 
@@ -60,7 +50,7 @@ pub fn train_run(dir: &Path, name: &str, iterations: u32) -> PathBuf {
 pub fn fixture() -> RunFixture {
     let dir = tempfile::tempdir().unwrap();
     let run = train_run(dir.path(), "trained", 100);
-    ok(&["eval", "--run", s(&run), "--split", "test"]);
+    evogs_ok(&["eval", "--run", s(&run), "--split", "test"]);
     RunFixture {
         data: dir.path().join("scene"),
         dir,
@@ -80,7 +70,7 @@ pub struct Viewer {
 impl Viewer {
     /// Starts `evogs view ARGS --port 0` and waits for its URL.
     pub fn start(args: &[&str]) -> Self {
-        let child = Command::new(env!("CARGO_BIN_EXE_evogs"))
+        let child = command()
             .arg("view")
             .args(args)
             .args(["--port", "0"])
@@ -121,26 +111,12 @@ impl Viewer {
 
     /// GET `path` (with the query).
     pub fn get(&self, path: &str) -> Reply {
-        self.raw(
-            format!(
-                "GET {path} HTTP/1.1\r\nHost: 127.0.0.1:{}\r\n\r\n",
-                self.addr.port()
-            )
-            .as_bytes(),
-        )
+        client::get(self.addr, path, Duration::from_secs(120)).unwrap()
     }
 
     /// Sends `bytes` as they are and reads the reply.
     pub fn raw(&self, bytes: &[u8]) -> Reply {
-        let mut stream = TcpStream::connect(self.addr).unwrap();
-        stream
-            .set_read_timeout(Some(Duration::from_secs(120)))
-            .unwrap();
-        // The viewer may answer and close before all of a long request is written.
-        let _ = stream.write_all(bytes);
-        let mut all = Vec::new();
-        let _ = stream.read_to_end(&mut all);
-        Reply::parse(&all)
+        client::send(self.addr, bytes, Duration::from_secs(120)).unwrap()
     }
 }
 
@@ -151,73 +127,15 @@ impl Drop for Viewer {
     }
 }
 
-/// A parsed HTTP response.
-#[derive(Debug)]
-pub struct Reply {
-    /// The status code (0 when nothing came back).
-    pub status: u16,
-    /// The headers, names in lower case.
-    pub headers: Vec<(String, String)>,
-    /// The body.
-    pub body: Vec<u8>,
+/// A reply's body as an image.
+pub trait ReplyImage {
+    /// The body decoded as an image (the status must be 200).
+    fn image(&self) -> image::RgbImage;
 }
 
-impl Reply {
-    fn parse(all: &[u8]) -> Self {
-        let Some(end) = all.windows(4).position(|w| w == b"\r\n\r\n") else {
-            return Self {
-                status: 0,
-                headers: Vec::new(),
-                body: all.to_vec(),
-            };
-        };
-        let head = String::from_utf8_lossy(&all[..end]);
-        let mut lines = head.split("\r\n");
-        let status = lines
-            .next()
-            .and_then(|l| l.split(' ').nth(1))
-            .and_then(|c| c.parse().ok())
-            .unwrap_or(0);
-        let headers = lines
-            .filter_map(|l| l.split_once(':'))
-            .map(|(k, v)| (k.trim().to_ascii_lowercase(), v.trim().to_string()))
-            .collect();
-        Self {
-            status,
-            headers,
-            body: all[end + 4..].to_vec(),
-        }
-    }
-
-    /// A header's value.
-    pub fn header(&self, name: &str) -> Option<&str> {
-        self.headers
-            .iter()
-            .find(|(k, _)| k == name)
-            .map(|(_, v)| v.as_str())
-    }
-
-    /// The body as text.
-    pub fn text(&self) -> String {
-        String::from_utf8_lossy(&self.body).into_owned()
-    }
-
-    /// The body decoded as an image.
-    pub fn image(&self) -> image::RgbImage {
+impl ReplyImage for Reply {
+    fn image(&self) -> image::RgbImage {
         assert_eq!(self.status, 200, "{}", self.text());
         image::load_from_memory(&self.body).unwrap().to_rgb8()
     }
-}
-
-/// Mean and largest absolute channel difference of two images of one size.
-pub fn diff(a: &image::RgbImage, b: &image::RgbImage) -> (f64, u8) {
-    assert_eq!(a.dimensions(), b.dimensions());
-    let mut sum = 0u64;
-    let mut max = 0u8;
-    for (x, y) in a.as_raw().iter().zip(b.as_raw()) {
-        let d = x.abs_diff(*y);
-        sum += u64::from(d);
-        max = max.max(d);
-    }
-    (sum as f64 / a.as_raw().len() as f64, max)
 }
