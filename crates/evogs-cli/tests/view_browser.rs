@@ -12,8 +12,9 @@ use std::time::{Duration, Instant};
 
 use headless_chrome::protocol::cdp::{Input, Page};
 use headless_chrome::{Browser, LaunchOptions, Tab};
+use support::diff;
 use support::s;
-use support::view::{ReplyImage, Viewer, diff, fixture};
+use support::view::{ReplyImage, Viewer, fixture};
 
 /// The Chromium binary: `$EVOGS_CHROMIUM`, or Debian's.
 fn chromium() -> PathBuf {

@@ -7,8 +7,8 @@ mod support;
 
 use std::path::Path;
 
-use support::view::{ReplyImage, Viewer, diff, fixture, train_run};
-use support::{evogs, png, s, stderr};
+use support::view::{ReplyImage, Viewer, fixture, train_run};
+use support::{diff, evogs, png, s, stderr};
 
 /// `evogs render --run RUN --camera CAMERA --time T [--width W --height H]`, decoded.
 fn render(run: &Path, camera: &str, time: &str, size: Option<(u32, u32)>) -> image::RgbImage {

@@ -10,7 +10,6 @@ use std::time::Duration;
 use evogs_view::client;
 pub use evogs_view::client::Reply;
 
-pub use super::diff;
 use super::{command, evogs_ok, ok, rigid_scene, s, train_tiny};
 
 /// A rigid synthetic scene (16 frames, 32×32) and a run trained on it with the tiny preset,
