@@ -1,8 +1,11 @@
 #!/bin/bash
 # Copies the ladder's outputs into the repository's results/ablation-monocular/.
+# WORK: the folder the runs were made in (default ./runs/ablation-monocular); EVOGS: the evogs binary (default evogs on PATH).
 set -euo pipefail
-cd /work/shared/runs/e/mono
-R=/work/wt/e/results/ablation-monocular
+R=$(cd "$(dirname "$0")" && pwd)
+WORK=${WORK:-$PWD/runs/ablation-monocular}
+cd "$WORK"
+
 mkdir -p $R
 for d in ladder/jump ladder/wave ladder/jumpingjacks ladder-seed1/jump ladder-seed1/wave ladder-seed2/jump ladder-seed2/wave; do
   [ -f $d/ablation.json ] || continue

@@ -1,7 +1,8 @@
 #!/bin/bash
 # strip.sh SCENE_DIR SPLIT OUT.png RUN... : top row ground truth, one row per run, views 0..n of SPLIT, 4x nearest upscale.
+# WORK: the folder the runs were made in (default ./runs/ablation-monocular); EVOGS: the evogs binary (default evogs on PATH).
 set -euo pipefail
-B=/work/shared/runs/e/bin/evogs
+B=${EVOGS:-evogs}
 scene=$1; split=$2; out=$3; shift 3
 tmp=$(mktemp -d)
 n=$(python3 -c "import json;print(len(json.load(open('$scene/transforms_$split.json'))['frames']))")
