@@ -383,9 +383,13 @@ impl SceneState {
             })
             .collect();
         let result = {
+            // At SH degree 0 the `f_rest` group (index 2) holds no value, so it has no rows to
+            // carry: the plan leaves it empty (densify cannot count the rows of an empty group).
+            let rest_empty = rest_width(&self.gaussians) == 0;
             let mut moments: Vec<Moments<'_>> = taken
                 .iter_mut()
                 .enumerate()
+                .filter(|&(k, _)| !(rest_empty && k == 2))
                 .map(|(k, group)| Moments {
                     group,
                     // Only the opacity group (index 3) holds opacities.
@@ -415,6 +419,10 @@ mod tests {
     use splat_core::RowPlan;
 
     fn state(n: usize) -> (SceneState, D3dgsBackbone) {
+        state_of_degree(n, 3)
+    }
+
+    fn state_of_degree(n: usize, sh_degree: u32) -> (SceneState, D3dgsBackbone) {
         let c = TrainConfig::preset(Preset::Tiny);
         let net = NetSettings {
             width: 8,
@@ -423,7 +431,7 @@ mod tests {
             ..c.net
         };
         let backbone = D3dgsBackbone::new(&net, 1).unwrap();
-        let g = crate::init::random_gaussians(n, 1.0, 3, 5);
+        let g = crate::init::random_gaussians(n, 1.0, sh_degree, 5);
         let mut s = SceneState::new(g, &backbone, &c.lr).unwrap();
         // Distinct moments per row so that the plan's row movements are visible.
         for id in s.groups.all() {
@@ -468,14 +476,13 @@ mod tests {
         assert_eq!(s.first_non_finite(&backbone), Some((param, 5)));
     }
 
-    #[test]
-    fn a_plan_keeps_every_group_aligned() {
-        let (mut s, mut backbone) = state(5);
-        let parent_from_new = vec![1u32, 4];
-        let plan = DensifyPlan {
+    /// Five rows to six: rows 0, 1, 3, 4 kept, two new rows cloned from 1 and 4, row 2's
+    /// opacity reset.
+    fn five_to_six() -> DensifyPlan {
+        DensifyPlan {
             rows: RowPlan {
                 kept: vec![0, 1, 3, 4],
-                parent_from_new: parent_from_new.clone(),
+                parent_from_new: vec![1, 4],
             },
             old_len: 5,
             new_values: NewValues {
@@ -489,7 +496,26 @@ mod tests {
             reset_opacity: 0.01,
             clears_stats: true,
             summary: PlanSummary::default(),
-        };
+        }
+    }
+
+    #[test]
+    fn a_plan_applies_at_sh_degree_zero_where_the_rest_group_is_empty() {
+        let (mut s, mut backbone) = state_of_degree(5, 0);
+        s.apply_plan(&five_to_six(), &mut backbone).unwrap();
+        assert_eq!((s.len(), s.stats.len()), (6, 6));
+        for id in s.groups.all() {
+            let g = s.adam.group(id);
+            let rows = if g.name == "f_rest" { 0 } else { 6 };
+            assert_eq!(g.m.len(), rows * g.row_width, "{}", g.name);
+            assert_eq!(g.v.len(), g.m.len(), "{}", g.name);
+        }
+    }
+
+    #[test]
+    fn a_plan_keeps_every_group_aligned() {
+        let (mut s, mut backbone) = state(5);
+        let plan = five_to_six();
         let before = s.gaussians.clone();
         s.apply_plan(&plan, &mut backbone).unwrap();
         assert_eq!(s.len(), 6);
