@@ -7,6 +7,8 @@ use super::effects::{AppearanceChange, Jump, LargeMotion, Occlusion, RigidMotion
 use super::protocol::{CaptureNoise, Protocol};
 
 /// A named scene recipe.
+#[derive(strum::IntoStaticStr, strum::EnumString)]
+#[strum(serialize_all = "lowercase")]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Preset {
@@ -26,12 +28,7 @@ impl Preset {
 
     /// The preset's name (`rigid`, `wave`, `jump`, `mixed`).
     pub fn name(self) -> &'static str {
-        match self {
-            Self::Rigid => "rigid",
-            Self::Wave => "wave",
-            Self::Jump => "jump",
-            Self::Mixed => "mixed",
-        }
+        self.into()
     }
 
     /// One line saying which effects the preset enables.
@@ -50,7 +47,7 @@ impl Preset {
 
     /// The preset with this name.
     pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|p| p.name() == name)
+        name.parse().ok()
     }
 }
 
@@ -345,6 +342,17 @@ mod tests {
             assert!(p.help().starts_with("effects: "));
         }
         assert_eq!(Preset::from_name("nope"), None);
+    }
+
+    #[test]
+    fn names_are_the_lowercase_spellings_and_only_exact_names_are_found() {
+        let names: Vec<&str> = Preset::ALL.iter().map(|p| p.name()).collect();
+        assert_eq!(names, ["rigid", "wave", "jump", "mixed"]);
+        let names: Vec<&str> = Protocol::ALL.iter().map(|p| p.name()).collect();
+        assert_eq!(names, ["dnerf", "monocular"]);
+        assert_eq!(Preset::from_name("Rigid"), None);
+        assert_eq!(Preset::from_name("dnerf"), None);
+        assert_eq!(Protocol::from_name(""), None);
     }
 
     #[test]

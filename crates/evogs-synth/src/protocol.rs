@@ -16,6 +16,8 @@ use splat_raster::Camera;
 use super::SynthFrame;
 
 /// How a scene is captured (recorded in `scene.json` when it is not the default `dnerf`).
+#[derive(strum::IntoStaticStr, strum::EnumString)]
+#[strum(serialize_all = "lowercase")]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Protocol {
@@ -35,10 +37,7 @@ impl Protocol {
 
     /// The protocol's name (`dnerf`, `monocular`).
     pub fn name(self) -> &'static str {
-        match self {
-            Self::Dnerf => "dnerf",
-            Self::Monocular => "monocular",
-        }
+        self.into()
     }
 
     /// One line saying where the cameras are.
@@ -56,7 +55,7 @@ impl Protocol {
 
     /// The protocol with this name.
     pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|p| p.name() == name)
+        name.parse().ok()
     }
 
     /// Whether this is the default (`dnerf`), which `scene.json` leaves unrecorded so that its
