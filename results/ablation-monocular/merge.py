@@ -88,6 +88,9 @@ for name in order:
 
 print("\n### Claims (paired per seed: mean ± sample std of the difference, seeds)\n")
 def claim(label, a, b):
+    if not paired(a, b, "psnr")[0]:
+        print(f"- {label}: {a} − {b}: not run on this scene")
+        return
     for key, what in (("psnr", "test"), ("val_psnr", "val")):
         d, s = paired(a, b, key)
         print(f"- {label} {what}: {a} − {b} = {ms(d, sign=True)} dB (seeds {s}; per seed {', '.join(f'{x:+.2f}' for x in d)})")
@@ -97,6 +100,8 @@ claim("(a)", "full", "phi")
 claim("(b)", "evo-buffer", "evo-requery")
 claim("(c1)", "full", "k0.5")
 claim("(c2)", "k0.5", "k0")
+claim("(c3)", "full", "k1")
+claim("(e)", "phi", "baseline")
 claim("(d)", "trigger", "evo-buffer")
 
 print("\n### K per frame and residual memory per frame (seed 0)\n")
@@ -104,7 +109,10 @@ for name in ["evo-requery", "evo-buffer", "trigger", "full", "k0.5", "k0"]:
     if 0 not in runs.get(name, {}):
         continue
     run = runs[name][0]["run"]
-    tm = json.loads(((root / run) / "train_metrics.json").read_text())
+    metrics = (root / run) / "train_metrics.json"
+    if not metrics.exists():  # the run folders are not kept in the repository
+        continue
+    tm = json.loads(metrics.read_text())
     pf = tm.get("gain", {}).get("per_frame", [])
     ks = " ".join("-" if f is None else f"{f['mean']:.2f}" for f in pf)
     rs = residual_stats(run)
