@@ -1,7 +1,7 @@
 //! `evogs demo` with a tiny iteration budget: both methods are trained, evaluated and swept, the
 //! table names both with finite metrics, and only EvoGS holds an evolution buffer.
 
-mod support;
+use crate::support;
 
 use support::{ok, s};
 

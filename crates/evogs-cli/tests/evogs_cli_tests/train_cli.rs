@@ -1,9 +1,8 @@
 //! `evogs train`, `eval`, `render --run` and `export` end to end through the binary on a tiny
 //! dynamic scene, and one-line errors naming the file for bad input.
 
-#[path = "../../evogs-train/tests/common/mod.rs"]
-mod common;
-mod support;
+use crate::common;
+use crate::support;
 
 use std::path::Path;
 use support::{evogs, json, one_line_error, rigid_scene, s, stderr, train_tiny};

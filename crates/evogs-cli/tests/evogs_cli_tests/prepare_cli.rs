@@ -3,7 +3,7 @@
 //! similarity alignment, then a short training that beats an untrained model; and bad inputs,
 //! each a one-line error that leaves nothing behind.
 
-mod support;
+use crate::support;
 
 use std::path::Path;
 

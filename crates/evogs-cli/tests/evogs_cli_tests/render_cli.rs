@@ -1,7 +1,7 @@
 //! The `evogs render` binary end to end: renders from files written by the io crate, the demo
 //! scene, and one-line errors naming the file for bad input, never touching an existing output.
 
-mod support;
+use crate::support;
 use std::path::PathBuf;
 
 use evogs_io::{CameraInfo, Distortion, write_nerfies_camera, write_ply};

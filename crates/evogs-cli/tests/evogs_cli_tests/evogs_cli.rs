@@ -1,9 +1,8 @@
 //! `evogs train --method evogs` (with non-default switches), then `eval`, `render --run`,
 //! `export` and `--resume` on the run, through the binary on the tiny moving-block scene.
 
-#[path = "../../evogs-train/tests/common/mod.rs"]
-mod common;
-mod support;
+use crate::common;
+use crate::support;
 
 use support::{evogs, ok, s};
 

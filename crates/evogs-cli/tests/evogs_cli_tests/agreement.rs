@@ -3,7 +3,7 @@
 //! level), on random small scenes with SH degrees 0–3, an off-centre principal point and hard
 //! cases (behind the camera, zero quaternion, NaN).
 
-mod support;
+use crate::support;
 
 use std::path::Path;
 

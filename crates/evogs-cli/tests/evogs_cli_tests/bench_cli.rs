@@ -3,7 +3,7 @@
 //! their curves and peak memory, the plot and one picture per scene decode; bad input gives a
 //! one-line error naming the setting.
 
-mod support;
+use crate::support;
 
 use support::{evogs, s, stderr, synth};
 

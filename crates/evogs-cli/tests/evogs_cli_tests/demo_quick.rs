@@ -3,7 +3,7 @@
 //! worse than the baseline beyond run-to-run noise. Training is deterministic for the seed, so
 //! the margin below covers changes of the code rather than of the machine.
 
-mod support;
+use crate::support;
 
 use support::{evogs, s};
 

@@ -1,6 +1,6 @@
 //! What the binary's integration tests share: the `evogs` binary and running it, reading its
-//! output and files, and the tiny synthetic scenes and runs they train on. Each test file
-//! includes this module (`mod support;`) and uses what it needs.
+//! output and files, and the tiny synthetic scenes and runs they train on. Each test module
+//! uses what it needs (`use crate::support;`).
 
 #![allow(dead_code)]
 

@@ -4,7 +4,7 @@
 //! equals the server's render at the page's camera and time (the page in its PNG test mode, so
 //! the comparison is lossless).
 
-mod support;
+use crate::support;
 
 use std::ffi::OsStr;
 use std::path::PathBuf;

@@ -3,7 +3,7 @@
 //! kept by `--resume` unless overridden; `auto` says what it chose and why; `wgpu` without an
 //! adapter is a one-line error.
 
-mod support;
+use crate::support;
 
 use std::path::Path;
 

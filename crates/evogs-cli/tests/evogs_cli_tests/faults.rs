@@ -7,7 +7,7 @@
 //!   EFBIG as they fail with ENOSPC): a one-line error naming the file, the previous checkpoint
 //!   intact, and a resume once space is back ends bit for bit like the uninterrupted run.
 
-mod support;
+use crate::support;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};

@@ -3,7 +3,7 @@
 //! GIF within its palette, mp4 decoded with ffmpeg within H.264's loss), side-by-side runs, and
 //! one-line errors that leave nothing half-written.
 
-mod support;
+use crate::support;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -2,7 +2,7 @@
 //! trains well above the untrained floor, the run records the backbone and its weights, and
 //! unsupported combinations are one-line errors.
 
-mod support;
+use crate::support;
 
 use std::path::Path;
 use support::{evogs, json, rigid_scene, s, stderr, train_tiny};

@@ -1,6 +1,6 @@
 //! `evogs --help` and each subcommand's help, as snapshots of the real binary's output.
 
-mod support;
+use crate::support;
 
 use support::{evogs, ok};
 

@@ -2,7 +2,7 @@
 //! the table, the JSON and the PNG exist, the table and JSON hold exactly those rows, the PNG
 //! decodes; and bad `--rows` gives a one-line error naming the setting.
 
-mod support;
+use crate::support;
 
 use support::{evogs, s, stderr, synth};
 

@@ -3,7 +3,7 @@
 //! malformed requests (4xx with a reason, never a crash, no file ever served), the connection
 //! bound, `--watch`, and runs that cannot be loaded.
 
-mod support;
+use crate::support;
 
 use std::path::Path;
 

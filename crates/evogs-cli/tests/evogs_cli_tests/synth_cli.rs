@@ -1,6 +1,6 @@
 //! `evogs synth`: help snapshot, a small run read back by the D-NeRF reader, and bad arguments.
 
-mod support;
+use crate::support;
 
 use support::evogs;
 
