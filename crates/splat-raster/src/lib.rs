@@ -75,6 +75,22 @@ pub trait Rasterizer {
         opts: &RenderOptions,
     ) -> Result<ForwardOutput, RasterError>;
 
+    /// [`forward`](Self::forward) into `out` (start from [`ForwardOutput::default`]), reusing
+    /// its buffers where the backend can: the CPU backend reuses every buffer of the pass, so a
+    /// caller rendering view after view (the viewer) allocates nothing once the sizes stop
+    /// growing. `out` ends equal to what `forward` returns, whatever it held before; on an error
+    /// its content is unspecified. The default implementation calls `forward`.
+    fn forward_into(
+        &self,
+        g: GaussiansView<'_>,
+        cam: &Camera,
+        opts: &RenderOptions,
+        out: &mut ForwardOutput,
+    ) -> Result<(), RasterError> {
+        *out = self.forward(g, cam, opts)?;
+        Ok(())
+    }
+
     /// Gradients of a loss with respect to every raw parameter, given the loss gradients of the
     /// forward outputs (`d.alpha`, `d.depth` may be omitted when the loss does not use them).
     /// `fwd` must be the output of `forward` on the same inputs.

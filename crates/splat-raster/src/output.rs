@@ -27,6 +27,31 @@ pub struct ForwardOutput {
     pub(crate) state: BackwardState,
 }
 
+impl Default for ForwardOutput {
+    /// An empty output (a 0×0 image), for [`Rasterizer::forward_into`](crate::Rasterizer::forward_into)
+    /// to render into.
+    fn default() -> Self {
+        Self {
+            width: 0,
+            height: 0,
+            color: Vec::new(),
+            alpha: Vec::new(),
+            depth: Vec::new(),
+            stats: CullStats::default(),
+            state: BackwardState {
+                n_gaussians: 0,
+                sh_degree: 0,
+                active_degree: 0,
+                background: [0.0; 3],
+                radii: Vec::new(),
+                counters: Counters::default(),
+                tile_pairs: 0,
+                backend: BackendState::Cpu(Box::default()),
+            },
+        }
+    }
+}
+
 /// Per-frame state kept for the backward pass: what every backend records, and the backend's
 /// own state (the GPU backend keeps its buffers on the device).
 #[derive(Clone, Debug)]
@@ -45,7 +70,8 @@ pub(crate) struct BackwardState {
 /// The backend-specific part of [`BackwardState`].
 #[derive(Clone, Debug)]
 pub(crate) enum BackendState {
-    Cpu(crate::cpu::CpuState),
+    /// Boxed: the CPU state (with its reused buffers) is far larger than the GPU's handle.
+    Cpu(Box<crate::cpu::CpuState>),
     #[cfg(feature = "wgpu")]
     Gpu(Box<crate::gpu::GpuState>),
 }

@@ -30,7 +30,7 @@ use crate::frame::Frame;
 use crate::gaussians::GaussiansView;
 use crate::options::{CullStats, RenderOptions};
 use crate::output::{
-    BackendState, BackwardOutput, BackwardState, Counters, ForwardOutput, GaussianGrads, PixelGrads,
+    BackendState, BackwardOutput, Counters, ForwardOutput, GaussianGrads, PixelGrads,
 };
 use crate::validate::{validate, validate_backward};
 
@@ -124,7 +124,7 @@ impl CpuRasterizer {
     }
 }
 
-/// The CPU backend's backward state.
+/// The CPU backend's backward state, and the buffers a forward pass reuses.
 #[derive(Clone, Debug)]
 pub(crate) struct CpuState {
     /// The kernels the forward pass ran (the backward pass runs the same).
@@ -136,6 +136,40 @@ pub(crate) struct CpuState {
     pub final_t: Vec<f32>,
     /// Tile-major one-past-last contributor position in the tile list.
     pub last: Vec<u32>,
+    /// Buffers only the forward pass uses, kept for the next one by
+    /// [`Rasterizer::forward_into`] (empty after [`Rasterizer::forward`]).
+    pub scratch: Scratch,
+}
+
+impl Default for CpuState {
+    fn default() -> Self {
+        Self {
+            kernels: Kernels::of(CpuKernel::Simd),
+            splats: Vec::new(),
+            lists: TileLists::default(),
+            final_t: Vec::new(),
+            last: Vec::new(),
+            scratch: Scratch::default(),
+        }
+    }
+}
+
+/// The forward pass's own buffers (only their capacity outlives a pass).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Scratch {
+    /// Per Gaussian, its projection or why it was culled.
+    projected: Vec<Result<project::Projected, CullReason>>,
+    /// Per Gaussian (by index), its record (default when culled).
+    splats: Vec<Splat>,
+    /// Per Gaussian, its tile rectangle (None when culled).
+    rects: Vec<Option<[u32; 4]>>,
+    /// Per Gaussian, its camera z (0 when culled).
+    depth: Vec<f32>,
+    /// Tile-major (tile, lane) colour and un-normalised depth.
+    color_t: Vec<[f32; 3]>,
+    depth_t: Vec<f32>,
+    /// The binning's buffers.
+    bin: tiles::BinScratch,
 }
 
 fn count(stats: &mut CullStats, reason: CullReason) {
@@ -169,28 +203,64 @@ fn tile_lane(frame: &Frame, x: usize, y: usize) -> (usize, usize) {
 }
 
 impl CpuRasterizer {
-    fn forward_impl(
+    /// The forward pass into `out`, reusing the buffers of its CPU state (when it holds one)
+    /// and of its images: nothing is allocated once they are large enough. The values written
+    /// do not depend on what `out` held.
+    fn forward_into_impl(
         &self,
         g: GaussiansView<'_>,
         cam: &Camera,
         opts: &RenderOptions,
-    ) -> Result<ForwardOutput, RasterError> {
+        out: &mut ForwardOutput,
+    ) -> Result<(), RasterError> {
         let active = validate(&g, cam, opts)?;
         let frame = Frame::new(cam);
         let n = g.len();
-        let projected: Vec<Result<project::Projected, CullReason>> = (0..n)
-            .into_par_iter()
-            .map(|i| project::project(&frame, &g, active, i))
-            .collect();
+        // The previous pass's CPU buffers, or fresh ones.
+        #[allow(unreachable_patterns)]
+        let mut cpu =
+            match std::mem::replace(&mut out.state.backend, BackendState::Cpu(Box::default())) {
+                BackendState::Cpu(cpu) => cpu,
+                _ => Box::default(),
+            };
+        cpu.kernels = self.kernels;
+        let CpuState {
+            splats: sorted,
+            lists,
+            final_t,
+            last,
+            scratch,
+            ..
+        } = &mut *cpu;
+        let Scratch {
+            projected,
+            splats,
+            rects,
+            depth,
+            color_t,
+            depth_t,
+            bin,
+        } = scratch;
+        projected.clear();
+        projected.par_extend(
+            (0..n)
+                .into_par_iter()
+                .map(|i| project::project(&frame, &g, active, i)),
+        );
         let mut stats = CullStats {
             total: n,
             ..CullStats::default()
         };
-        let mut splats = vec![Splat::default(); n];
-        let mut rects = vec![None; n];
-        let mut depth = vec![0.0f32; n];
-        let mut radii = vec![0.0f32; n];
-        for (i, p) in projected.into_iter().enumerate() {
+        let radii = &mut out.state.radii;
+        for v in [&mut *depth, &mut *radii] {
+            v.clear();
+            v.resize(n, 0.0);
+        }
+        splats.clear();
+        splats.resize(n, Splat::default());
+        rects.clear();
+        rects.resize(n, None);
+        for (i, p) in projected.iter().enumerate() {
             match p {
                 Ok(p) => {
                     stats.drawn += 1;
@@ -199,23 +269,32 @@ impl CpuRasterizer {
                     depth[i] = p.splat.z;
                     radii[i] = p.radius;
                 }
-                Err(reason) => count(&mut stats, reason),
+                Err(reason) => count(&mut stats, *reason),
             }
         }
-        let lists = tiles::bin(
-            &rects,
-            &depth,
+        tiles::bin_into(
+            rects,
+            depth,
             frame.tiles_x,
             frame.tiles_y,
             |id, tx, ty| splats[id as usize].touches_tile(&frame, tx, ty),
+            lists,
+            bin,
         );
         // The records in depth order, as the tile lists index them.
-        let splats: Vec<Splat> = lists.order.iter().map(|&i| splats[i as usize]).collect();
+        sorted.clear();
+        sorted.extend(lists.order.iter().map(|&i| splats[i as usize]));
         let n_tiles = frame.tiles_x as usize * frame.tiles_y as usize;
-        let mut color_t = vec![[0.0f32; 3]; n_tiles * LANES];
-        let mut depth_t = vec![0.0f32; n_tiles * LANES];
-        let mut final_t = vec![0.0f32; n_tiles * LANES];
-        let mut last = vec![0u32; n_tiles * LANES];
+        // Every tile writes all its lanes: the values left from before are overwritten.
+        color_t.clear();
+        color_t.resize(n_tiles * LANES, [0.0; 3]);
+        for v in [&mut *depth_t, &mut *final_t] {
+            v.clear();
+            v.resize(n_tiles * LANES, 0.0);
+        }
+        last.clear();
+        last.resize(n_tiles * LANES, 0);
+        let (lists, sorted) = (&*lists, &*sorted);
         let counters = color_t
             .par_chunks_mut(LANES)
             .zip(depth_t.par_chunks_mut(LANES))
@@ -232,7 +311,7 @@ impl CpuRasterizer {
                 let (ids, background) = (lists.tile(tile), opts.background);
                 match self.kernels {
                     Kernels::Scalar { exp } => {
-                        scalar::forward_tile_into(&frame, tile, ids, &splats, background, out, exp)
+                        scalar::forward_tile_into(&frame, tile, ids, sorted, background, out, exp)
                     }
                     Kernels::Lanes(isa) => simd::dispatch(
                         isa,
@@ -240,7 +319,7 @@ impl CpuRasterizer {
                             frame: &frame,
                             tile,
                             ids,
-                            splats: &splats,
+                            splats: sorted,
                             background,
                             out,
                         },
@@ -252,13 +331,17 @@ impl CpuRasterizer {
                 blended: a.blended + b.blended,
             });
         let (w, h) = (cam.width as usize, cam.height as usize);
-        let mut color = vec![[0.0f32; 3]; w * h];
-        let mut alpha = vec![0.0f32; w * h];
-        let mut depth_img = vec![0.0f32; w * h];
-        color
+        for v in [&mut out.alpha, &mut out.depth] {
+            v.clear();
+            v.resize(w * h, 0.0);
+        }
+        out.color.clear();
+        out.color.resize(w * h, [0.0; 3]);
+        let (color_t, depth_t, final_t) = (&*color_t, &*depth_t, &*final_t);
+        out.color
             .par_chunks_mut(w)
-            .zip(alpha.par_chunks_mut(w))
-            .zip(depth_img.par_chunks_mut(w))
+            .zip(out.alpha.par_chunks_mut(w))
+            .zip(out.depth.par_chunks_mut(w))
             .enumerate()
             .for_each(|(y, ((color, alpha), depth))| {
                 for x in 0..w {
@@ -269,30 +352,18 @@ impl CpuRasterizer {
                     depth[x] = depth_t[k];
                 }
             });
-        Ok(ForwardOutput {
-            width: cam.width,
-            height: cam.height,
-            color,
-            alpha,
-            depth: depth_img,
-            stats,
-            state: BackwardState {
-                n_gaussians: n,
-                sh_degree: g.sh_degree,
-                active_degree: active,
-                background: opts.background,
-                radii,
-                counters,
-                tile_pairs: lists.ids.len(),
-                backend: BackendState::Cpu(CpuState {
-                    kernels: self.kernels,
-                    splats,
-                    lists,
-                    final_t,
-                    last,
-                }),
-            },
-        })
+        out.width = cam.width;
+        out.height = cam.height;
+        out.stats = stats;
+        let st = &mut out.state;
+        st.n_gaussians = n;
+        st.sh_degree = g.sh_degree;
+        st.active_degree = active;
+        st.background = opts.background;
+        st.counters = counters;
+        st.tile_pairs = cpu.lists.ids.len();
+        st.backend = BackendState::Cpu(cpu);
+        Ok(())
     }
 
     fn backward_impl(
@@ -429,7 +500,24 @@ impl Rasterizer for CpuRasterizer {
         cam: &Camera,
         opts: &RenderOptions,
     ) -> Result<ForwardOutput, RasterError> {
-        self.install(|| self.forward_impl(g, cam, opts))
+        let mut out = ForwardOutput::default();
+        self.install(|| self.forward_into_impl(g, cam, opts, &mut out))?;
+        // A lone pass keeps only what its backward needs.
+        #[allow(irrefutable_let_patterns)]
+        if let BackendState::Cpu(cpu) = &mut out.state.backend {
+            cpu.scratch = Scratch::default();
+        }
+        Ok(out)
+    }
+
+    fn forward_into(
+        &self,
+        g: GaussiansView<'_>,
+        cam: &Camera,
+        opts: &RenderOptions,
+        out: &mut ForwardOutput,
+    ) -> Result<(), RasterError> {
+        self.install(|| self.forward_into_impl(g, cam, opts, out))
     }
 
     fn backward(
@@ -578,6 +666,53 @@ mod tests {
                 }
                 first = Some(gr);
             }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+
+        /// `forward_into` an output that held another render (more or fewer Gaussians, a larger
+        /// or smaller image, another background) gives what `forward` gives, bit for bit: the
+        /// images, the statistics, the radii, the backward state, and so the gradients.
+        #[test]
+        fn forward_into_a_used_output_equals_a_fresh_forward(
+            before in proptest::collection::vec(gaussian(), 0..80),
+            parts in proptest::collection::vec(gaussian(), 1..60),
+            sizes in ((1u32..50, 1u32..40), (1u32..50, 1u32..40)),
+        ) {
+            let cam = |(width, height): (u32, u32)| Camera::from_center(
+                width, height, 30.0, 28.0, 0.45 * width as f32, 0.55 * height as f32,
+                Mat3::IDENTITY, Vec3::ZERO,
+            );
+            let (cam_before, cam) = (cam(sizes.0), cam(sizes.1));
+            let opts = RenderOptions { background: [0.2, 0.5, 0.9], sh_degree: None };
+            let r = CpuRasterizer::new();
+            let g = scene(&parts);
+            let fresh = r.forward(g.view(), &cam, &opts).unwrap();
+            let mut out = ForwardOutput::default();
+            let other = RenderOptions { background: [1.0; 3], sh_degree: None };
+            r.forward_into(scene(&before).view(), &cam_before, &other, &mut out).unwrap();
+            r.forward_into(g.view(), &cam, &opts, &mut out).unwrap();
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            prop_assert_eq!((out.width, out.height), (fresh.width, fresh.height));
+            prop_assert_eq!(bits(out.color.as_flattened()), bits(fresh.color.as_flattened()));
+            prop_assert_eq!(bits(&out.alpha), bits(&fresh.alpha));
+            prop_assert_eq!(bits(&out.depth), bits(&fresh.depth));
+            prop_assert_eq!(bits(out.radii()), bits(fresh.radii()));
+            prop_assert_eq!(out.stats, fresh.stats);
+            prop_assert_eq!(out.state.counters, fresh.state.counters);
+            prop_assert_eq!(out.tile_pairs(), fresh.tile_pairs());
+            let (a, b) = (cpu_state(&out), cpu_state(&fresh));
+            prop_assert_eq!(&a.splats, &b.splats);
+            prop_assert_eq!(&a.lists, &b.lists);
+            prop_assert_eq!(bits(&a.final_t), bits(&b.final_t));
+            prop_assert_eq!(&a.last, &b.last);
+            let npix = cam.pixel_count();
+            let dc: Vec<[f32; 3]> = (0..npix).map(|p| [0.3, -0.7, 0.5].map(|v: f32| v * ((p % 5) as f32 - 1.7))).collect();
+            let d = PixelGrads::from_color(&dc);
+            let grads = |f: &ForwardOutput| r.backward(g.view(), &cam, &opts, f, d).unwrap().grads;
+            prop_assert_eq!(grads(&out), grads(&fresh));
         }
     }
 

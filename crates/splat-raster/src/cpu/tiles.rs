@@ -36,9 +36,24 @@ impl TileLists {
 /// depend on the thread count; the result never does).
 const CHUNK: usize = 256;
 
+/// Buffers [`bin_into`] reuses between calls (only their capacity matters).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct BinScratch {
+    /// Per chunk of [`CHUNK`] Gaussians, per Gaussian the count of tiles it touches, and those
+    /// tiles.
+    touched: Vec<(Vec<u32>, Vec<u32>)>,
+    /// The tile of each (Gaussian, tile) pair, Gaussian-major.
+    tile_of_pair: Vec<u32>,
+    /// Depth-order sort keys.
+    keys: Vec<u64>,
+    /// Per tile, the next free position in `ids`.
+    cursor: Vec<usize>,
+}
+
 /// Bins drawn Gaussians into tiles. `rects[i]` is Gaussian `i`'s inclusive tile rectangle
 /// `[x0, y0, x1, y1]` (None when culled) and `depth[i]` its camera z (> 0 when drawn); within the
 /// rectangle, only tiles `(tx, ty)` with `touches(i, tx, ty)` get the Gaussian.
+#[cfg(test)]
 pub(crate) fn bin(
     rects: &[Option<[u32; 4]>],
     depth: &[f32],
@@ -46,14 +61,46 @@ pub(crate) fn bin(
     tiles_y: u32,
     touches: impl Fn(u32, u32, u32) -> bool + Sync,
 ) -> TileLists {
+    let mut lists = TileLists::default();
+    bin_into(
+        rects,
+        depth,
+        tiles_x,
+        tiles_y,
+        touches,
+        &mut lists,
+        &mut BinScratch::default(),
+    );
+    lists
+}
+
+/// [`bin`] into `lists`, reusing its buffers and `scratch`'s: the same lists, without fresh
+/// allocations once the buffers are large enough.
+pub(crate) fn bin_into(
+    rects: &[Option<[u32; 4]>],
+    depth: &[f32],
+    tiles_x: u32,
+    tiles_y: u32,
+    touches: impl Fn(u32, u32, u32) -> bool + Sync,
+    lists: &mut TileLists,
+    scratch: &mut BinScratch,
+) {
     let n = rects.len();
+    let BinScratch {
+        touched,
+        tile_of_pair,
+        keys,
+        cursor,
+    } = scratch;
     // The tiles each Gaussian touches, in row-major tile order, Gaussian by Gaussian.
-    let touched: Vec<(Vec<u32>, Vec<u32>)> = rects
-        .par_chunks(CHUNK)
+    touched.resize_with(n.div_ceil(CHUNK), Default::default);
+    touched
+        .par_iter_mut()
+        .zip(rects.par_chunks(CHUNK))
         .enumerate()
-        .map(|(c, rects)| {
-            let mut counts = Vec::with_capacity(rects.len());
-            let mut tiles = Vec::new();
+        .for_each(|(c, ((counts, tiles), rects))| {
+            counts.clear();
+            tiles.clear();
             for (k, rect) in rects.iter().enumerate() {
                 let before = tiles.len();
                 if let Some([x0, y0, x1, y1]) = *rect {
@@ -68,41 +115,53 @@ pub(crate) fn bin(
                 }
                 counts.push((tiles.len() - before) as u32);
             }
-            (counts, tiles)
-        })
-        .collect();
-    let mut pairs_of = Vec::with_capacity(n + 1);
+        });
+    let pairs_of = &mut lists.pairs_of;
+    pairs_of.clear();
     pairs_of.push(0usize);
-    for (counts, _) in &touched {
+    for (counts, _) in touched.iter() {
         for &k in counts {
             pairs_of.push(pairs_of.last().unwrap() + k as usize);
         }
     }
-    let tile_of_pair: Vec<u32> = touched.into_iter().flat_map(|(_, tiles)| tiles).collect();
+    tile_of_pair.clear();
+    for (_, tiles) in touched.iter() {
+        tile_of_pair.extend_from_slice(tiles);
+    }
 
     // Depth order: z > 0 is finite and positive, so its bit pattern orders like the number;
     // ties are broken by index.
-    let mut keys: Vec<u64> = rects
-        .iter()
-        .enumerate()
-        .filter(|(_, r)| r.is_some())
-        .map(|(i, _)| (u64::from(depth[i].to_bits()) << 32) | i as u64)
-        .collect();
+    keys.clear();
+    keys.extend(
+        rects
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| r.is_some())
+            .map(|(i, _)| (u64::from(depth[i].to_bits()) << 32) | i as u64),
+    );
     keys.par_sort_unstable();
 
     // A stable counting sort of the pairs by tile, visiting Gaussians in depth order.
     let n_tiles = tiles_x as usize * tiles_y as usize;
-    let mut offsets = vec![0usize; n_tiles + 1];
-    for &t in &tile_of_pair {
+    let offsets = &mut lists.offsets;
+    offsets.clear();
+    offsets.resize(n_tiles + 1, 0);
+    for &t in tile_of_pair.iter() {
         offsets[t as usize + 1] += 1;
     }
     for t in 0..n_tiles {
         offsets[t + 1] += offsets[t];
     }
-    let mut cursor = offsets[..n_tiles].to_vec();
-    let mut ids = vec![0u32; tile_of_pair.len()];
-    let mut entry_from_pair = vec![0u32; tile_of_pair.len()];
-    let order: Vec<u32> = keys.iter().map(|&key| key as u32).collect();
+    cursor.clear();
+    cursor.extend_from_slice(&offsets[..n_tiles]);
+    let (ids, entry_from_pair, order) =
+        (&mut lists.ids, &mut lists.entry_from_pair, &mut lists.order);
+    ids.clear();
+    ids.resize(tile_of_pair.len(), 0);
+    entry_from_pair.clear();
+    entry_from_pair.resize(tile_of_pair.len(), 0);
+    order.clear();
+    order.extend(keys.iter().map(|&key| key as u32));
     for (rank, &id) in order.iter().enumerate() {
         let id = id as usize;
         for p in pairs_of[id]..pairs_of[id + 1] {
@@ -111,13 +170,6 @@ pub(crate) fn bin(
             entry_from_pair[p] = cursor[t] as u32;
             cursor[t] += 1;
         }
-    }
-    TileLists {
-        offsets,
-        ids,
-        order,
-        pairs_of,
-        entry_from_pair,
     }
 }
 
