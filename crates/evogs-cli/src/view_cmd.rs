@@ -36,7 +36,8 @@ pub struct ViewArgs {
     #[arg(long, value_name = "cpu|wgpu|auto", default_value = "cpu", value_parser = parse_backend)]
     pub backend: BackendChoice,
 
-    /// Reload a run when its files change (watch a training run).
+    /// Reload a run when its files change: watch a training run (loaded from its checkpoint
+    /// while it trains, from its end-of-run files once they are written).
     #[arg(long)]
     pub watch: bool,
 }

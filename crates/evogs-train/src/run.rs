@@ -30,7 +30,7 @@ use splat_raster::{
 };
 
 use crate::backbone::Backbone;
-use crate::checkpoint::{load_checkpoint, save_checkpoint};
+use crate::checkpoint::{CheckpointMeta, load_checkpoint, save_checkpoint};
 use crate::config::TrainConfig;
 use crate::data::{load_dataset_split, load_split, open_dataset};
 use crate::error::TrainError;
@@ -231,6 +231,19 @@ fn settle_evo_state(paths: &RunPaths, iteration: u64) -> Result<(), TrainError> 
     Ok(())
 }
 
+/// Reads the checkpoint at `path` of a run configured by `config` into a fresh state and
+/// backbone (the backbone's weights only: an EvoGS evolution state is a file of its own).
+fn read_checkpoint(
+    path: &Path,
+    config: &TrainConfig,
+) -> Result<(SceneState, Box<dyn Backbone>, CheckpointMeta), TrainError> {
+    let mut backbone = make_backbone(config)?;
+    let init = crate::init::random_gaussians(1, 1.0, config.sh_degree, 0);
+    let mut state = SceneState::new(init, backbone.as_ref(), &config.lr)?;
+    let meta = load_checkpoint(path, &mut state, backbone.as_mut())?;
+    Ok((state, backbone, meta))
+}
+
 /// Trains (or resumes) a run, calling `progress` after every iteration, and writes the run
 /// directory. Returns the summary that `train_metrics.json` holds.
 ///
@@ -254,10 +267,6 @@ pub fn train(
             run.train.background.rgb(),
             run.train.downscale,
         )?;
-        let backbone = make_backbone(&run.train)?;
-        let init = crate::init::random_gaussians(1, 1.0, run.train.sh_degree, 0);
-        let mut state = SceneState::new(init, backbone.as_ref(), &run.train.lr)?;
-        let mut backbone = backbone;
         let ckpt = paths.checkpoint();
         if !ckpt.is_file() {
             return Err(TrainError::file(
@@ -265,7 +274,7 @@ pub fn train(
                 "no checkpoint to resume from (train the run first)",
             ));
         }
-        let meta = load_checkpoint(&ckpt, &mut state, backbone.as_mut())?;
+        let (state, mut backbone, meta) = read_checkpoint(&ckpt, &run.train)?;
         settle_evo_state(&paths, meta.iteration)?;
         backbone.load_state(&paths.evo_state())?;
         let trainer =
@@ -410,6 +419,52 @@ impl LoadedRun {
         let mut backbone = make_backbone(&run.train)?;
         backbone.load(&paths.weights())?;
         backbone.load_state(&paths.evo_state())?;
+        Ok(Self {
+            paths,
+            run,
+            summary,
+            canonical,
+            backbone,
+            raster: Box::new(CpuRasterizer::new()),
+        })
+    }
+
+    /// Opens a run that is still training from its checkpoint (`checkpoint.safetensors`, read
+    /// by the trainer's loader) instead of the end-of-run files: the Gaussians and backbone of
+    /// the last checkpoint, with (EvoGS) the evolution state written with it, which is still
+    /// `evo_state.<iteration>.safetensors` for a moment after the checkpoint lands. Reads only:
+    /// nothing in the run directory changes. The summary holds the checkpoint's iteration, the
+    /// planned iterations and Gaussians; what only the end of the run knows (time, last loss
+    /// and PSNR) is NaN or zero.
+    pub fn open_checkpoint(root: &Path) -> Result<Self, TrainError> {
+        let paths = RunPaths::new(root);
+        if !root.is_dir() {
+            return Err(TrainError::file(root, "not a run directory"));
+        }
+        let run: RunFile = read_json(&paths.config())?;
+        run.train.validate()?;
+        let (state, mut backbone, meta) = read_checkpoint(&paths.checkpoint(), &run.train)?;
+        let pending = paths.pending_evo_state(meta.iteration);
+        let evo_state = if pending.is_file() {
+            pending
+        } else {
+            paths.evo_state()
+        };
+        backbone.load_state(&evo_state)?;
+        let canonical = state.gaussians().clone();
+        let summary = TrainSummary {
+            iteration: meta.iteration,
+            iterations: run.train.iterations,
+            iterations_this_process: 0,
+            seconds: 0.0,
+            iterations_per_second: 0.0,
+            last_loss: f64::NAN,
+            last_psnr: f64::NAN,
+            gaussians: canonical.len(),
+            net_width: run.train.net.width,
+            phases: PhaseTimes::default(),
+            gain: None,
+        };
         Ok(Self {
             paths,
             run,

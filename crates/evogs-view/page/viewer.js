@@ -124,6 +124,7 @@ function caption(i) {
   const r = S.info.runs[i];
   const psnr = Object.entries(r.psnr).map(([k, v]) => `${k} ${Number(v).toFixed(2)} dB`).join(', ');
   return `${r.name}: ${r.method} (${r.backbone}), ${r.gaussians} Gaussians, iteration ${r.iteration}/${r.iterations}` +
+    (r.source === 'checkpoint' ? ' (checkpoint)' : '') +
     (psnr ? `, PSNR ${psnr}` : ', no eval files') + (r.reload_error ? ` — reload failed: ${r.reload_error}` : '');
 }
 

@@ -3,8 +3,14 @@
 //!
 //! A reload happens between two renders: the thread polls the modification times and sizes of
 //! the run's files every [`WATCH_POLL`] and reloads once they have stayed the same for one
-//! poll after changing (training writes them one after another). A reload that fails keeps the
-//! previous model and reports the error in [`RunInfo::reload_error`].
+//! poll after changing (training writes them one after another). A reload that fails (a
+//! half-written or damaged file) keeps the previous model and reports the error in
+//! [`RunInfo::reload_error`].
+//!
+//! Which files a run is loaded from ([`Source`]): while it trains, its checkpoint
+//! (`checkpoint.safetensors`, read by the trainer's loader, [`LoadedRun::open_checkpoint`]);
+//! once the end-of-run files are written (`train_metrics.json`, written last, is at least as
+//! new as the checkpoint), those ([`LoadedRun::open`]).
 
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{Sender, channel};
@@ -21,6 +27,42 @@ use splat_raster::{BackendChoice, Camera};
 use crate::ViewError;
 use crate::latest::{Latest, Taken};
 use crate::params::{BadRequest, CameraParam};
+
+/// Which files a run is loaded from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Source {
+    /// The end-of-run files (`canonical.ply`, `deform.safetensors`, `train_metrics.json`).
+    EndOfRun,
+    /// `checkpoint.safetensors` of a run that is still training (or was stopped before its
+    /// end-of-run files were written).
+    Checkpoint,
+}
+
+impl Source {
+    /// The checkpoint when it is newer than `train_metrics.json` (the last end-of-run file a
+    /// run writes) or when that file does not exist; the end-of-run files otherwise.
+    pub fn of(root: &Path) -> Self {
+        let paths = evogs_train::RunPaths::new(root);
+        let modified = |p: PathBuf| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+        match (
+            modified(paths.train_metrics()),
+            modified(paths.checkpoint()),
+        ) {
+            (None, Some(_)) => Self::Checkpoint,
+            (Some(end), Some(checkpoint)) if checkpoint > end => Self::Checkpoint,
+            _ => Self::EndOfRun,
+        }
+    }
+
+    /// Loads the run at `root` from these files.
+    pub fn open(self, root: &Path) -> Result<LoadedRun, TrainError> {
+        match self {
+            Self::EndOfRun => LoadedRun::open(root),
+            Self::Checkpoint => LoadedRun::open_checkpoint(root),
+        }
+    }
+}
 
 /// How often `--watch` looks at the run's files.
 pub const WATCH_POLL: Duration = Duration::from_millis(500);
@@ -81,6 +123,8 @@ pub struct RunInfo {
     pub psnr: serde_json::Map<String, serde_json::Value>,
     /// The last training iteration's PSNR on its training view.
     pub train_psnr: f64,
+    /// The files the model was loaded from.
+    pub source: Source,
     /// Loads so far (1 after start; each `--watch` reload adds one).
     pub version: u64,
     /// Why the last reload failed, if it did (the previous model is still shown).
@@ -308,7 +352,8 @@ fn stamps(root: &Path) -> Vec<Option<(SystemTime, u64)>> {
 impl Loaded {
     fn load(root: &Path, backend: BackendChoice, version: u64) -> Result<Self, TrainError> {
         let before = stamps(root);
-        let mut run = LoadedRun::open(root)?;
+        let source = Source::of(root);
+        let mut run = source.open(root)?;
         let backend = run.use_backend(backend)?.to_string();
         let mut cameras = std::collections::BTreeMap::new();
         let mut split_cams = std::collections::BTreeMap::new();
@@ -352,6 +397,7 @@ impl Loaded {
             backend,
             psnr,
             train_psnr: run.summary.last_psnr,
+            source,
             version,
             reload_error: None,
             width,
@@ -436,7 +482,19 @@ fn render_loop(
         }
         changed = None;
         let version = state.info.version + 1;
-        match Loaded::load(root, backend, version) {
+        // A loader that panicked on some damaged file must not end the render thread: the
+        // reload counts as failed. `AssertUnwindSafe` is sound: the closure only builds a new
+        // value and shares nothing with `state` that a panic could leave half-changed.
+        let loaded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            Loaded::load(root, backend, version)
+        }))
+        .unwrap_or_else(|_| {
+            Err(TrainError::file(
+                root,
+                "the run's files could not be read (the loader panicked)",
+            ))
+        });
+        match loaded {
             Ok(new) => *state = new,
             Err(e) => {
                 let mut info = (*state.info).clone();

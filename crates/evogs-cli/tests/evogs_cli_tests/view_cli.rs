@@ -7,7 +7,7 @@ use crate::support;
 
 use std::path::Path;
 
-use support::view::{ReplyImage, Viewer, fixture, train_run};
+use support::view::{ReplyImage, Viewer, fixture, train_run, train_run_with};
 use support::{diff, evogs, png, s, stderr};
 
 /// `evogs render --run RUN --camera CAMERA --time T [--width W --height H]`, decoded.
@@ -320,68 +320,126 @@ fn connections_beyond_the_bound_are_refused_at_once() {
     assert_eq!(status, 200);
 }
 
+/// `/api/info`'s description of run 0.
+fn info0(v: &Viewer) -> serde_json::Value {
+    let all: serde_json::Value = serde_json::from_slice(&v.get("/api/info").body).unwrap();
+    all["runs"][0].clone()
+}
+
+/// Polls `/api/info` until `done` holds for run 0 (10 s at most); returns the last description.
+fn wait_for(v: &Viewer, done: impl Fn(&serde_json::Value) -> bool) -> serde_json::Value {
+    let mut now = info0(v);
+    for _ in 0..100 {
+        if done(&now) {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+        now = info0(v);
+    }
+    now
+}
+
+/// Copies `from` to `to` through a temporary file and a rename, as the trainer writes.
+fn replace(from: &Path, to: &Path) {
+    let tmp = to.with_extension("tmp");
+    std::fs::copy(from, &tmp).unwrap();
+    std::fs::rename(&tmp, to).unwrap();
+}
+
 #[test]
-fn watch_reloads_a_run_whose_files_change() {
-    let f = fixture();
-    let live = f.dir.path().join("live");
-    let early = train_run(f.dir.path(), "early", 1);
-    std::fs::rename(&early, &live).unwrap();
-    let v = Viewer::start(&[s(&live), "--watch"]);
-    let info = |v: &Viewer| -> serde_json::Value {
-        serde_json::from_slice(&v.get("/api/info").body).unwrap()
-    };
-    assert_eq!(info(&v)["runs"][0]["iteration"], 1);
-    let before = v.get("/api/render?cam=dataset:test:0&t=0&fmt=png").image();
-    // "Training goes on": the trained run's files replace the early ones, each atomically.
+fn watch_follows_a_training_run_from_its_checkpoints_to_its_end_of_run_files() {
+    let dir = tempfile::tempdir().unwrap();
+    // Two stages of one EvoGS run: stopped after 60 iterations (past the warm-up, so the
+    // network deforms), and finished at 100.
+    let evogs_args = ["--method", "evogs"];
+    let early = train_run_with(
+        dir.path(),
+        "early",
+        100,
+        &[&evogs_args[..], &["--stop-after", "60"]].concat(),
+    );
+    let done = train_run_with(dir.path(), "done", 100, &evogs_args);
+    // A run in progress: its config and first checkpoint (with its evolution state), no
+    // end-of-run files yet.
+    let live = dir.path().join("live");
+    std::fs::create_dir(&live).unwrap();
     for name in [
-        "canonical.ply",
-        "deform.safetensors",
+        "config.json",
         "evo_state.safetensors",
         "checkpoint.safetensors",
-        "train_metrics.json",
     ] {
-        let from = f.run.join(name);
-        if from.exists() {
-            let tmp = live.join(format!("{name}.tmp"));
-            std::fs::copy(&from, &tmp).unwrap();
-            std::fs::rename(&tmp, live.join(name)).unwrap();
-        }
+        replace(&early.join(name), &live.join(name));
     }
-    let mut now = info(&v);
-    for _ in 0..100 {
-        if now["runs"][0]["version"] == 2 {
-            break;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(100));
-        now = info(&v);
-    }
-    assert_eq!(now["runs"][0]["version"], 2, "{now}");
-    assert_eq!(now["runs"][0]["iteration"], 100);
-    let after = v.get("/api/render?cam=dataset:test:0&t=0&fmt=png");
-    assert_eq!(after.header("x-version"), Some("2"));
-    assert_ne!(
-        after.image(),
-        before,
-        "the reloaded model renders differently"
-    );
+    let v = Viewer::start(&[s(&live), "--watch"]);
+    let now = info0(&v);
+    assert_eq!(now["source"], "checkpoint", "{now}");
+    assert_eq!(now["iteration"], 60, "{now}");
+    let q = "/api/render?cam=dataset:test:0&t=0.3&fmt=png";
+    let first = v.get(q).image();
     assert_eq!(
-        after.image(),
-        render(&f.run, "dataset:test:0", "0", None),
-        "the reloaded model is the trained one"
+        first,
+        render(&early, "dataset:test:0", "0.3", None),
+        "the checkpoint's model is the one the run's end-of-run files hold at that iteration"
     );
-    // A broken file does not stop the viewer: the previous model stays, the error is shown.
-    std::fs::write(live.join("canonical.ply"), b"not a ply").unwrap();
-    let mut now = info(&v);
-    for _ in 0..100 {
-        if now["runs"][0]["reload_error"].is_string() {
-            break;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(100));
-        now = info(&v);
+    // A newer checkpoint lands as the trainer writes it: the evolution state pending first,
+    // then the checkpoint, then the state.
+    let pending = live.join("evo_state.100.safetensors");
+    replace(&done.join("evo_state.safetensors"), &pending);
+    replace(
+        &done.join("checkpoint.safetensors"),
+        &live.join("checkpoint.safetensors"),
+    );
+    std::fs::rename(&pending, live.join("evo_state.safetensors")).unwrap();
+    let now = wait_for(&v, |r| r["version"] == 2);
+    assert_eq!(now["version"], 2, "{now}");
+    assert_eq!(now["iteration"], 100, "{now}");
+    assert_eq!(now["source"], "checkpoint", "{now}");
+    let second = v.get(q);
+    assert_eq!(second.header("x-version"), Some("2"));
+    let second = second.image();
+    assert_ne!(second, first, "the newer checkpoint renders differently");
+    assert_eq!(second, render(&done, "dataset:test:0", "0.3", None));
+    // A half-written checkpoint (and then garbage) never stops the viewer: the previous model
+    // stays and the error names the file.
+    let bytes = std::fs::read(done.join("checkpoint.safetensors")).unwrap();
+    let mut version = 2;
+    for broken in [&bytes[..bytes.len() / 2], &b"not a checkpoint"[..]] {
+        std::fs::write(live.join("checkpoint.safetensors"), broken).unwrap();
+        let now = wait_for(&v, |r| r["reload_error"].is_string());
+        let err = now["reload_error"].as_str().unwrap_or_default();
+        assert!(err.contains("checkpoint.safetensors"), "{now}");
+        assert_eq!(now["version"], version, "{now}");
+        assert_eq!(
+            v.get(q).image(),
+            second,
+            "the previous model is still shown"
+        );
+        // Repaired: the next load succeeds and clears the error.
+        replace(
+            &done.join("checkpoint.safetensors"),
+            &live.join("checkpoint.safetensors"),
+        );
+        version += 1;
+        let now = wait_for(&v, |r| r["version"] == version);
+        assert_eq!(now["version"], version, "{now}");
+        assert!(now["reload_error"].is_null(), "{now}");
     }
-    let err = now["runs"][0]["reload_error"].as_str().unwrap_or_default();
+    // The end of the run: its files are written after the last checkpoint and are loaded.
+    for name in ["canonical.ply", "deform.safetensors", "train_metrics.json"] {
+        replace(&done.join(name), &live.join(name));
+    }
+    let now = wait_for(&v, |r| r["source"] == "end_of_run");
+    assert_eq!(now["source"], "end_of_run", "{now}");
+    assert_eq!(now["iteration"], 100, "{now}");
+    assert_eq!(v.get(q).image(), second);
+    // A broken end-of-run file does not stop the viewer either.
+    let version = now["version"].clone();
+    std::fs::write(live.join("canonical.ply"), b"not a ply").unwrap();
+    let now = wait_for(&v, |r| r["reload_error"].is_string());
+    let err = now["reload_error"].as_str().unwrap_or_default();
     assert!(err.contains("canonical.ply"), "{now}");
-    assert_eq!(v.get("/api/render?cam=dataset:test:0&w=8&h=8").status, 200);
+    assert_eq!(now["version"], version, "{now}");
+    assert_eq!(v.get(q).image(), second);
 }
 
 #[test]
