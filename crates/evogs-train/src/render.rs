@@ -16,7 +16,7 @@
 use std::path::{Path, PathBuf};
 
 use evogs_io::{ImageRgb, save_png, write_ply};
-use splat_raster::{Camera, RenderOptions};
+use splat_raster::{Camera, ForwardOutput, Gaussians, RenderOptions};
 use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 
 use crate::config::{OneWord, unknown_message};
@@ -38,15 +38,29 @@ fn check_time(time: f32) -> Result<(), TrainError> {
 pub fn render_at(run: &mut LoadedRun, camera: &Camera, time: f32) -> Result<ImageRgb, TrainError> {
     check_time(time)?;
     let g = run.deformed(time)?;
+    render_deformed(run, &g, camera, &mut ForwardOutput::default())
+}
+
+/// The second half of [`render_at`]: rasterizes Gaussians already deformed by `run` (its
+/// [`LoadedRun::deformed`] at some time) from `camera` over the run's background, colours
+/// clamped to [0, 1], through `fwd`, whose buffers the rasterizer reuses
+/// ([`splat_raster::Rasterizer::forward_into`]; start from `ForwardOutput::default()`). For
+/// callers that render view after view, one time from many cameras (the viewer).
+pub fn render_deformed(
+    run: &LoadedRun,
+    g: &Gaussians,
+    camera: &Camera,
+    fwd: &mut ForwardOutput,
+) -> Result<ImageRgb, TrainError> {
     let opts = RenderOptions {
         background: run.run.train.background.rgb(),
         sh_degree: None,
     };
-    let out = run.raster.forward(g.view(), camera, &opts)?;
+    run.raster.forward_into(g.view(), camera, &opts, fwd)?;
     Ok(ImageRgb {
         width: camera.width,
         height: camera.height,
-        pixels: out
+        pixels: fwd
             .color
             .iter()
             .map(|c| c.map(|v| v.clamp(0.0, 1.0)))

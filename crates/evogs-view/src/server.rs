@@ -4,7 +4,7 @@
 //! | --- | --- |
 //! | `GET /` | the page (`page/index.html`); `/viewer.js`, `/viewer.css` its script and style |
 //! | `GET /api/info` | JSON: each run's [`RunInfo`] (Gaussians, method, backend, PSNR from its eval files, dataset cameras) |
-//! | `GET /api/render?...` | a view ([`crate::params::render_params`]): JPEG, or PNG with `fmt=png`; headers `X-Render-Ms`, `X-Time`, `X-Version` |
+//! | `GET /api/render?...` | a view ([`crate::params::render_params`]): JPEG, or PNG with `fmt=png`; headers `X-Render-Ms` (of which `X-Deform-Ms` and `X-Raster-Ms`), `X-Encode-Ms`, `X-Time`, `X-Version` |
 //! | `GET /api/gt?split=&index=` | a ground-truth image of run 0's dataset at the run's resolution |
 //! | `GET /api/camera?...` | the camera as a nerfies camera JSON that `evogs render --camera` reads |
 //!
@@ -170,6 +170,13 @@ pub fn encode(image: &ImageRgb, format: Format) -> Result<Vec<u8>, String> {
     result.map(|()| out).map_err(|e| e.to_string())
 }
 
+/// [`encode`] and the milliseconds it took.
+fn timed_encode(image: &ImageRgb, format: Format) -> Result<(Vec<u8>, f64), String> {
+    let start = std::time::Instant::now();
+    let body = encode(image, format)?;
+    Ok((body, start.elapsed().as_secs_f64() * 1e3))
+}
+
 fn content_type(format: Format) -> &'static str {
     match format {
         Format::Jpeg => "image/jpeg",
@@ -223,9 +230,12 @@ impl Routes {
             height: p.height,
         };
         match self.runs[p.run].render(job) {
-            Ok(r) => match encode(&r.image, p.format) {
-                Ok(body) => Response::ok(content_type(p.format), body)
+            Ok(r) => match timed_encode(&r.image, p.format) {
+                Ok((body, encode_ms)) => Response::ok(content_type(p.format), body)
                     .with("X-Render-Ms", format!("{:.2}", r.millis))
+                    .with("X-Deform-Ms", format!("{:.2}", r.deform_millis))
+                    .with("X-Raster-Ms", format!("{:.2}", r.raster_millis))
+                    .with("X-Encode-Ms", format!("{encode_ms:.2}"))
                     .with("X-Time", r.time.to_string())
                     .with("X-Version", r.version.to_string()),
                 Err(e) => Response::text(500, format!("cannot encode the image: {e}")),

@@ -19,10 +19,10 @@ use std::time::{Duration, Instant, SystemTime};
 
 use evogs_io::{Frame, ImageRgb, Split};
 use evogs_train::data::open_dataset;
-use evogs_train::render::render_at;
+use evogs_train::render::render_deformed;
 use evogs_train::{LoadedRun, TrainError};
 use evogs_video::camera_path::{SceneFit, resize_camera, split_cameras};
-use splat_raster::{BackendChoice, Camera};
+use splat_raster::{BackendChoice, Camera, ForwardOutput, Gaussians};
 
 use crate::ViewError;
 use crate::latest::{Latest, Taken};
@@ -214,6 +214,11 @@ pub struct Rendered {
     pub time: f32,
     /// Milliseconds the render took (deformation and rasterization).
     pub millis: f64,
+    /// Of which deforming the Gaussians to the time (0 when the last view's time was the same:
+    /// the deformed Gaussians are kept for the next view).
+    pub deform_millis: f64,
+    /// Of which rasterizing.
+    pub raster_millis: f64,
     /// The run's load count at render time ([`RunInfo::version`]).
     pub version: u64,
 }
@@ -324,6 +329,10 @@ struct Loaded {
     run: LoadedRun,
     info: Arc<RunInfo>,
     stamps: Vec<Option<(SystemTime, u64)>>,
+    /// The Gaussians deformed to the last view's time (its bits), reused while the time stays.
+    deformed: Option<(u32, Gaussians)>,
+    /// The last forward pass, whose buffers the next one reuses.
+    fwd: ForwardOutput,
 }
 
 /// The files whose change makes `--watch` reload.
@@ -414,6 +423,8 @@ impl Loaded {
             run,
             info: Arc::new(info),
             stamps: before,
+            deformed: None,
+            fwd: ForwardOutput::default(),
         })
     }
 
@@ -431,14 +442,35 @@ impl Loaded {
             }
             CameraParam::Pose(camera) => (camera, job.time.unwrap_or(0.0)),
         };
+        if !time.is_finite() {
+            return Err(RenderFailure::Bad(BadRequest(format!(
+                "time {time} is not a finite number"
+            ))));
+        }
+        // What `render_at` does, in its two halves, so that the deformation is computed once
+        // per time and each half is timed.
         let start = Instant::now();
-        let image = render_at(&mut self.run, &camera, time)
+        let g = match &mut self.deformed {
+            Some((bits, g)) if *bits == time.to_bits() => &*g,
+            slot => {
+                let g = self
+                    .run
+                    .deformed(time)
+                    .map_err(|e| RenderFailure::Failed(e.to_string()))?;
+                &slot.insert((time.to_bits(), g)).1
+            }
+        };
+        let deformed = Instant::now();
+        let image = render_deformed(&self.run, g, &camera, &mut self.fwd)
             .map_err(|e| RenderFailure::Failed(e.to_string()))?;
+        let ms = |d: Duration| d.as_secs_f64() * 1e3;
         Ok(Rendered {
             image,
             camera,
             time,
-            millis: start.elapsed().as_secs_f64() * 1e3,
+            millis: ms(start.elapsed()),
+            deform_millis: ms(deformed - start),
+            raster_millis: ms(deformed.elapsed()),
             version: self.info.version,
         })
     }
