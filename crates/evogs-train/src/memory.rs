@@ -1,14 +1,15 @@
 //! An estimate of a training run's peak memory, printed by `evogs train` at the start and
 //! checked against `--memory-limit` ([`MemoryEstimate::max_gaussians`]).
 //!
-//! What it is: a sum of the buffers the trainer holds at the peak of a training step, from the
-//! settings and the sizes known at the start — the training images, the process's fixed cost,
-//! the per-pixel render buffers, the network (parameters, gradients, Adam moments) — plus a cost
-//! per Gaussian (parameters, Adam moments, gradients, densification statistics, the
-//! rasterizer's records and tile lists, the deformation rows and the network's per-row
-//! activations, EvoGS's buffer and per-frame memory). The Gaussian count is the one unknown at the
-//! start: [`MemoryEstimate::at`] gives the estimate for any count, and a memory limit becomes
-//! a cap on the count.
+//! What it is: the larger of two peaks, from the settings and the sizes known at the start.
+//! A training step holds the training images, the process's fixed cost, the per-pixel render
+//! and loss buffers, the network (parameters, gradients, Adam moments) and a cost per Gaussian
+//! (parameters, Adam moments, gradients, densification statistics, the rasterizer's records and
+//! tile lists, the deformation rows and the network's per-row activations, EvoGS's buffer and
+//! per-frame memory). Writing a checkpoint holds, instead of the step's buffers, the serialised
+//! copies of the state (EvoGS's buffer and memory, then the Gaussians with their Adam moments
+//! and statistics). The Gaussian count is the one unknown at the start: [`MemoryEstimate::at`]
+//! gives the estimate for any count, and a memory limit becomes a cap on the count.
 //!
 //! What it is not: a measurement. The per-row network activations are modelled as the layer
 //! widths (the exact buffers depend on the backbone), the tile lists as [`TILES_PER_GAUSSIAN`]
@@ -18,9 +19,10 @@
 use crate::config::{BackboneKind, Method, TrainConfig};
 
 /// Bytes of a process that holds no data yet: the binary, its libraries, the thread pool and
-/// the allocator's own (peak RSS of `evogs train` on a 24×24 scene with a few hundred
-/// Gaussians, see `results/memory.md`).
-pub const PROCESS_BYTES: u64 = 24 << 20;
+/// the allocator's own (peak RSS of `evogs train` under a memory limit, less the rest of the
+/// estimate, on a 24×24 synthetic scene and on lego: 14 and 10.5 MiB, see
+/// `results/memory.md`).
+pub const PROCESS_BYTES: u64 = 12 << 20;
 
 /// Tiles (16×16 pixels) a Gaussian's footprint touches on average, for the rasterizer's tile
 /// lists (8 bytes per Gaussian–tile pair).
@@ -54,10 +56,17 @@ pub struct MemoryEstimate {
     pub fixed: u64,
     /// Of which the network.
     pub network: u64,
-    /// Bytes per Gaussian.
+    /// Of which the render and loss buffers of a step (not held while a checkpoint is written).
+    pub render: u64,
+    /// Bytes per Gaussian during a step.
     pub per_gaussian: u64,
     /// Of which EvoGS's buffer and per-frame memory (0 for other methods).
     pub evolution_per_gaussian: u64,
+    /// Bytes per Gaussian while a checkpoint is written: what stays between steps (parameters,
+    /// Adam moments, densification statistics, EvoGS's buffer and memory) and the larger of the
+    /// two serialised files (EvoGS's state in one copy; the checkpoint's tensors and the file
+    /// they are serialised into, two copies).
+    pub checkpoint_per_gaussian: u64,
 }
 
 impl MemoryEstimate {
@@ -66,7 +75,8 @@ impl MemoryEstimate {
         const F32: u64 = 4;
         let images = (inputs.views * inputs.pixels) as u64 * 3 * F32;
         let network = inputs.network_params as u64 * 4 * F32;
-        let fixed = PROCESS_BYTES + inputs.pixels as u64 * BYTES_PER_PIXEL + network;
+        let render = inputs.pixels as u64 * BYTES_PER_PIXEL;
+        let fixed = PROCESS_BYTES + render + network;
         // Per Gaussian: P floats of parameters, two Adam moments, the gradients (P plus the 2-D
         // means and the radius), the deformed copy of the geometry (10) and the deformation rows
         // with their gradient (14 each).
@@ -79,32 +89,45 @@ impl MemoryEstimate {
         // the tile lists' two entries per touched tile.
         let raster = 56 + 4 + 8 + 4 + 8 * TILES_PER_GAUSSIAN;
         let (network_rows, evolution) = per_row_network(config, inputs.frames);
+        // Between steps: the parameters with their two Adam moments, the statistics (stored as
+        // they are in memory) and EvoGS's buffer and memory.
+        let kept = F32 * 3 * p + stats;
+        let serialised = evolution.max(2 * kept);
         Self {
             images,
             fixed,
             network,
+            render,
             per_gaussian: gaussian + stats + raster + network_rows + evolution,
             evolution_per_gaussian: evolution,
+            checkpoint_per_gaussian: kept + evolution + serialised,
         }
     }
 
-    /// The estimated peak with `gaussians` Gaussians.
+    /// The estimated peak with `gaussians` Gaussians: the larger of a step's and a checkpoint
+    /// write's.
     pub fn at(&self, gaussians: usize) -> u64 {
-        self.images + self.fixed + self.per_gaussian * gaussians as u64
+        let n = gaussians as u64;
+        let step = self.fixed + self.per_gaussian * n;
+        let checkpoint = self.fixed - self.render + self.checkpoint_per_gaussian * n;
+        self.images + step.max(checkpoint)
     }
 
     /// The most Gaussians whose estimate stays within `limit` bytes; `None` when even the
     /// images and fixed part exceed it.
     pub fn max_gaussians(&self, limit: u64) -> Option<usize> {
         let room = limit.checked_sub(self.images + self.fixed)?;
-        Some(usize::try_from(room / self.per_gaussian.max(1)).unwrap_or(usize::MAX))
+        let by_step = room / self.per_gaussian.max(1);
+        let by_checkpoint = (room + self.render) / self.checkpoint_per_gaussian.max(1);
+        Some(usize::try_from(by_step.min(by_checkpoint)).unwrap_or(usize::MAX))
     }
 
     /// One line: the total at `gaussians` and its parts.
     pub fn summary(&self, gaussians: usize) -> String {
         format!(
             "memory estimate: {} with {gaussians} Gaussians (images {}, network {}, other fixed {}, \
-             {} per Gaussian{})",
+             {} per Gaussian{}; writing a checkpoint: {} per Gaussian, without the {} of render \
+             buffers)",
             human_bytes(self.at(gaussians)),
             human_bytes(self.images),
             human_bytes(self.network),
@@ -117,7 +140,9 @@ impl MemoryEstimate {
                 )
             } else {
                 String::new()
-            }
+            },
+            human_bytes(self.checkpoint_per_gaussian),
+            human_bytes(self.render),
         )
     }
 }
@@ -265,6 +290,50 @@ mod tests {
             MemoryEstimate::new(&c, &fewer).evolution_per_gaussian,
             10 * dim * 2
         );
+    }
+
+    #[test]
+    fn writing_a_checkpoint_holds_the_state_and_its_serialised_copy() {
+        let mut c = TrainConfig::preset(Preset::Cpu);
+        let base = MemoryEstimate::new(&c, &inputs());
+        // Baseline: parameters, two Adam moments and 7 statistics kept; the checkpoint's
+        // tensors and its file are two more copies of them.
+        let kept = 59 * 4 * 3 + 7 * 4;
+        assert_eq!(base.checkpoint_per_gaussian, 3 * kept);
+        assert_eq!(base.render, 160_000 * BYTES_PER_PIXEL);
+        c.method = Method::Evogs;
+        let e = MemoryEstimate::new(&c, &inputs());
+        let evolution = e.evolution_per_gaussian;
+        assert_eq!(
+            e.checkpoint_per_gaussian,
+            kept + evolution + evolution.max(2 * kept)
+        );
+        // The estimate is the larger peak: the step's with few Gaussians (its render buffers),
+        // the checkpoint's with many (EvoGS: the buffer and its serialised copy).
+        for n in [0, 1_000, 100_000, 1_000_000] {
+            let step = e.images + e.fixed + e.per_gaussian * n as u64;
+            let write = e.images + e.fixed - e.render + e.checkpoint_per_gaussian * n as u64;
+            assert_eq!(e.at(n), step.max(write), "{n}");
+        }
+        assert!(e.at(0) > e.images + e.fixed - e.render);
+        assert!(e.checkpoint_per_gaussian > e.per_gaussian);
+    }
+
+    #[test]
+    fn a_limit_caps_the_count_below_both_peaks() {
+        let mut c = TrainConfig::preset(Preset::Cpu);
+        for method in [Method::Baseline, Method::Evogs] {
+            c.method = method;
+            let e = MemoryEstimate::new(&c, &inputs());
+            for target in [0usize, 1, 777, 12_345, 250_000, 3_000_000] {
+                for slack in [0, 1, e.per_gaussian / 2] {
+                    let limit = e.at(target) + slack;
+                    let n = e.max_gaussians(limit).unwrap();
+                    assert!(e.at(n) <= limit, "{method:?} {target} {slack}");
+                    assert!(e.at(n + 1) > limit, "{method:?} {target} {slack}: {n}");
+                }
+            }
+        }
     }
 
     #[test]
