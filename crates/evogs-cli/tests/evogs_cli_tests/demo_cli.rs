@@ -1,21 +1,12 @@
-//! `evogs demo` with a tiny iteration budget: both methods are trained, evaluated and swept, the
-//! table names both with finite metrics, and only EvoGS holds an evolution buffer.
+//! `evogs demo`: both methods are trained, evaluated and swept, the table names both with finite
+//! metrics, and only EvoGS holds an evolution buffer. Checked on the `--quick` run that
+//! `demo_quick` scores (`support::quick_demo`, run once), rather than on a run of its own.
 
 use crate::support;
 
-use support::{ok, s};
-
 #[test]
 fn demo_compares_both_methods_and_writes_renders() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("demo");
-    let text = ok(&support::evogs(&[
-        "demo",
-        "--iterations",
-        "40",
-        "--out",
-        s(&out),
-    ]));
+    let (text, out) = support::quick_demo();
     let rows: Vec<Vec<&str>> = text
         .lines()
         .filter(|l| l.starts_with("| baseline") || l.starts_with("| evogs"))

@@ -1,11 +1,10 @@
 //! `evogs demo --quick`, as the README runs it: both methods reach a PSNR floor that an untrained
 //! model does not (the embedded scene's untrained render scores about 10 dB), and EvoGS is not
 //! worse than the baseline beyond run-to-run noise. Training is deterministic for the seed, so
-//! the margin below covers changes of the code rather than of the machine.
+//! the margin below covers changes of the code rather than of the machine. The run is shared with
+//! `demo_cli` (`support::quick_demo`).
 
 use crate::support;
-
-use support::{evogs, s};
 
 /// PSNR floor for both methods after the quick budget (measured: baseline 22.3, EvoGS 24.0 dB).
 const FLOOR_DB: f64 = 20.0;
@@ -14,11 +13,7 @@ const NOISE_DB: f64 = 0.5;
 
 #[test]
 fn quick_demo_meets_the_floor_and_evogs_is_not_worse() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("demo");
-    let o = evogs(&["demo", "--quick", "--out", s(&out)]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let text = String::from_utf8_lossy(&o.stdout);
+    let (text, _) = support::quick_demo();
     let psnr = |method: &str| -> f64 {
         let row = text
             .lines()

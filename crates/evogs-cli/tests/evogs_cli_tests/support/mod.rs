@@ -6,6 +6,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use std::sync::OnceLock;
 
 pub mod capture;
 pub mod view;
@@ -83,6 +84,22 @@ pub fn diff(a: &image::RgbImage, b: &image::RgbImage) -> (f64, u8) {
         max = max.max(d);
     }
     (sum as f64 / a.as_raw().len() as f64, max)
+}
+
+/// `evogs demo --quick`, run once per test process and shared by the tests that read it
+/// (`demo_quick` checks its scores, `demo_cli` its table and files): its standard output and its
+/// output folder (`quick-demo` under Cargo's `CARGO_TARGET_TMPDIR`, replaced at each run).
+pub fn quick_demo() -> &'static (String, PathBuf) {
+    static DEMO: OnceLock<(String, PathBuf)> = OnceLock::new();
+    DEMO.get_or_init(|| {
+        let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("quick-demo");
+        if out.exists() {
+            std::fs::remove_dir_all(&out).unwrap();
+        }
+        let o = evogs(&["demo", "--quick", "--out", s(&out)]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        (stdout(&o), out)
+    })
 }
 
 /// `evogs synth --preset PRESET --out OUT --size SIZE --frames FRAMES`, asserted to succeed.
