@@ -1,7 +1,8 @@
 //! evogs-cli's integration tests, built as one binary: each module below was its own test
 //! binary before (one link instead of twenty, and the harness runs the tests of every module
 //! on its threads together). `support` is what they share. One module alone:
-//! `cargo test -p evogs-cli --test evogs_cli_tests <module>::`.
+//! `cargo test --workspace --locked --test evogs_cli_tests -- <module>::` (`-p evogs-cli`
+//! resolves the dependencies' features for this crate alone and rebuilds some of them).
 
 #[path = "../../../evogs-train/tests/common/mod.rs"]
 mod common;
