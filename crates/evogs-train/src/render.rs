@@ -23,20 +23,9 @@ use crate::config::{OneWord, unknown_message};
 use crate::error::TrainError;
 use crate::run::LoadedRun;
 
-fn check_time(time: f32) -> Result<(), TrainError> {
-    if !time.is_finite() {
-        return Err(TrainError::config(
-            "time",
-            format!("{time} is not a finite number"),
-        ));
-    }
-    Ok(())
-}
-
 /// Renders `run` from `camera` at any finite `time` (see the module docs for times outside
 /// [0, 1]) over the run's background, colours clamped to [0, 1]. Read-only.
 pub fn render_at(run: &mut LoadedRun, camera: &Camera, time: f32) -> Result<ImageRgb, TrainError> {
-    check_time(time)?;
     let g = run.deformed(time)?;
     render_deformed(run, &g, camera, &mut ForwardOutput::default())
 }
@@ -117,7 +106,6 @@ pub fn sweep(
 
 /// Writes the deformed Gaussians of `run` at any finite `time` as a 3DGS PLY (atomically); returns how many.
 pub fn export_frame(run: &mut LoadedRun, time: f32, out: &Path) -> Result<usize, TrainError> {
-    check_time(time)?;
     let g = run.deformed(time)?;
     write_ply(out, g.view())?;
     Ok(g.len())
@@ -165,7 +153,6 @@ pub fn export_frame_as(
     format: ExportFormat,
     out: &Path,
 ) -> Result<usize, TrainError> {
-    check_time(time)?;
     let g = run.deformed(time)?;
     match format {
         ExportFormat::Ply => {

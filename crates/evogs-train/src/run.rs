@@ -487,8 +487,15 @@ impl LoadedRun {
         self.summary.iteration >= self.run.train.warm_up
     }
 
-    /// The deformed Gaussians at `time`.
+    /// The deformed Gaussians at any finite `time` (a non-finite one is an error naming the
+    /// field `time`).
     pub fn deformed(&mut self, time: f32) -> Result<Gaussians, TrainError> {
+        if !time.is_finite() {
+            return Err(TrainError::config(
+                "time",
+                format!("{time} is not a finite number"),
+            ));
+        }
         let deforms = self.deforms();
         deformed_gaussians(&self.canonical, self.backbone.as_mut(), deforms, time)
     }

@@ -442,11 +442,6 @@ impl Loaded {
             }
             CameraParam::Pose(camera) => (camera, job.time.unwrap_or(0.0)),
         };
-        if !time.is_finite() {
-            return Err(RenderFailure::Bad(BadRequest(format!(
-                "time {time} is not a finite number"
-            ))));
-        }
         // What `render_at` does, in its two halves, so that the deformation is computed once
         // per time and each half is timed.
         let start = Instant::now();
