@@ -244,6 +244,18 @@ fn read_checkpoint(
     Ok((state, backbone, meta))
 }
 
+/// The paths of the run directory `root` and its validated `config.json`: what opening a run,
+/// from its end-of-run files or its checkpoint, starts with.
+fn read_run_file(root: &Path) -> Result<(RunPaths, RunFile), TrainError> {
+    let paths = RunPaths::new(root);
+    if !root.is_dir() {
+        return Err(TrainError::file(root, "not a run directory"));
+    }
+    let run: RunFile = read_json(&paths.config())?;
+    run.train.validate()?;
+    Ok((paths, run))
+}
+
 /// Trains (or resumes) a run, calling `progress` after every iteration, and writes the run
 /// directory. Returns the summary that `train_metrics.json` holds.
 ///
@@ -408,12 +420,7 @@ pub struct LoadedRun {
 impl LoadedRun {
     /// Opens a run directory written by [`train`].
     pub fn open(root: &Path) -> Result<Self, TrainError> {
-        let paths = RunPaths::new(root);
-        if !root.is_dir() {
-            return Err(TrainError::file(root, "not a run directory"));
-        }
-        let run: RunFile = read_json(&paths.config())?;
-        run.train.validate()?;
+        let (paths, run) = read_run_file(root)?;
         let summary: TrainSummary = read_json(&paths.train_metrics())?;
         let canonical = evogs_io::read_ply(&paths.canonical())?.gaussians;
         let mut backbone = make_backbone(&run.train)?;
@@ -437,12 +444,7 @@ impl LoadedRun {
     /// planned iterations and Gaussians; what only the end of the run knows (time, last loss
     /// and PSNR) is NaN or zero.
     pub fn open_checkpoint(root: &Path) -> Result<Self, TrainError> {
-        let paths = RunPaths::new(root);
-        if !root.is_dir() {
-            return Err(TrainError::file(root, "not a run directory"));
-        }
-        let run: RunFile = read_json(&paths.config())?;
-        run.train.validate()?;
+        let (paths, run) = read_run_file(root)?;
         let (state, mut backbone, meta) = read_checkpoint(&paths.checkpoint(), &run.train)?;
         let pending = paths.pending_evo_state(meta.iteration);
         let evo_state = if pending.is_file() {
