@@ -1,9 +1,6 @@
-//! Nerfies camera JSON (`camera/<id>.json`): `read_nerfies_camera`.
+//! The `nerfies_camera` target: `evogs_fuzz::targets::nerfies_camera` (its reader and checks are documented there).
 #![no_main]
 
-use libfuzzer_sys::fuzz_target;
-
-fuzz_target!(init: evogs_fuzz::seeds_from_env(), |data: &[u8]| {
-    let path = evogs_fuzz::put("camera.json", data);
-    let _ = evogs_io::read_nerfies_camera(&path);
+libfuzzer_sys::fuzz_target!(init: evogs_fuzz::seeds_from_env(), |data: &[u8]| {
+    evogs_fuzz::targets::nerfies_camera(data);
 });

@@ -1,12 +1,7 @@
-//! Helpers shared by the fuzz targets: a per-process scratch directory (the path-based readers
-//! are fed through a file there), the fixed scenes some readers need beside the fuzzed file, and
-//! the splitting of one input into several files.
-//!
-//! Not a test library: the targets only check that a reader returns (`Ok` or a one-line error)
-//! without panicking, hanging or allocating beyond libFuzzer's `-malloc_limit_mb`, and that what
-//! it returns is self-consistent.
+//! The seed corpora: valid files written by the project's own writers (they reach deep into each
+//! reader) and the repository's D-NeRF `transforms_*.json` fixtures, one folder per target.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::OnceLock;
 
 use evo_state::{EvoConfig, EvoState, Frames, Storage};
@@ -14,111 +9,9 @@ use evogs_io::colmap::{
     CameraModel, ColmapCamera, ColmapImage, ColmapPoint, encode_cameras_bin, encode_cameras_txt,
     encode_images_bin, encode_images_txt, encode_points3d_bin, encode_points3d_txt,
 };
-use evogs_io::{CameraInfo, nerfies_camera_json, write_nerfies_camera};
-use splat_core::Camera;
+use evogs_io::{CameraInfo, nerfies_camera_json};
 
-/// The repository's test fixtures (the D-NeRF lego frames).
-pub const DNERF_FIXTURE: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../crates/evogs-io/tests/data/dnerf-lego"
-);
-
-/// This process's scratch directory (in `/dev/shm` when it exists: writes there cost no disk).
-pub fn scratch() -> &'static Path {
-    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
-    DIR.get_or_init(|| {
-        let shm = Path::new("/dev/shm");
-        let builder = tempfile::Builder::new()
-            .prefix("evogs-fuzz-")
-            .tempdir_in(shm);
-        builder
-            .or_else(|_| tempfile::tempdir())
-            .expect("scratch directory")
-    })
-    .path()
-}
-
-/// Writes `bytes` to `scratch()/relative` and returns the path.
-pub fn put(relative: &str, bytes: &[u8]) -> PathBuf {
-    let path = scratch().join(relative);
-    if let Some(parent) = path.parent() {
-        std::fs::create_dir_all(parent).expect("scratch folder");
-    }
-    std::fs::write(&path, bytes).expect("scratch write");
-    path
-}
-
-/// Splits `data` at NUL bytes into exactly `n` parts (missing parts are empty, the last part
-/// keeps any further NULs).
-pub fn parts(data: &[u8], n: usize) -> Vec<&[u8]> {
-    let mut out: Vec<&[u8]> = data.splitn(n, |&b| b == 0).collect();
-    out.resize(n, &[]);
-    out
-}
-
-/// A small pinhole camera (8×6 pixels).
-pub fn small_camera() -> Camera {
-    use glam::vec3;
-    Camera::look_at(
-        8,
-        6,
-        0.9,
-        vec3(0.0, 0.0, 4.0),
-        vec3(0.0, 0.0, 0.0),
-        vec3(0.0, 1.0, 0.0),
-    )
-}
-
-/// A nerfies scene directory `scratch()/<name>` holding everything but the three JSON files the
-/// fuzzer writes: cameras `a` and `b` (8×6) and their 2x-downscaled 4×3 images.
-pub fn nerfies_scene(name: &str) -> PathBuf {
-    let dir = scratch().join(name);
-    if !dir.join("rgb/2x/b.png").exists() {
-        for id in ["a", "b"] {
-            let camera = dir.join("camera").join(format!("{id}.json"));
-            std::fs::create_dir_all(camera.parent().unwrap()).unwrap();
-            write_nerfies_camera(&camera, &CameraInfo::pinhole(small_camera())).unwrap();
-            let image = dir.join("rgb/2x").join(format!("{id}.png"));
-            std::fs::create_dir_all(image.parent().unwrap()).unwrap();
-            evogs_io::save_png(&image, &evogs_io::ImageRgb::filled(4, 3, [0.2, 0.5, 0.7])).unwrap();
-        }
-    }
-    dir
-}
-
-/// A D-NeRF scene directory `scratch()/<name>` whose `train`, `val` and `test` folders link to
-/// the repository's lego fixture, so that the fuzzed `transforms.json` can name real images.
-pub fn dnerf_scene(name: &str) -> PathBuf {
-    let dir = scratch().join(name);
-    if !dir.join("test").exists() {
-        std::fs::create_dir_all(&dir).unwrap();
-        for split in ["train", "val", "test"] {
-            std::os::unix::fs::symlink(Path::new(DNERF_FIXTURE).join(split), dir.join(split))
-                .unwrap();
-        }
-    }
-    dir
-}
-
-/// A nerfstudio scene directory `scratch()/<name>` holding everything but `transforms.json`:
-/// images `images/a.png` and `images/b.png` (8×6) and an ASCII point cloud `sparse_pc.ply`.
-pub fn nerfstudio_scene(name: &str) -> PathBuf {
-    let dir = scratch().join(name);
-    if !dir.join("sparse_pc.ply").exists() {
-        std::fs::create_dir_all(dir.join("images")).unwrap();
-        for id in ["a", "b"] {
-            let image = dir.join("images").join(format!("{id}.png"));
-            evogs_io::save_png(&image, &evogs_io::ImageRgb::filled(8, 6, [0.2, 0.5, 0.7])).unwrap();
-        }
-        std::fs::write(dir.join("sparse_pc.ply"), NERFSTUDIO_PLY).unwrap();
-    }
-    dir
-}
-
-/// The point cloud of [`nerfstudio_scene`].
-const NERFSTUDIO_PLY: &str = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n\
-property float y\nproperty float z\nproperty uchar red\nproperty uchar green\n\
-property uchar blue\nend_header\n0.1 0.2 0.3 10 20 30\n-0.5 0.25 1 200 100 0\n";
+use crate::scratch::{DNERF_FIXTURE, small_camera};
 
 /// The configuration of the checkpoint target and its seed: the `tiny` preset with a network
 /// of two layers of width 8 (a seed of a few KiB: libFuzzer mutates small inputs faster).
@@ -283,7 +176,7 @@ pub fn write_all_seeds(dir: &Path) {
         with(2, encode_points3d_txt(&points).into_bytes()),
     );
 
-    // nerfstudio transforms.json (first byte: 0 times from order).
+    // nerfstudio transforms.json (first byte: 0 times from order, 1 from the names' numbers).
     let c2w = |x: f64| format!("[[1, 0, 0, {x}], [0, 1, 0, 0], [0, 0, 1, 3], [0, 0, 0, 1]]");
     let with_time = format!(
         r#"{{"camera_model": "OPENCV", "w": 8, "h": 6, "fl_x": 7.0, "fl_y": 7.5, "cx": 4.0, "cy": 3.0, "k1": 0.01, "ply_file_path": "sparse_pc.ply", "applied_transform": [[0, 1, 0, 0], [1, 0, 0, 0], [0, 0, -1, 0]], "train_filenames": ["images/a.png"], "test_filenames": ["images/b.png"], "frames": [{{"file_path": "images/a.png", "time": 0.0, "transform_matrix": {}}}, {{"file_path": "images/b.png", "time": 1.0, "transform_matrix": {}}}]}}"#,
@@ -297,7 +190,7 @@ pub fn write_all_seeds(dir: &Path) {
         [b"\0".as_slice(), with_time.as_bytes()].concat(),
     );
     let per_frame = format!(
-        r#"{{"w": 8, "h": 6, "cx": 4.0, "frames": [{{"file_path": "images/b.png", "fl_x": 7.0, "fl_y": 7.0, "cy": 3.0, "distortion_params": [0.1, 0, 0, 0, 0.01, 0], "transform_matrix": {}}}, {{"file_path": "images/a.png", "fl_x": 6.0, "fl_y": 6.5, "cy": 3.0, "transform_matrix": {}}}]}}"#,
+        r#"{{"w": 8, "h": 6, "cx": 4.0, "frames": [{{"file_path": "images/frame_0002.png", "fl_x": 7.0, "fl_y": 7.0, "cy": 3.0, "distortion_params": [0.1, 0, 0, 0, 0.01, 0], "transform_matrix": {}}}, {{"file_path": "images/frame_0001.png", "fl_x": 6.0, "fl_y": 6.5, "cy": 3.0, "transform_matrix": {}}}]}}"#,
         c2w(0.0),
         c2w(-0.5)
     );

@@ -1,0 +1,186 @@
+//! One function per fuzz target: it feeds the input to its reader and returns whether the reader
+//! accepted it, after checking that what it returned is self-consistent (a panic otherwise).
+//! The libFuzzer targets in `fuzz/fuzz_targets/<name>.rs` call these, and so does the replay
+//! test; [`TARGETS`] lists them by those names.
+
+use std::path::Path;
+
+use evogs_io::TimeFrom;
+use evogs_io::colmap::{
+    parse_cameras_bin, parse_cameras_txt, parse_images_bin, parse_images_txt, parse_points3d_bin,
+    parse_points3d_txt,
+};
+use evogs_io::nerfstudio::read_nerfstudio_dataset;
+
+use crate::scratch::{dnerf_scene, nerfies_scene, nerfstudio_scene, parts, put};
+
+/// A fuzz target: its name (the libFuzzer binary's, the seed and regression folders') and its
+/// body.
+#[derive(Clone, Copy, Debug)]
+pub struct Target {
+    /// The name of the target (`fuzz/fuzz_targets/<name>.rs`).
+    pub name: &'static str,
+    /// Feeds one input to the reader; true when the reader accepted it.
+    pub run: fn(&[u8]) -> bool,
+}
+
+impl Target {
+    const fn new(name: &'static str, run: fn(&[u8]) -> bool) -> Self {
+        Self { name, run }
+    }
+}
+
+/// Every fuzz target (the checkpoint target only with the feature `checkpoint`).
+pub const TARGETS: &[Target] = &[
+    Target::new("ply", ply),
+    Target::new("nerfies_camera", nerfies_camera),
+    Target::new("nerfies_dataset", nerfies_dataset),
+    Target::new("dnerf_transforms", dnerf_transforms),
+    Target::new("colmap_bin", colmap_bin),
+    Target::new("colmap_txt", colmap_txt),
+    Target::new("npy", npy),
+    Target::new("nerfstudio", nerfstudio),
+    Target::new("evo_state", evo_state),
+    #[cfg(feature = "checkpoint")]
+    Target::new("checkpoint", checkpoint),
+];
+
+/// PLY (ASCII and binary of either endianness): `read_ply_bytes`.
+pub fn ply(data: &[u8]) -> bool {
+    let Ok(loaded) = evogs_io::read_ply_bytes(data, Path::new("fuzz.ply")) else {
+        return false;
+    };
+    let g = &loaded.gaussians;
+    let n = g.means.len();
+    assert_eq!(g.log_scales.len(), n);
+    assert_eq!(g.rotations.len(), n);
+    assert_eq!(g.opacity_logits.len(), n);
+    assert_eq!(g.sh.len(), n * 3 * splat_core::sh_coeff_count(g.sh_degree));
+    // Every Gaussian takes at least one byte of the file.
+    assert!(n <= data.len());
+    true
+}
+
+/// Nerfies camera JSON (`camera/<id>.json`): `read_nerfies_camera`.
+pub fn nerfies_camera(data: &[u8]) -> bool {
+    let path = put("camera.json", data);
+    evogs_io::read_nerfies_camera(&path).is_ok()
+}
+
+/// Nerfies dataset JSON: the input is `dataset.json`, `metadata.json` and `scene.json` separated
+/// by NUL bytes, read by `load_dataset` in a scene with two valid cameras (`a`, `b`) and images.
+pub fn nerfies_dataset(data: &[u8]) -> bool {
+    let dir = nerfies_scene("nerfies");
+    let files = parts(data, 3);
+    for (name, bytes) in ["dataset.json", "metadata.json", "scene.json"]
+        .iter()
+        .zip(files)
+    {
+        std::fs::write(dir.join(name), bytes).unwrap();
+    }
+    let Ok(dataset) = evogs_io::load_dataset(&dir, &evogs_io::LoadOptions::default()) else {
+        return false;
+    };
+    assert!(dataset.all_frames().count() > 0);
+    true
+}
+
+/// D-NeRF `transforms_*.json`: `read_transforms` in a folder whose `train`/`val`/`test` images
+/// are the repository's lego fixture.
+pub fn dnerf_transforms(data: &[u8]) -> bool {
+    let dir = dnerf_scene("dnerf");
+    let path = dir.join("transforms_train.json");
+    std::fs::write(&path, data).unwrap();
+    let Ok(frames) = evogs_io::read_transforms(&path) else {
+        return false;
+    };
+    for f in &frames {
+        assert!((0.0..=1.0).contains(&f.time));
+    }
+    true
+}
+
+/// COLMAP binary model files: the first byte picks `cameras.bin`, `images.bin` or
+/// `points3D.bin`, the rest is the file.
+pub fn colmap_bin(data: &[u8]) -> bool {
+    let Some((&which, file)) = data.split_first() else {
+        return false;
+    };
+    match which % 3 {
+        0 => parse_cameras_bin(Path::new("cameras.bin"), file).is_ok(),
+        1 => parse_images_bin(Path::new("images.bin"), file).is_ok(),
+        _ => parse_points3d_bin(Path::new("points3D.bin"), file).is_ok(),
+    }
+}
+
+/// COLMAP text model files: the first byte picks `cameras.txt`, `images.txt` or
+/// `points3D.txt`, the rest is the file (UTF-8; other bytes are rejected before parsing, as
+/// when reading the file).
+pub fn colmap_txt(data: &[u8]) -> bool {
+    let Some((&which, file)) = data.split_first() else {
+        return false;
+    };
+    let Ok(text) = std::str::from_utf8(file) else {
+        return false;
+    };
+    match which % 3 {
+        0 => parse_cameras_txt(Path::new("cameras.txt"), text).is_ok(),
+        1 => parse_images_txt(Path::new("images.txt"), text).is_ok(),
+        _ => parse_points3d_txt(Path::new("points3D.txt"), text).is_ok(),
+    }
+}
+
+/// NumPy `.npy` arrays: `parse_npy`.
+pub fn npy(data: &[u8]) -> bool {
+    let Ok(array) = evogs_io::npy::parse_npy(Path::new("fuzz.npy"), data) else {
+        return false;
+    };
+    assert_eq!(array.data.len(), array.shape.iter().product::<usize>());
+    true
+}
+
+/// nerfstudio `transforms.json`: `read_nerfstudio_dataset` in a folder holding four 8×6 images
+/// and an ASCII point cloud ([`crate::scratch::nerfstudio_scene`]); the first byte picks how
+/// times are given when the frames have none, the rest is the file.
+pub fn nerfstudio(data: &[u8]) -> bool {
+    let Some((&which, file)) = data.split_first() else {
+        return false;
+    };
+    let dir = nerfstudio_scene("nerfstudio");
+    std::fs::write(dir.join("transforms.json"), file).unwrap();
+    let time_from = [TimeFrom::Order, TimeFrom::Name, TimeFrom::None][usize::from(which % 3)];
+    let Ok(dataset) = read_nerfstudio_dataset(&dir, time_from) else {
+        return false;
+    };
+    assert!(dataset.all_frames().count() > 0);
+    for frame in dataset.all_frames() {
+        assert!((0.0..=1.0).contains(&frame.time));
+    }
+    true
+}
+
+/// EvoGS state files (safetensors): `EvoState::load`.
+pub fn evo_state(data: &[u8]) -> bool {
+    let path = put("evo_state.safetensors", data);
+    let Ok(state) = evo_state::EvoState::load(&path) else {
+        return false;
+    };
+    assert_eq!(state.valid().len(), state.frames().len());
+    true
+}
+
+/// Training checkpoints (safetensors with a JSON header): `load_checkpoint` into the state of
+/// the `tiny` preset with a small network ([`crate::seeds::tiny_config`], which its seed was
+/// written with).
+#[cfg(feature = "checkpoint")]
+pub fn checkpoint(data: &[u8]) -> bool {
+    let path = put("checkpoint.safetensors", data);
+    let (mut state, mut backbone) = crate::seeds::tiny_state();
+    let Ok(meta) = evogs_train::checkpoint::load_checkpoint(&path, &mut state, backbone.as_mut())
+    else {
+        return false;
+    };
+    assert_eq!(state.gaussians().means.len(), meta.gaussians);
+    assert_eq!(state.stats().grad_sum.len(), meta.gaussians);
+    true
+}
