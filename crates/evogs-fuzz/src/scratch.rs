@@ -100,12 +100,13 @@ pub fn nerfstudio_scene(name: &str) -> PathBuf {
             let image = dir.join("images").join(format!("{id}.png"));
             evogs_io::save_png(&image, &evogs_io::ImageRgb::filled(8, 6, [0.2, 0.5, 0.7])).unwrap();
         }
-        std::fs::write(dir.join("sparse_pc.ply"), NERFSTUDIO_PLY).unwrap();
+        std::fs::write(dir.join("sparse_pc.ply"), POINT_CLOUD_PLY).unwrap();
     }
     dir
 }
 
-/// The point cloud of [`nerfstudio_scene`].
-const NERFSTUDIO_PLY: &str = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n\
+/// A small ASCII point cloud with 8-bit colours: [`nerfstudio_scene`]'s, and a seed of the
+/// `point_cloud` target.
+pub const POINT_CLOUD_PLY: &str = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n\
 property float y\nproperty float z\nproperty uchar red\nproperty uchar green\n\
 property uchar blue\nend_header\n0.1 0.2 0.3 10 20 30\n-0.5 0.25 1 200 100 0\n";

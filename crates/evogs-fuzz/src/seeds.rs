@@ -11,7 +11,7 @@ use evogs_io::colmap::{
 };
 use evogs_io::{CameraInfo, nerfies_camera_json};
 
-use crate::scratch::{DNERF_FIXTURE, small_camera};
+use crate::scratch::{DNERF_FIXTURE, POINT_CLOUD_PLY, small_camera};
 
 /// The configuration of the checkpoint target and its seed: the `tiny` preset with a network
 /// of two layers of width 8 (a seed of a few KiB: libFuzzer mutates small inputs faster).
@@ -91,6 +91,26 @@ pub fn write_all_seeds(dir: &Path) {
     }
     seed(dir, "ply", "ascii_sh0.ply", ascii);
 
+    // Point clouds: ASCII with 8-bit colours, and a binary 3DGS PLY (no colours: grey).
+    seed(dir, "point_cloud", "ascii_rgb.ply", POINT_CLOUD_PLY);
+    let mut binary = Vec::new();
+    evogs_io::write_ply_to(
+        &mut binary,
+        small_gaussians(3, 0).view(),
+        Path::new("seed.ply"),
+    )
+    .unwrap();
+    seed(dir, "point_cloud", "binary_3dgs.ply", binary);
+
+    // .splat and .compressed.ply, written by the exporters.
+    std::fs::create_dir_all(dir.join("splat")).unwrap();
+    evogs_io::write_splat(&dir.join("splat/three.splat"), small_gaussians(3, 0).view()).unwrap();
+    std::fs::create_dir_all(dir.join("compressed_ply")).unwrap();
+    for degree in [0, 1] {
+        let path = dir.join(format!("compressed_ply/sh{degree}.compressed.ply"));
+        evogs_io::write_compressed_ply(&path, small_gaussians(3, degree).view()).unwrap();
+    }
+
     // Nerfies camera and dataset JSON.
     let camera = CameraInfo::pinhole(small_camera());
     seed(
@@ -98,6 +118,15 @@ pub fn write_all_seeds(dir: &Path) {
         "nerfies_camera",
         "camera.json",
         nerfies_camera_json(&camera),
+    );
+    // A camera path: the camera at two times.
+    let object = nerfies_camera_json(&camera);
+    let object = object.trim_end().strip_suffix('}').expect("a JSON object");
+    seed(
+        dir,
+        "camera_path",
+        "two_times.json",
+        format!("[{object}, \"time\": 0.0}}, {object}, \"time\": 0.75}}]"),
     );
     seed(
         dir,

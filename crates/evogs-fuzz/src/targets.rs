@@ -41,6 +41,10 @@ pub const TARGETS: &[Target] = &[
     Target::new("npy", npy),
     Target::new("nerfstudio", nerfstudio),
     Target::new("evo_state", evo_state),
+    Target::new("camera_path", camera_path),
+    Target::new("point_cloud", point_cloud),
+    Target::new("splat", splat),
+    Target::new("compressed_ply", compressed_ply),
     #[cfg(feature = "checkpoint")]
     Target::new("checkpoint", checkpoint),
 ];
@@ -50,14 +54,9 @@ pub fn ply(data: &[u8]) -> bool {
     let Ok(loaded) = evogs_io::read_ply_bytes(data, Path::new("fuzz.ply")) else {
         return false;
     };
-    let g = &loaded.gaussians;
-    let n = g.means.len();
-    assert_eq!(g.log_scales.len(), n);
-    assert_eq!(g.rotations.len(), n);
-    assert_eq!(g.opacity_logits.len(), n);
-    assert_eq!(g.sh.len(), n * 3 * splat_core::sh_coeff_count(g.sh_degree));
+    consistent(&loaded.gaussians);
     // Every Gaussian takes at least one byte of the file.
-    assert!(n <= data.len());
+    assert!(loaded.gaussians.means.len() <= data.len());
     true
 }
 
@@ -167,6 +166,64 @@ pub fn evo_state(data: &[u8]) -> bool {
     };
     assert_eq!(state.valid().len(), state.frames().len());
     true
+}
+
+/// Camera paths (`evogs video --path`, a JSON array of nerfies cameras with times):
+/// `read_camera_path`.
+pub fn camera_path(data: &[u8]) -> bool {
+    let path = put("camera_path.json", data);
+    let Ok(cameras) = evogs_io::read_camera_path(&path) else {
+        return false;
+    };
+    assert!(!cameras.is_empty());
+    for c in &cameras {
+        assert!(c.time.is_finite());
+    }
+    true
+}
+
+/// PLY point clouds (a dataset's initial points: `x y z`, optional colours):
+/// `read_point_cloud`.
+pub fn point_cloud(data: &[u8]) -> bool {
+    let path = put("points.ply", data);
+    let Ok(cloud) = evogs_io::ply::read_point_cloud(&path) else {
+        return false;
+    };
+    assert_eq!(cloud.colours.len(), cloud.positions.len());
+    assert!(cloud.positions.len() <= data.len());
+    true
+}
+
+/// antimatter15's `.splat` (32 bytes a Gaussian): `read_splat`.
+pub fn splat(data: &[u8]) -> bool {
+    let path = put("fuzz.splat", data);
+    let Ok(g) = evogs_io::read_splat(&path) else {
+        return false;
+    };
+    consistent(&g);
+    assert_eq!(g.means.len() * 32, data.len());
+    true
+}
+
+/// PlayCanvas/SuperSplat's `.compressed.ply`: `read_compressed_ply_bytes`.
+pub fn compressed_ply(data: &[u8]) -> bool {
+    let Ok(g) =
+        evogs_io::compressed_ply::read_compressed_ply_bytes(data, Path::new("fuzz.compressed.ply"))
+    else {
+        return false;
+    };
+    consistent(&g);
+    assert!(g.means.len() <= data.len());
+    true
+}
+
+/// Every per-Gaussian array of `g` has one row per Gaussian.
+fn consistent(g: &splat_core::Gaussians) {
+    let n = g.means.len();
+    assert_eq!(g.log_scales.len(), n);
+    assert_eq!(g.rotations.len(), n);
+    assert_eq!(g.opacity_logits.len(), n);
+    assert_eq!(g.sh.len(), n * 3 * splat_core::sh_coeff_count(g.sh_degree));
 }
 
 /// Training checkpoints (safetensors with a JSON header): `load_checkpoint` into the state of

@@ -106,6 +106,10 @@ replay_tests!(
     npy,
     nerfstudio,
     evo_state,
+    camera_path,
+    point_cloud,
+    splat,
+    compressed_ply,
     checkpoint,
 );
 

@@ -1,0 +1,6 @@
+//! The `point_cloud` target: `evogs_fuzz::targets::point_cloud` (its reader and checks are documented there).
+#![no_main]
+
+libfuzzer_sys::fuzz_target!(init: evogs_fuzz::seeds_from_env(), |data: &[u8]| {
+    evogs_fuzz::targets::point_cloud(data);
+});
