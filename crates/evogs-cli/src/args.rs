@@ -115,30 +115,30 @@ pub struct TrainArgs {
     /// EvoGS gain K: learned (Ψ), or fixed at a number in [0, 1] (0 = prior only, 1 =
     /// observation only) [default: learned].
     #[arg(long, value_name = "learned|0|0.5|1")]
-    pub gain: Option<evogs_train::Gain>,
+    pub gain: Option<evogs_backbones::Gain>,
 
     /// EvoGS history: from the buffer of corrected states, or re-queried from Φ ("without
     /// buffer") [default: buffer].
     #[arg(long, value_name = "buffer|requery")]
-    pub history: Option<evogs_train::HistoryMode>,
+    pub history: Option<evogs_backbones::HistoryMode>,
 
     /// EvoGS densification: standard 3DGS, + uncertainty trigger, + deformation-aware
     /// clone/split [default: trigger+deform].
     #[arg(long, value_name = "standard|trigger|trigger+deform")]
-    pub densify: Option<evogs_train::DensifyPolicy>,
+    pub densify: Option<evogs_backbones::DensifyPolicy>,
 
     /// EvoGS buffer storage [default: f32].
     #[arg(long, value_name = "f32|f16")]
-    pub buffer: Option<evogs_train::Storage>,
+    pub buffer: Option<evogs_backbones::Storage>,
 
     /// EvoGS Φ storage precision [default: f32].
     #[arg(long, value_name = "f32|f16")]
-    pub net_precision: Option<evogs_train::Precision>,
+    pub net_precision: Option<evogs_backbones::Precision>,
 
     /// EvoGS deformation components, comma-separated [default: pos,rot,scale]; opacity adds
     /// to the opacity logit, colour to the SH DC (EvoGS only; the baseline refuses them).
     #[arg(long, value_name = "pos,rot,scale[,opacity,colour]")]
-    pub components: Option<evogs_train::Layout>,
+    pub components: Option<evogs_backbones::Layout>,
 
     /// EvoGS motion floor: below this speed per frame spacing, as a fraction of the scene
     /// extent, a Gaussian counts as still and its angular deviation θ is 0 [default: 1e-3, the

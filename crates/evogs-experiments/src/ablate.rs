@@ -11,11 +11,9 @@ use serde::Serialize;
 
 use crate::error::ExperimentError;
 use crate::write::{write_bytes, write_json, write_png};
+use evogs_backbones::{DensifyPolicy, EvoSettings, Gain, HistoryMode, Precision, Storage};
 use evogs_train::config::{Method, TrainConfig};
 use evogs_train::eval::{EvalLpips, evaluate};
-use evogs_train::evo_settings::{
-    DensifyPolicy, EvoSettings, Gain, HistoryMode, Precision, Storage,
-};
 use evogs_train::run::{LoadedRun, TrainRequest, train};
 
 /// One row of the ladder: a name and the switches it sets.
@@ -822,7 +820,7 @@ mod tests {
             serde_json::from_value(serde_json::to_value(&off).unwrap()).unwrap();
         assert!(!round.evolution);
         // The switch reaches evo-state, which then keeps no buffer.
-        let config = evogs_train::evo_backbone::evo_config(&off, 1.0);
+        let config = evogs_backbones::evo_backbone::evo_config(&off, 1.0);
         assert!(!config.evolution);
     }
 

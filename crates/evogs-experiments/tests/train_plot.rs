@@ -1,9 +1,10 @@
 //! The training plot of `evogs plot`: `plot_run` draws every line of a run's `train_log.jsonl`,
 //! and a run without a log is refused naming the file.
 
+use evogs_backbones::GainStats;
 use evogs_experiments::train_plot::plot_run;
 use evogs_train::RunPaths;
-use evogs_train::train_log::{GainStats, LogLine};
+use evogs_train::train_log::LogLine;
 
 fn line(iteration: u64, loss: f64, gaussians: usize) -> LogLine {
     LogLine {

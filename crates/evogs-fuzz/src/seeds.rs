@@ -28,7 +28,7 @@ pub fn tiny_config() -> evogs_train::TrainConfig {
 #[cfg(feature = "checkpoint")]
 pub fn tiny_state() -> (
     evogs_train::state::SceneState,
-    Box<dyn evogs_train::Backbone>,
+    Box<dyn evogs_backbones::Backbone>,
 ) {
     let config = tiny_config();
     let backbone = evogs_train::trainer::make_backbone(&config).expect("tiny backbone");

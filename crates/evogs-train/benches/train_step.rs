@@ -5,10 +5,11 @@
 //! NaN/Inf check of every parameter group that training runs every log interval.
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use evogs_backbones::Layout;
 use evogs_io::Split;
 use evogs_synth::{embedded_scene, write_dnerf};
 use evogs_train::data::load_split;
-use evogs_train::{Layout, Method, Preset, TrainConfig, Trainer};
+use evogs_train::{Method, Preset, TrainConfig, Trainer};
 
 fn trainer(method: Method, components: Layout, data: &std::path::Path) -> Trainer {
     let mut c = TrainConfig::preset(Preset::Tiny).with_iterations(1_000_000);

@@ -12,7 +12,8 @@ use serde::{Deserialize, Serialize};
 use splat_raster::{Gaussians, sh_coeff_count};
 use tiny_nn::{StoreMut, StoreRef};
 
-use crate::backbone::Backbone;
+use evogs_backbones::Backbone;
+
 use crate::error::TrainError;
 use crate::state::SceneState;
 

@@ -35,35 +35,13 @@ use densify::{DensifyConfig, Schedule};
 use serde::{Deserialize, Serialize};
 use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 
+use evogs_backbones::{NetInit, NetSettings, OneWord, unknown_message};
+
 use crate::error::TrainError;
 
 /// The `dnerf` preset's cap on the Gaussian count (densify's `max_gaussians`): the initial
 /// point count, which densification may refill after pruning but not exceed.
 pub const DNERF_MAX_GAUSSIANS: usize = 10_000;
-
-/// A setting spelled by one word (on the command line and in `config.json`): the field its
-/// parse errors name.
-pub(crate) trait OneWord: VariantNames {
-    /// The `config.json` field (and `--` flag) of the setting.
-    const FIELD: &'static str;
-    /// What a value is called in the error message.
-    const NOUN: &'static str = Self::FIELD;
-    /// The spellings as "one of a, b, c" rather than "a, b or c" (kept as the messages were).
-    const ONE_OF: bool = false;
-}
-
-/// The message for `value`, which spells no `T`: "unknown method `x`; expected baseline or
-/// evogs" (or "expected one of a, b, c" where [`OneWord::ONE_OF`]), the spellings in declaration
-/// order.
-pub(crate) fn unknown_message<T: OneWord>(value: &str) -> String {
-    let names = T::VARIANTS;
-    let expected = match names.split_last() {
-        _ if T::ONE_OF => format!("one of {}", names.join(", ")),
-        Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
-        _ => names.join(""),
-    };
-    format!("unknown {} `{value}`; expected {expected}", T::NOUN)
-}
 
 /// [`unknown_message`] as the error of the setting [`OneWord::FIELD`].
 pub(crate) fn unknown<T: OneWord>(value: &str) -> TrainError {
@@ -103,11 +81,11 @@ pub enum Method {
 #[strum(serialize_all = "lowercase", parse_err_ty = TrainError, parse_err_fn = unknown::<Self>)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub enum BackboneKind {
-    /// Deformable-3D-Gaussians' deformation MLP ([`crate::D3dgsBackbone`]).
+    /// Deformable-3D-Gaussians' deformation MLP ([`evogs_backbones::D3dgsBackbone`]).
     #[default]
     #[serde(rename = "d3dgs")]
     D3dgs,
-    /// 4DGaussians' HexPlane field ([`crate::hex_backbone::HexBackbone`]).
+    /// 4DGaussians' HexPlane field ([`evogs_backbones::HexBackbone`]).
     #[serde(rename = "4dgs")]
     #[strum(serialize = "4dgs")]
     FourDgs,
@@ -165,36 +143,6 @@ pub enum Preset {
 impl Preset {
     /// All presets.
     pub const ALL: [Preset; 4] = [Preset::Paper, Preset::Cpu, Preset::Tiny, Preset::Dnerf];
-}
-
-/// How the deformation network's parameters start.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum NetInit {
-    /// D-3DGS: PyTorch's default on every layer, heads included.
-    #[default]
-    Torch,
-    /// He hidden layers (zero bias) and zero heads: the deformation starts at exactly zero and
-    /// depends on its input through all 8 layers from the first step (see [`tiny_nn::Init`]).
-    He,
-}
-
-/// The D-3DGS deformation network's shape.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct NetSettings {
-    /// Hidden width (D-3DGS: 256).
-    pub width: usize,
-    /// Hidden layers (8).
-    pub depth: usize,
-    /// Skip connection after this hidden layer (4).
-    pub skip_after: Option<usize>,
-    /// Frequencies of the position encoding (10).
-    pub xyz_freqs: usize,
-    /// Frequencies of the time encoding (6 for synthetic scenes).
-    pub t_freqs: usize,
-    /// Initialisation (runs written before it existed read as D-3DGS's).
-    #[serde(default)]
-    pub init: NetInit,
 }
 
 fn one() -> f32 {
@@ -324,7 +272,7 @@ pub struct TrainConfig {
     pub log_every: u64,
     /// EvoGS's switches and Φ's shape (used by `method = evogs`; recorded for every run).
     #[serde(default)]
-    pub evogs: crate::evo_settings::EvoSettings,
+    pub evogs: evogs_backbones::EvoSettings,
     /// Rasterizer backend (`cpu`, `wgpu`, `auto`); runs written before it existed read as `cpu`.
     /// A resumed run keeps it unless the resume asks for another.
     #[serde(default)]
@@ -376,7 +324,7 @@ impl TrainConfig {
             densify: DensifyConfig::default(),
             checkpoint_every: 5_000,
             log_every: default_log_every(),
-            evogs: crate::evo_settings::EvoSettings::default(),
+            evogs: evogs_backbones::EvoSettings::default(),
             backend: splat_raster::BackendChoice::Cpu,
             time_from: evogs_io::TimeFrom::Order,
             memory_limit: None,
@@ -583,8 +531,8 @@ impl TrainConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::DensifyPolicy;
     use crate::render::ExportFormat;
+    use evogs_backbones::DensifyPolicy;
 
     /// Each one-word setting: every spelling parses back to its value, `config.json` (serde)
     /// spells it as the command line does (strum), and an unknown word names the setting and
@@ -596,7 +544,7 @@ mod tests {
             + PartialEq
             + std::fmt::Debug
             + std::fmt::Display
-            + std::str::FromStr<Err = TrainError>
+            + std::str::FromStr<Err: std::fmt::Display + std::fmt::Debug>
             + Serialize
             + Into<&'static str>,
     {

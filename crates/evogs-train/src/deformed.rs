@@ -10,21 +10,7 @@
 
 use splat_raster::{GaussianGrads, Gaussians, GaussiansView};
 
-use crate::backbone::DEFORM_DIM;
-
-/// Which appearance components a backbone deforms (geometry is always deformed).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Appearance {
-    /// Column 10 (opacity logit offset) is used.
-    pub opacity: bool,
-    /// Columns 11..14 (SH DC offset, r g b) are used.
-    pub colour: bool,
-}
-
-/// Column of the opacity-logit offset in a deformation row.
-pub const OPACITY_COLUMN: usize = 10;
-/// First column of the SH DC offset (3 columns) in a deformation row.
-pub const COLOUR_COLUMN: usize = 11;
+use evogs_backbones::{Appearance, COLOUR_COLUMN, DEFORM_DIM, OPACITY_COLUMN};
 
 /// The deformed parameters of every Gaussian.
 #[derive(Clone, Debug, Default, PartialEq)]

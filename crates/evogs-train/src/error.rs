@@ -14,6 +14,9 @@ pub enum TrainError {
     /// The rasterizer rejected its input.
     #[error("rasterizer: {0}")]
     Raster(#[from] splat_raster::RasterError),
+    /// A backbone's error (its messages are the trainer's own).
+    #[error(transparent)]
+    Backbone(#[from] evogs_backbones::BackboneError),
     /// A network or optimiser error.
     #[error("network: {0}")]
     Nn(#[from] tiny_nn::NnError),

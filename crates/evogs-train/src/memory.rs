@@ -236,7 +236,8 @@ pub fn parse_bytes(text: &str) -> Result<u64, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{HistoryMode, Preset, Storage};
+    use crate::Preset;
+    use evogs_backbones::{HistoryMode, Storage};
 
     fn inputs() -> MemoryInputs {
         MemoryInputs {

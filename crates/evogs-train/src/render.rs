@@ -19,9 +19,9 @@ use evogs_io::{ImageRgb, save_png, write_ply};
 use splat_raster::{Camera, ForwardOutput, Gaussians, RenderOptions};
 use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 
-use crate::config::{OneWord, unknown_message};
 use crate::error::TrainError;
 use crate::run::LoadedRun;
+use evogs_backbones::{OneWord, unknown_message};
 
 /// Renders `run` from `camera` at any finite `time` (see the module docs for times outside
 /// [0, 1]) over the run's background, colours clamped to [0, 1]. Read-only.

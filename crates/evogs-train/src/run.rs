@@ -29,7 +29,8 @@ use splat_raster::{
     BackendChoice, BackendInfo, CpuRasterizer, DynRasterizer, Gaussians, select_rasterizer,
 };
 
-use crate::backbone::Backbone;
+use evogs_backbones::Backbone;
+
 use crate::checkpoint::{CheckpointMeta, load_checkpoint, save_checkpoint};
 use crate::config::TrainConfig;
 use crate::data::{load_dataset_split, load_split, open_dataset};

@@ -12,7 +12,8 @@ use splat_raster::{GaussianGrads, Gaussians};
 use tiny_nn::adam::AdamGroup;
 use tiny_nn::{Adam, ExponentialLr, GroupId, LrSchedule, StoreMut};
 
-use crate::backbone::Backbone;
+use evogs_backbones::Backbone;
+
 use crate::config::LrSettings;
 use crate::error::TrainError;
 
@@ -413,9 +414,9 @@ impl SceneState {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::backbone::D3dgsBackbone;
-    use crate::config::{NetSettings, Preset, TrainConfig};
+    use crate::config::{Preset, TrainConfig};
     use densify::{NewValues, PlanSummary};
+    use evogs_backbones::{D3dgsBackbone, NetSettings};
     use splat_core::RowPlan;
 
     fn state(n: usize) -> (SceneState, D3dgsBackbone) {
@@ -566,9 +567,9 @@ mod tests {
         c.method = Method::Evogs;
         c.evogs.grid_lr_scale = 10.0;
         c.evogs.psi_lr = Some(3e-3);
-        let backbone = crate::evo_backbone::EvoBackbone::new(&c).unwrap();
+        let backbone = crate::trainer::make_backbone(&c).unwrap();
         let g = crate::init::random_gaussians(4, 1.0, 0, 0);
-        let s = SceneState::new(g, &backbone, &c.lr).unwrap();
+        let s = SceneState::new(g, backbone.as_ref(), &c.lr).unwrap();
         let base = network_schedule(&c.lr);
         let names: Vec<String> = backbone.params().into_iter().map(|(n, _)| n).collect();
         let mut seen = [0usize; 2];
@@ -590,9 +591,9 @@ mod tests {
         assert!(seen[0] > 0 && seen[1] > 0, "{names:?}");
         // Runs recorded before `psi_lr` existed (None) train Ψ on the network schedule.
         c.evogs.psi_lr = None;
-        let backbone = crate::evo_backbone::EvoBackbone::new(&c).unwrap();
+        let backbone = crate::trainer::make_backbone(&c).unwrap();
         let g = crate::init::random_gaussians(4, 1.0, 0, 0);
-        let s = SceneState::new(g, &backbone, &c.lr).unwrap();
+        let s = SceneState::new(g, backbone.as_ref(), &c.lr).unwrap();
         let psi = *s.net_groups.last().unwrap();
         assert_eq!(s.adam.group(psi).name, "net.psi");
         assert_eq!(s.adam.group(psi).schedule, base);

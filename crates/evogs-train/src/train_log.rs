@@ -12,40 +12,10 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
+use evogs_backbones::GainStats;
+
 use crate::error::TrainError;
 use crate::run::write_text;
-
-/// Statistics of K over the Gaussians of one step (EvoGS).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct GainStats {
-    /// Mean K.
-    pub mean: f64,
-    /// Smallest K.
-    pub min: f32,
-    /// Largest K.
-    pub max: f32,
-}
-
-impl GainStats {
-    /// The statistics of `gains` over `rows` Gaussians (`None` for no rows).
-    pub fn of(gains: &evo_state::Gains, rows: usize) -> Option<Self> {
-        if rows == 0 {
-            return None;
-        }
-        let (mut sum, mut min, mut max) = (0.0f64, f32::INFINITY, f32::NEG_INFINITY);
-        for i in 0..rows {
-            let k = gains.at(i);
-            sum += f64::from(k);
-            min = min.min(k);
-            max = max.max(k);
-        }
-        Some(Self {
-            mean: sum / rows as f64,
-            min,
-            max,
-        })
-    }
-}
 
 /// One line of `train_log.jsonl`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

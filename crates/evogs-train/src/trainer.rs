@@ -31,17 +31,16 @@ use splat_raster::{
     BackendInfo, DynRasterizer, Gaussians, PixelGrads, RenderOptions, select_rasterizer,
 };
 
-use crate::backbone::{Backbone, D3dgsBackbone};
 use crate::config::{BackboneKind, Method, TrainConfig};
 use crate::data::SplitViews;
 use crate::deformed::{DeformedGeometry, deformation_gradient_into};
 use crate::error::TrainError;
-use crate::evo_settings::DensifyPolicy;
 use crate::gain_report::GainReport;
 use crate::init::random_gaussians;
 use crate::memory::{MemoryEstimate, MemoryInputs};
 use crate::state::SceneState;
 use crate::timers::{Phase, PhaseTimes};
+use evogs_backbones::{Backbone, D3dgsBackbone, DensifyPolicy, EvoBackbone, HexBackbone};
 use evogs_metrics::{ImageSize, LossWorkspace, psnr_from_mse};
 
 /// What one iteration did.
@@ -70,9 +69,17 @@ pub fn make_backbone(config: &TrainConfig) -> Result<Box<dyn Backbone>, TrainErr
                 &config.net,
                 config.seed ^ 0xD3D6_5000,
             )?)),
-            BackboneKind::FourDgs => Ok(Box::new(crate::hex_backbone::HexBackbone::new(config)?)),
+            BackboneKind::FourDgs => Ok(Box::new(HexBackbone::new(
+                config.init_half_extent,
+                config.seed,
+            )?)),
         },
-        Method::Evogs => Ok(Box::new(crate::evo_backbone::EvoBackbone::new(config)?)),
+        Method::Evogs => Ok(Box::new(EvoBackbone::new(
+            &config.evogs,
+            config.net.width,
+            config.init_half_extent,
+            config.seed,
+        )?)),
     }
 }
 

@@ -2,11 +2,10 @@
 //! values are refused naming the setting, and the flags cannot be mixed with `--resume`.
 
 use clap::Parser;
+use evogs_backbones::{DensifyPolicy, EvoSettings, Gain, HistoryMode, Layout, Precision, Storage};
 use evogs_cli::train_cmd::config_from_args;
 use evogs_cli::{Cli, Command};
-use evogs_train::{
-    DensifyPolicy, EvoSettings, Gain, HistoryMode, Layout, Method, Precision, Storage, TrainConfig,
-};
+use evogs_train::{Method, TrainConfig};
 
 fn config(flags: &[&str]) -> anyhow::Result<TrainConfig> {
     let mut argv = vec!["evogs", "train", "--data", "d", "--out", "o"];

@@ -5,8 +5,8 @@
 //! own gradients (checked against f64 differences in splat-raster; their order in the row is
 //! checked by `deformed`'s proptest).
 
-use evogs_train::backbone::DEFORM_DIM;
-use evogs_train::deformed::{Appearance, DeformedGeometry, deformation_gradient};
+use evogs_backbones::{Appearance, DEFORM_DIM};
+use evogs_train::deformed::{DeformedGeometry, deformation_gradient};
 use glam::Vec3;
 use splat_raster::{Camera, CpuRasterizer, Gaussians, PixelGrads, Rasterizer, RenderOptions};
 

@@ -4,8 +4,8 @@
 //! displacement. The canonical Gaussians start where the ground truth is at t = 0.5, so nothing
 //! but the network can explain the images at other times.
 
+use evogs_backbones::NetInit;
 use evogs_io::{ImageRgb, Split};
-use evogs_train::config::NetInit;
 use evogs_train::data::{SplitViews, View};
 use evogs_train::{Method, Preset, TrainConfig, Trainer};
 use glam::Vec3;

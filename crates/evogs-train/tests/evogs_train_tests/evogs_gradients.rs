@@ -7,8 +7,10 @@
 //! the paths through d̂ (the rendering loss and L_sup; L_prior's d̂ is held at its value: the
 //! stop-gradient).
 
-use evogs_train::backbone::{Backbone, DEFORM_DIM, PerGaussianState};
-use evogs_train::{EvoBackbone, Gain, HistoryMode, Layout, Method, Preset, TrainConfig};
+use evogs_backbones::{
+    Backbone, DEFORM_DIM, EvoBackbone, Gain, HistoryMode, Layout, PerGaussianState,
+};
+use evogs_train::{Method, Preset, TrainConfig};
 use splat_raster::Gaussians;
 
 const TIMES: [f32; 5] = [0.0, 0.25, 0.5, 0.75, 1.0];
@@ -50,7 +52,7 @@ fn backbone(gain: Gain, components: Layout, history: HistoryMode) -> EvoBackbone
     c.evogs.bspline_controls = 5;
     c.evogs.bspline_width = 2;
     c.evogs.hidden_layers = 1;
-    let mut b = EvoBackbone::new(&c).unwrap();
+    let mut b = EvoBackbone::new(&c.evogs, c.net.width, c.init_half_extent, c.seed).unwrap();
     b.prepare(&TIMES, N, 2.0).unwrap();
     b
 }

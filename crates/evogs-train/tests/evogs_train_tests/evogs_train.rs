@@ -245,7 +245,7 @@ fn a_kill_between_checkpoint_and_evolution_state_resumes_bit_for_bit() {
 
 #[test]
 fn every_switch_combination_trains_finitely_and_stays_aligned() {
-    use evogs_train::{DensifyPolicy, Gain, HistoryMode, Precision, Storage};
+    use evogs_backbones::{DensifyPolicy, Gain, HistoryMode, Precision, Storage};
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("scene");
     common::write_scene(&data);

@@ -6,10 +6,11 @@
 
 use densify::{DensifyStats, PlanInput, make_plan, residual_norms, thetas};
 use evo_state::EvoState;
-use evogs_train::evo_backbone::evo_config;
-use evogs_train::evo_settings::TRAINER_MOTION_FLOOR;
+use evogs_backbones::EvoSettings;
+use evogs_backbones::evo_backbone::evo_config;
+use evogs_backbones::evo_settings::TRAINER_MOTION_FLOOR;
 use evogs_train::trainer::densify_config;
-use evogs_train::{EvoSettings, Method, Preset, TrainConfig};
+use evogs_train::{Method, Preset, TrainConfig};
 use splat_raster::Gaussians;
 
 const EXTENT: f32 = 7.0;

@@ -4,7 +4,8 @@
 
 use crate::common;
 
-use evogs_train::train_log::{GainStats, read_log};
+use evogs_backbones::GainStats;
+use evogs_train::train_log::read_log;
 use evogs_train::{Preset, RunPaths, TrainConfig, TrainRequest, train};
 
 fn config() -> TrainConfig {

@@ -13,17 +13,30 @@
 use std::path::Path;
 
 use densify::PerGaussian;
-use splat_raster::GaussiansView;
+use serde::{Deserialize, Serialize};
+use splat_core::GaussiansView;
 use tiny_nn::{DeformCache, DeformConfig, DeformNet, Parameters, Precision, StoreMut, StoreRef};
 
-use crate::config::{NetInit, NetSettings};
-use crate::deformed::Appearance;
-use crate::error::TrainError;
+use crate::error::BackboneError;
 
 /// Width of a deformation row: position 3, rotation 4, scale 3, opacity 1, colour (SH DC) 3.
 pub const DEFORM_DIM: usize = 14;
 /// The geometric part of a row (position, rotation, scale): D-3DGS's heads.
 pub const GEOMETRY_DIM: usize = 10;
+
+/// Which appearance components a backbone deforms (geometry is always deformed).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Appearance {
+    /// Column 10 (opacity logit offset) is used.
+    pub opacity: bool,
+    /// Columns 11..14 (SH DC offset, r g b) are used.
+    pub colour: bool,
+}
+
+/// Column of the opacity-logit offset in a deformation row.
+pub const OPACITY_COLUMN: usize = 10;
+/// First column of the SH DC offset (3 columns) in a deformation row.
+pub const COLOUR_COLUMN: usize = 11;
 
 /// A deformation backbone: the core every backbone implements (forward, backward, parameters,
 /// weights). A backbone that keeps per-Gaussian state of its own (EvoGS's evolution state) also
@@ -42,12 +55,12 @@ pub trait Backbone: Send {
         canonical: GaussiansView<'_>,
         time: f32,
         training: bool,
-    ) -> Result<Vec<f32>, TrainError>;
+    ) -> Result<Vec<f32>, BackboneError>;
 
     /// Gradients of the parameter buffers (same order as [`Backbone::params`]) from dL/d(deformation)
     /// of the last training forward. Gradients to the canonical Gaussians are not returned: the
     /// network input is detached (D-3DGS: `deform.step(gaussians.get_xyz.detach(), t)`).
-    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, TrainError>;
+    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, BackboneError>;
 
     /// Named parameter buffers, in a fixed order.
     fn params(&self) -> Vec<(String, StoreRef<'_>)>;
@@ -79,10 +92,10 @@ pub trait Backbone: Send {
     }
 
     /// Writes the weights to a safetensors file (atomically).
-    fn save(&self, path: &Path) -> Result<(), TrainError>;
+    fn save(&self, path: &Path) -> Result<(), BackboneError>;
 
     /// Reads weights written by [`Backbone::save`] (same names, dtypes and sizes).
-    fn load(&mut self, path: &Path) -> Result<(), TrainError>;
+    fn load(&mut self, path: &Path) -> Result<(), BackboneError>;
 
     /// The backbone's per-Gaussian state, when it has one (EvoGS; `None` for D-3DGS).
     fn state(&self) -> Option<&dyn PerGaussianState> {
@@ -102,7 +115,12 @@ pub trait Backbone: Send {
 pub trait PerGaussianState: Send {
     /// Sizes the state for a run (training frame times, Gaussian count, scene extent); called
     /// when a trainer is built.
-    fn prepare(&mut self, frame_times: &[f32], rows: usize, extent: f32) -> Result<(), TrainError>;
+    fn prepare(
+        &mut self,
+        frame_times: &[f32],
+        rows: usize,
+        extent: f32,
+    ) -> Result<(), BackboneError>;
 
     /// The per-Gaussian arrays of the state, for densification plans.
     fn rows_mut(&mut self) -> Vec<&mut dyn PerGaussian>;
@@ -114,7 +132,7 @@ pub trait PerGaussianState: Send {
     fn state_bytes(&self) -> usize;
 
     /// Uncertainty cues of the last training step for densification's trigger.
-    fn densify_cues(&self, extent: f32) -> Result<DensifyCues, TrainError>;
+    fn densify_cues(&self, extent: f32) -> Result<DensifyCues, BackboneError>;
 
     /// Motion statistics (|v1|, |v2|, θ per Gaussian) of the last training step, when it had
     /// three history frames.
@@ -128,13 +146,13 @@ pub trait PerGaussianState: Send {
     fn latest_deformation(&self) -> Option<densify::Deformation<'_>>;
 
     /// Statistics of the gain K of the latest training step.
-    fn gain_stats(&self) -> Option<crate::train_log::GainStats>;
+    fn gain_stats(&self) -> Option<GainStats>;
 
     /// Writes the state to `path`.
-    fn save_state(&self, path: &Path) -> Result<(), TrainError>;
+    fn save_state(&self, path: &Path) -> Result<(), BackboneError>;
 
     /// Reads the state written by [`PerGaussianState::save_state`].
-    fn load_state(&mut self, path: &Path) -> Result<(), TrainError>;
+    fn load_state(&mut self, path: &Path) -> Result<(), BackboneError>;
 }
 
 /// The per-Gaussian state of any backbone, through [`Backbone::state`]: what a backbone without
@@ -146,7 +164,7 @@ impl<'a> dyn Backbone + 'a {
         frame_times: &[f32],
         rows: usize,
         extent: f32,
-    ) -> Result<(), TrainError> {
+    ) -> Result<(), BackboneError> {
         self.state_mut()
             .map_or(Ok(()), |s| s.prepare(frame_times, rows, extent))
     }
@@ -167,7 +185,7 @@ impl<'a> dyn Backbone + 'a {
     }
 
     /// Uncertainty cues of the last training step (none without state).
-    pub fn densify_cues(&self, extent: f32) -> Result<DensifyCues, TrainError> {
+    pub fn densify_cues(&self, extent: f32) -> Result<DensifyCues, BackboneError> {
         self.state()
             .map_or_else(|| Ok(DensifyCues::default()), |s| s.densify_cues(extent))
     }
@@ -188,13 +206,13 @@ impl<'a> dyn Backbone + 'a {
     }
 
     /// Statistics of the gain K of the latest training step (none without state).
-    pub fn gain_stats(&self) -> Option<crate::train_log::GainStats> {
+    pub fn gain_stats(&self) -> Option<GainStats> {
         self.state()?.gain_stats()
     }
 
     /// Writes the state to `path`; returns whether there was any (without state nothing is
     /// written).
-    pub fn save_state(&self, path: &Path) -> Result<bool, TrainError> {
+    pub fn save_state(&self, path: &Path) -> Result<bool, BackboneError> {
         match self.state() {
             Some(s) => s.save_state(path).map(|()| true),
             None => Ok(false),
@@ -202,8 +220,40 @@ impl<'a> dyn Backbone + 'a {
     }
 
     /// Reads the state written by [`PerGaussianState::save_state`] (nothing without state).
-    pub fn load_state(&mut self, path: &Path) -> Result<(), TrainError> {
+    pub fn load_state(&mut self, path: &Path) -> Result<(), BackboneError> {
         self.state_mut().map_or(Ok(()), |s| s.load_state(path))
+    }
+}
+
+/// Statistics of K over the Gaussians of one step (EvoGS).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GainStats {
+    /// Mean K.
+    pub mean: f64,
+    /// Smallest K.
+    pub min: f32,
+    /// Largest K.
+    pub max: f32,
+}
+
+impl GainStats {
+    /// The statistics of `gains` over `rows` Gaussians (`None` for no rows).
+    pub fn of(gains: &evo_state::Gains, rows: usize) -> Option<Self> {
+        if rows == 0 {
+            return None;
+        }
+        let (mut sum, mut min, mut max) = (0.0f64, f32::INFINITY, f32::NEG_INFINITY);
+        for i in 0..rows {
+            let k = gains.at(i);
+            sum += f64::from(k);
+            min = min.min(k);
+            max = max.max(k);
+        }
+        Some(Self {
+            mean: sum / rows as f64,
+            min,
+            max,
+        })
     }
 }
 
@@ -214,6 +264,36 @@ pub struct DensifyCues {
     pub residual_norm: Option<Vec<f32>>,
     /// Angular deviation θ (when the step had statistics).
     pub theta: Option<Vec<f32>>,
+}
+
+/// How the deformation network's parameters start.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum NetInit {
+    /// D-3DGS: PyTorch's default on every layer, heads included.
+    #[default]
+    Torch,
+    /// He hidden layers (zero bias) and zero heads: the deformation starts at exactly zero and
+    /// depends on its input through all 8 layers from the first step (see [`tiny_nn::Init`]).
+    He,
+}
+
+/// The D-3DGS deformation network's shape.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct NetSettings {
+    /// Hidden width (D-3DGS: 256).
+    pub width: usize,
+    /// Hidden layers (8).
+    pub depth: usize,
+    /// Skip connection after this hidden layer (4).
+    pub skip_after: Option<usize>,
+    /// Frequencies of the position encoding (10).
+    pub xyz_freqs: usize,
+    /// Frequencies of the time encoding (6 for synthetic scenes).
+    pub t_freqs: usize,
+    /// Initialisation (runs written before it existed read as D-3DGS's).
+    #[serde(default)]
+    pub init: NetInit,
 }
 
 /// D-3DGS's deformation network (`utils/time_utils.py` `DeformNetwork`: sinusoidal encodings of
@@ -228,7 +308,7 @@ pub struct D3dgsBackbone {
 
 impl D3dgsBackbone {
     /// The network of the given shape, initialised from `seed`.
-    pub fn new(settings: &NetSettings, seed: u64) -> Result<Self, TrainError> {
+    pub fn new(settings: &NetSettings, seed: u64) -> Result<Self, BackboneError> {
         let net = DeformNet::new(DeformConfig {
             width: settings.width,
             depth: settings.depth,
@@ -262,7 +342,7 @@ impl Backbone for D3dgsBackbone {
         canonical: GaussiansView<'_>,
         time: f32,
         training: bool,
-    ) -> Result<Vec<f32>, TrainError> {
+    ) -> Result<Vec<f32>, BackboneError> {
         let n = canonical.len();
         self.positions.clear();
         self.positions
@@ -286,9 +366,9 @@ impl Backbone for D3dgsBackbone {
         Ok(out)
     }
 
-    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, TrainError> {
+    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, BackboneError> {
         let cache = self.cache.as_ref().ok_or_else(|| {
-            TrainError::config("backbone", "backward called without a training forward")
+            BackboneError::config("backbone", "backward called without a training forward")
         })?;
         let geometry: Vec<f32> = d_deform
             .chunks_exact(DEFORM_DIM)
@@ -306,11 +386,11 @@ impl Backbone for D3dgsBackbone {
         self.net.named_params_mut()
     }
 
-    fn save(&self, path: &Path) -> Result<(), TrainError> {
+    fn save(&self, path: &Path) -> Result<(), BackboneError> {
         Ok(tiny_nn::weights::save(path, &self.net)?)
     }
 
-    fn load(&mut self, path: &Path) -> Result<(), TrainError> {
+    fn load(&mut self, path: &Path) -> Result<(), BackboneError> {
         Ok(tiny_nn::weights::load(path, &mut self.net)?)
     }
 }

@@ -5,7 +5,7 @@
 //! - the field: HexPlane of 32 channels, space resolutions 64 · [1, 2], 25 time texels, feature
 //!   layer and heads of width 64 ([`HexDeformConfig::dnerf`]), over the box of the initial
 //!   points (4DGaussians: `set_aabb` from the initial point cloud's bounds; ours is the cube
-//!   `[-h, h]³` of [`TrainConfig::init_half_extent`]);
+//!   `[-h, h]³` of the trainer's `init_half_extent`);
 //! - deformation of position, rotation and scale (its D-NeRF defaults `no_do`, `no_dshs`);
 //! - the regularisers of the fine stage (`train.py` `scene_reconstruction`, `stage == "fine"`):
 //!   `plane_tv_weight = 1e-4` ([`SPACE_SMOOTHNESS`]), `time_smoothness_weight = 1e-2`
@@ -15,7 +15,7 @@
 //!   `deformation_lr_init = 1.6e-4`, both decaying 100×), so the planes take the network
 //!   schedule times [`GRID_LR_SCALE`] and the MLPs the network schedule.
 //! - the two-stage schedule: 4DGaussians' static coarse stage (`coarse_iterations = 3000`) is
-//!   the trainer's warm-up ([`TrainConfig::warm_up`]), during which no backbone runs.
+//!   the trainer's warm-up (its `warm_up`), during which no backbone runs.
 //!
 //! What it is not: EvoGS(4DGS) (Φ built from this field), which is not implemented yet.
 
@@ -27,8 +27,7 @@ use tiny_nn::{
 };
 
 use crate::backbone::{Backbone, DEFORM_DIM, GEOMETRY_DIM};
-use crate::config::TrainConfig;
-use crate::error::TrainError;
+use crate::error::BackboneError;
 
 /// 4DGaussians' `plane_tv_weight` (D-NeRF).
 pub const SPACE_SMOOTHNESS: f32 = 1e-4;
@@ -47,14 +46,11 @@ pub struct HexBackbone {
 }
 
 impl HexBackbone {
-    /// The D-NeRF field over the initial cube of `config`, initialised from its seed.
-    pub fn new(config: &TrainConfig) -> Result<Self, TrainError> {
-        let h = config.init_half_extent;
-        let net = HexDeformNet::new(HexDeformConfig::dnerf(
-            [-h; 3],
-            [h; 3],
-            config.seed ^ 0x4D65_0000,
-        ))?;
+    /// The D-NeRF field over the initial cube `[-h, h]³` (`h = half_extent`), initialised from
+    /// the run's `seed`.
+    pub fn new(half_extent: f32, seed: u64) -> Result<Self, BackboneError> {
+        let h = half_extent;
+        let net = HexDeformNet::new(HexDeformConfig::dnerf([-h; 3], [h; 3], seed ^ 0x4D65_0000))?;
         Ok(Self {
             net,
             cache: None,
@@ -73,7 +69,7 @@ impl Backbone for HexBackbone {
         canonical: GaussiansView<'_>,
         time: f32,
         training: bool,
-    ) -> Result<Vec<f32>, TrainError> {
+    ) -> Result<Vec<f32>, BackboneError> {
         let n = canonical.len();
         let positions: Vec<f32> = canonical.means.iter().flat_map(|m| *m).collect();
         let times = vec![time; n];
@@ -89,9 +85,9 @@ impl Backbone for HexBackbone {
         Ok(out)
     }
 
-    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, TrainError> {
+    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, BackboneError> {
         let cache = self.cache.as_ref().ok_or_else(|| {
-            TrainError::config("backbone", "backward called without a training forward")
+            BackboneError::config("backbone", "backward called without a training forward")
         })?;
         let geometry: Vec<f32> = d_deform
             .chunks_exact(DEFORM_DIM)
@@ -125,11 +121,11 @@ impl Backbone for HexBackbone {
         self.regularisers
     }
 
-    fn save(&self, path: &Path) -> Result<(), TrainError> {
+    fn save(&self, path: &Path) -> Result<(), BackboneError> {
         Ok(tiny_nn::weights::save(path, &self.net)?)
     }
 
-    fn load(&mut self, path: &Path) -> Result<(), TrainError> {
+    fn load(&mut self, path: &Path) -> Result<(), BackboneError> {
         Ok(tiny_nn::weights::load(path, &mut self.net)?)
     }
 }

@@ -31,12 +31,12 @@ use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 pub use evo_state::{Gain, HistoryMode, Layout, Storage};
 pub use tiny_nn::Precision;
 
-use crate::config::{OneWord, unknown};
-use crate::error::TrainError;
+use crate::error::BackboneError;
+use crate::one_word::{OneWord, unknown};
 
 /// Densification policy (DESIGN §6).
 #[derive(EnumString, Display, IntoStaticStr, VariantNames)]
-#[strum(parse_err_ty = TrainError, parse_err_fn = unknown::<Self>)]
+#[strum(parse_err_ty = BackboneError, parse_err_fn = unknown::<Self>)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum DensifyPolicy {
     /// 3DGS adaptive density control.
@@ -188,10 +188,10 @@ impl Default for EvoSettings {
 
 impl EvoSettings {
     /// Checks the settings a training run with `--method evogs` needs.
-    pub fn validate(&self) -> Result<(), TrainError> {
+    pub fn validate(&self) -> Result<(), BackboneError> {
         let c = self.components;
         if !(c.position || c.rotation || c.scale || c.opacity || c.colour) {
-            return Err(TrainError::config(
+            return Err(BackboneError::config(
                 "evogs.components",
                 "at least one component is needed",
             ));
@@ -199,37 +199,37 @@ impl EvoSettings {
         if let Gain::Fixed(k) = self.gain
             && !(0.0..=1.0).contains(&k)
         {
-            return Err(TrainError::config(
+            return Err(BackboneError::config(
                 "evogs.gain",
                 format!("{k}: must lie in [0, 1]"),
             ));
         }
         if self.triplane_channels == 0 || self.triplane_resolutions.is_empty() {
-            return Err(TrainError::config(
+            return Err(BackboneError::config(
                 "evogs.triplane",
                 "needs at least one channel and one resolution",
             ));
         }
         if self.triplane_resolutions.iter().any(|&r| r < 2) {
-            return Err(TrainError::config(
+            return Err(BackboneError::config(
                 "evogs.triplane_resolutions",
                 "every resolution must be at least 2",
             ));
         }
         if self.bspline_controls < 4 || self.bspline_width == 0 {
-            return Err(TrainError::config(
+            return Err(BackboneError::config(
                 "evogs.bspline",
                 "needs at least 4 control vectors of width at least 1",
             ));
         }
         if !(self.motion_floor.is_finite() && self.motion_floor >= 0.0) {
-            return Err(TrainError::config(
+            return Err(BackboneError::config(
                 "evogs.motion_floor",
                 format!("{}: must be finite and non-negative", self.motion_floor),
             ));
         }
         if !(self.grid_lr_scale.is_finite() && self.grid_lr_scale > 0.0) {
-            return Err(TrainError::config(
+            return Err(BackboneError::config(
                 "evogs.grid_lr_scale",
                 format!("{}: must be finite and positive", self.grid_lr_scale),
             ));
@@ -237,7 +237,7 @@ impl EvoSettings {
         if let Some(lr) = self.psi_lr
             && !(lr.is_finite() && lr >= 0.0)
         {
-            return Err(TrainError::config(
+            return Err(BackboneError::config(
                 "evogs.psi_lr",
                 format!("{lr}: must be finite and non-negative"),
             ));
@@ -247,7 +247,10 @@ impl EvoSettings {
             ("evogs.lambda_prior", self.lambda_prior),
         ] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(TrainError::config(field, "must be finite and non-negative"));
+                return Err(BackboneError::config(
+                    field,
+                    "must be finite and non-negative",
+                ));
             }
         }
         Ok(())

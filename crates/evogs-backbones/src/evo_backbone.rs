@@ -33,15 +33,16 @@ use tiny_nn::{
     PlaneCombine, StoreMut, StoreRef, TriPlaneConfig,
 };
 
-use crate::backbone::{Backbone, DEFORM_DIM, DensifyCues, PerGaussianState};
-use crate::config::TrainConfig;
-use crate::deformed::{Appearance, COLOUR_COLUMN, OPACITY_COLUMN};
-use crate::error::TrainError;
+use crate::backbone::{
+    Appearance, Backbone, COLOUR_COLUMN, DEFORM_DIM, DensifyCues, GainStats, OPACITY_COLUMN,
+    PerGaussianState,
+};
+use crate::error::BackboneError;
 use crate::evo_settings::EvoSettings;
 
 /// evo-state's errors as the trainer's (the message names the Gaussian and component).
-fn evo_err(e: EvoError) -> TrainError {
-    TrainError::config("evolution state", e.to_string())
+fn evo_err(e: EvoError) -> BackboneError {
+    BackboneError::config("evolution state", e.to_string())
 }
 
 /// evo-state's configuration for `settings` in a scene of the given extent.
@@ -60,11 +61,16 @@ pub fn evo_config(settings: &EvoSettings, extent: f32) -> EvoConfig {
     }
 }
 
-/// Φ's configuration for a run: half the baseline width, scene box `[-h, h]³` of the initial
-/// cube, output D.
-pub fn observation_config(config: &TrainConfig) -> ObservationConfig {
-    let s = &config.evogs;
-    let h = config.init_half_extent;
+/// Φ's configuration for a run: half the baseline network's width (`net_width`), scene box
+/// `[-h, h]³` of the initial cube (`half_extent`), output D, initialised from the run's `seed`.
+pub fn observation_config(
+    settings: &EvoSettings,
+    net_width: usize,
+    half_extent: f32,
+    seed: u64,
+) -> ObservationConfig {
+    let s = settings;
+    let h = half_extent;
     let mut triplane = TriPlaneConfig::new(
         s.triplane_channels,
         &s.triplane_resolutions,
@@ -75,11 +81,11 @@ pub fn observation_config(config: &TrainConfig) -> ObservationConfig {
     ObservationConfig {
         triplane,
         bspline: BSplineConfig::new(s.bspline_controls, s.bspline_width),
-        width: (config.net.width / 2).max(1),
+        width: (net_width / 2).max(1),
         hidden_layers: s.hidden_layers,
         output: s.components.dim(),
         precision: s.net_precision,
-        seed: config.seed ^ 0xE70_6500,
+        seed: seed ^ 0xE70_6500,
     }
 }
 
@@ -110,19 +116,26 @@ pub struct EvoBackbone {
 }
 
 impl EvoBackbone {
-    /// Φ and Ψ for a run, initialised from its seed. The evolution state is sized by
-    /// [`PerGaussianState::prepare`] (or replaced by [`PerGaussianState::load_state`]).
-    pub fn new(config: &TrainConfig) -> Result<Self, TrainError> {
-        let settings = config.evogs.clone();
+    /// Φ and Ψ for a run (its EvoGS settings, the baseline network's width, the half extent of
+    /// its initial cube), initialised from its seed ([`observation_config`]). The evolution
+    /// state is sized by [`PerGaussianState::prepare`] (or replaced by
+    /// [`PerGaussianState::load_state`]).
+    pub fn new(
+        settings: &EvoSettings,
+        net_width: usize,
+        half_extent: f32,
+        seed: u64,
+    ) -> Result<Self, BackboneError> {
+        let settings = settings.clone();
         settings.validate()?;
-        let phi = ObservationNet::new(observation_config(config))?;
+        let phi = ObservationNet::new(observation_config(&settings, net_width, half_extent, seed))?;
         let placeholder = Frames::from_timestamps([0.0])
-            .map_err(|e| TrainError::config("frames", e.to_string()))?;
+            .map_err(|e| BackboneError::config("frames", e.to_string()))?;
         let evo = EvoState::new(
             evo_config(&settings, 1.0),
             placeholder,
             0,
-            config.seed ^ 0x9A1_0000,
+            seed ^ 0x9A1_0000,
         )
         .map_err(evo_err)?;
         let layout = settings.components;
@@ -170,15 +183,15 @@ impl EvoBackbone {
         self.backward.as_ref().map(|b| b.losses)
     }
 
-    fn check_ready(&self, rows: usize) -> Result<(), TrainError> {
+    fn check_ready(&self, rows: usize) -> Result<(), BackboneError> {
         if !self.ready {
-            return Err(TrainError::config(
+            return Err(BackboneError::config(
                 "evolution state",
                 "not initialised: train the run, or load its evo_state.safetensors",
             ));
         }
         if self.evo.rows() != rows {
-            return Err(TrainError::config(
+            return Err(BackboneError::config(
                 "evolution state",
                 format!(
                     "holds {} Gaussians but the scene has {rows} (not aligned)",
@@ -198,7 +211,7 @@ impl EvoBackbone {
         z: &[f32],
         step: &mut Step,
         keep: bool,
-    ) -> Result<Vec<(f32, ObservationCache)>, TrainError> {
+    ) -> Result<Vec<(f32, ObservationCache)>, BackboneError> {
         let mut caches = Vec::new();
         let result = match self.settings.history {
             evo_state::HistoryMode::Buffer => self.evo.forward_into(time, z, None, step),
@@ -273,7 +286,7 @@ impl Backbone for EvoBackbone {
         canonical: GaussiansView<'_>,
         time: f32,
         training: bool,
-    ) -> Result<Vec<f32>, TrainError> {
+    ) -> Result<Vec<f32>, BackboneError> {
         let n = canonical.len();
         self.check_ready(n)?;
         self.positions.clear();
@@ -310,12 +323,12 @@ impl Backbone for EvoBackbone {
         Ok(out)
     }
 
-    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, TrainError> {
+    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, BackboneError> {
         let t = self.training.as_mut().ok_or_else(|| {
-            TrainError::config("backbone", "backward called without a training forward")
+            BackboneError::config("backbone", "backward called without a training forward")
         })?;
         if t.committed {
-            return Err(TrainError::config(
+            return Err(BackboneError::config(
                 "backbone",
                 "backward called twice for one training forward",
             ));
@@ -323,7 +336,7 @@ impl Backbone for EvoBackbone {
         let d = self.deform_from_evo.len();
         let n = t.step.rows();
         if d_deform.len() != n * DEFORM_DIM {
-            return Err(TrainError::config(
+            return Err(BackboneError::config(
                 "backbone",
                 format!(
                     "deformation gradient has {} values, expected {n} × {DEFORM_DIM}",
@@ -358,7 +371,7 @@ impl Backbone for EvoBackbone {
                 .iter()
                 .find(|(time, _)| *time == hg.time)
                 .ok_or_else(|| {
-                    TrainError::config(
+                    BackboneError::config(
                         "backbone",
                         format!("no cache of Φ at the history time {}", hg.time),
                     )
@@ -376,7 +389,7 @@ impl Backbone for EvoBackbone {
         for (name, buf) in self.phi.named_params() {
             let len = buf.len();
             let part = flat.get(at..at + len).ok_or_else(|| {
-                TrainError::config("backbone", format!("Φ gradient too short at `{name}`"))
+                BackboneError::config("backbone", format!("Φ gradient too short at `{name}`"))
             })?;
             grads.push(part.to_vec());
             at += len;
@@ -435,22 +448,27 @@ impl Backbone for EvoBackbone {
         Some(self)
     }
 
-    fn save(&self, path: &Path) -> Result<(), TrainError> {
+    fn save(&self, path: &Path) -> Result<(), BackboneError> {
         Ok(tiny_nn::weights::save(path, self)?)
     }
 
-    fn load(&mut self, path: &Path) -> Result<(), TrainError> {
+    fn load(&mut self, path: &Path) -> Result<(), BackboneError> {
         Ok(tiny_nn::weights::load(path, self)?)
     }
 }
 
 impl PerGaussianState for EvoBackbone {
-    fn prepare(&mut self, frame_times: &[f32], rows: usize, extent: f32) -> Result<(), TrainError> {
+    fn prepare(
+        &mut self,
+        frame_times: &[f32],
+        rows: usize,
+        extent: f32,
+    ) -> Result<(), BackboneError> {
         if self.ready {
             return self.check_ready(rows);
         }
         let frames = Frames::from_timestamps(frame_times.iter().copied())
-            .map_err(|e| TrainError::config("frames", e.to_string()))?;
+            .map_err(|e| BackboneError::config("frames", e.to_string()))?;
         let psi = self.evo.psi().params();
         let mut evo =
             EvoState::new(evo_config(&self.settings, extent), frames, rows, 0).map_err(evo_err)?;
@@ -474,7 +492,7 @@ impl PerGaussianState for EvoBackbone {
         self.evo.state_bytes()
     }
 
-    fn densify_cues(&self, extent: f32) -> Result<DensifyCues, TrainError> {
+    fn densify_cues(&self, extent: f32) -> Result<DensifyCues, BackboneError> {
         let Some(t) = &self.training else {
             return Ok(DensifyCues::default());
         };
@@ -500,41 +518,43 @@ impl PerGaussianState for EvoBackbone {
         })
     }
 
-    fn gain_stats(&self) -> Option<crate::train_log::GainStats> {
+    fn gain_stats(&self) -> Option<GainStats> {
         let t = self.training.as_ref()?;
-        crate::train_log::GainStats::of(t.step.gains(), t.step.rows())
+        GainStats::of(t.step.gains(), t.step.rows())
     }
 
-    fn save_state(&self, path: &Path) -> Result<(), TrainError> {
+    fn save_state(&self, path: &Path) -> Result<(), BackboneError> {
         self.evo.save(path).map_err(|e| match e {
             // The message names the file once.
-            EvoError::Io { path, source } => TrainError::io(path, source),
-            e => TrainError::file(path, e.to_string()),
+            EvoError::Io { path, source } => BackboneError::file(path, source.to_string()),
+            e => BackboneError::file(path, e.to_string()),
         })
     }
 
-    fn load_state(&mut self, path: &Path) -> Result<(), TrainError> {
+    fn load_state(&mut self, path: &Path) -> Result<(), BackboneError> {
         if !path.is_file() {
-            return Err(TrainError::file(
+            return Err(BackboneError::file(
                 path,
                 "missing: an evogs run keeps its evolution state here",
             ));
         }
-        let evo = EvoState::load(path).map_err(|e| TrainError::file(path, e.to_string()))?;
+        let evo = EvoState::load(path).map_err(|e| BackboneError::file(path, e.to_string()))?;
         let want = evo_config(&self.settings, evo.config().extent);
         if *evo.config() != want {
-            return Err(TrainError::field(
+            return Err(BackboneError::file(
                 path,
-                "config",
                 format!(
-                    "evolution settings {:?} differ from the run's {:?}",
+                    "field `config`: evolution settings {:?} differ from the run's {:?}",
                     evo.config(),
                     want
                 ),
             ));
         }
         if evo.psi().param_count() != self.evo.psi().param_count() {
-            return Err(TrainError::field(path, "psi", "Ψ has another shape"));
+            return Err(BackboneError::file(
+                path,
+                "field `psi`: Ψ has another shape",
+            ));
         }
         self.evo = evo;
         self.ready = true;

@@ -1,0 +1,41 @@
+//! `evogs-backbones`: the deformation backbones of the evogs trainer.
+//!
+//! What it is: the [`Backbone`] trait (forward, backward, parameters, weights) with its optional
+//! per-Gaussian part ([`PerGaussianState`]), and the backbones on it:
+//!
+//! - [`backbone`]: the traits, the deformation row (`N × 14`, [`DEFORM_DIM`]) and the D-3DGS
+//!   deformation MLP ([`D3dgsBackbone`], shaped by [`NetSettings`]);
+//! - [`hex_backbone`]: 4DGaussians' HexPlane field ([`HexBackbone`], `--backbone 4dgs`);
+//! - [`evo_backbone`], [`evo_settings`]: EvoGS (Φ + evo-state + Ψ, [`EvoBackbone`]) and its
+//!   switches ([`EvoSettings`]), recorded in a run's `config.json`;
+//! - [`one_word`]: settings spelled by one word and the one message for an unknown word.
+//!
+//! A new backbone implements [`Backbone`] (and [`PerGaussianState`] only when it keeps rows of
+//! its own per Gaussian) here, and the trainer's `make_backbone` builds it.
+//!
+//! What it is not: the trainer (Gaussians, Adam, densification, the loop, checkpoints: that is
+//! `evogs-train`, which owns the run's whole config and adds the deformation rows to the
+//! Gaussians), a network library (`tiny-nn`) or the evolution state (`evo-state`). It does not
+//! depend on the rasterizer.
+//!
+//! Deliberate deviation from the paper (DESIGN §4.7): EvoGS's motion floor is 1e-3 of the scene
+//! extent per frame spacing, not 1e-6 (evo-state keeps 1e-6; the trainer sets its own,
+//! `--motion-floor`). Below it θ is measurement noise that would block the uncertainty trigger
+//! everywhere; see [`evo_settings::TRAINER_MOTION_FLOOR`] for the measurement and the reasoning.
+
+pub mod backbone;
+pub mod error;
+pub mod evo_backbone;
+pub mod evo_settings;
+pub mod hex_backbone;
+pub mod one_word;
+
+pub use backbone::{
+    Appearance, Backbone, COLOUR_COLUMN, D3dgsBackbone, DEFORM_DIM, DensifyCues, GEOMETRY_DIM,
+    GainStats, NetInit, NetSettings, OPACITY_COLUMN, PerGaussianState,
+};
+pub use error::BackboneError;
+pub use evo_backbone::EvoBackbone;
+pub use evo_settings::{DensifyPolicy, EvoSettings, Gain, HistoryMode, Layout, Precision, Storage};
+pub use hex_backbone::HexBackbone;
+pub use one_word::{OneWord, unknown_message};
