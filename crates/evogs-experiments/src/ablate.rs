@@ -388,6 +388,26 @@ fn all_some(runs: &[SeedRun], field: impl Fn(&Scores) -> Option<f64>) -> Option<
     runs.iter().map(|r| field(&r.scores)).collect()
 }
 
+/// The scores of [`Spread`] over `runs`, each folded by `fold` (the mean, or the sample standard
+/// deviation); an optional score only where every run has it.
+fn fold_scores(runs: &[SeedRun], fold: fn(&[f64]) -> f64) -> Spread {
+    let all = |f: fn(&Scores) -> f64| fold(&runs.iter().map(|r| f(&r.scores)).collect::<Vec<_>>());
+    let some = |f: fn(&Scores) -> Option<f64>| all_some(runs, f).map(|v| fold(&v));
+    Spread {
+        psnr: all(|s| s.psnr),
+        ssim: all(|s| s.ssim),
+        val_psnr: some(|s| s.val_psnr),
+        val_ssim: some(|s| s.val_ssim),
+        lpips_alex: some(|s| s.lpips_alex),
+        val_lpips_alex: some(|s| s.val_lpips_alex),
+        flicker: all(|s| s.flicker),
+        jitter: all(|s| s.jitter),
+        seconds: all(|s| s.seconds),
+        gaussians: all(|s| s.gaussians as f64),
+        k_mean: some(|s| s.k_mean),
+    }
+}
+
 impl AblationResult {
     /// The result of `row` over `runs` (at least one): means and, with two or more, sample
     /// standard deviations.
@@ -395,38 +415,25 @@ impl AblationResult {
         assert!(!runs.is_empty(), "a row's result needs a run");
         let values = |f: fn(&Scores) -> f64| runs.iter().map(|r| f(&r.scores)).collect::<Vec<_>>();
         let opt_mean = |f: fn(&Scores) -> Option<f64>| all_some(&runs, f).map(|v| mean(&v));
-        let opt_std = |f: fn(&Scores) -> Option<f64>| all_some(&runs, f).map(|v| sample_std(&v));
-        let gaussians = values(|s| s.gaussians as f64);
+        let m = fold_scores(&runs, mean);
         let scores = Scores {
-            psnr: mean(&values(|s| s.psnr)),
-            ssim: mean(&values(|s| s.ssim)),
-            val_psnr: opt_mean(|s| s.val_psnr),
-            val_ssim: opt_mean(|s| s.val_ssim),
-            lpips_alex: opt_mean(|s| s.lpips_alex),
-            val_lpips_alex: opt_mean(|s| s.val_lpips_alex),
-            flicker: mean(&values(|s| s.flicker)),
-            jitter: mean(&values(|s| s.jitter)),
-            seconds: mean(&values(|s| s.seconds)),
-            gaussians: mean(&gaussians).round() as usize,
+            psnr: m.psnr,
+            ssim: m.ssim,
+            val_psnr: m.val_psnr,
+            val_ssim: m.val_ssim,
+            lpips_alex: m.lpips_alex,
+            val_lpips_alex: m.val_lpips_alex,
+            flicker: m.flicker,
+            jitter: m.jitter,
+            seconds: m.seconds,
+            gaussians: m.gaussians.round() as usize,
             state_bytes: mean(&values(|s| s.state_bytes as f64)).round() as usize,
-            k_mean: opt_mean(|s| s.k_mean),
+            k_mean: m.k_mean,
             k_std: opt_mean(|s| s.k_std),
             k_moving: opt_mean(|s| s.k_moving),
             k_still: opt_mean(|s| s.k_still),
         };
-        let std = (runs.len() > 1).then(|| Spread {
-            psnr: sample_std(&values(|s| s.psnr)),
-            ssim: sample_std(&values(|s| s.ssim)),
-            val_psnr: opt_std(|s| s.val_psnr),
-            val_ssim: opt_std(|s| s.val_ssim),
-            lpips_alex: opt_std(|s| s.lpips_alex),
-            val_lpips_alex: opt_std(|s| s.val_lpips_alex),
-            flicker: sample_std(&values(|s| s.flicker)),
-            jitter: sample_std(&values(|s| s.jitter)),
-            seconds: sample_std(&values(|s| s.seconds)),
-            gaussians: sample_std(&gaussians),
-            k_mean: opt_std(|s| s.k_mean),
-        });
+        let std = (runs.len() > 1).then(|| fold_scores(&runs, sample_std));
         Self {
             name: row.name.to_string(),
             description: row.description.to_string(),

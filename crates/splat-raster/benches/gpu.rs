@@ -5,10 +5,8 @@
 
 mod common;
 
-use std::hint::black_box;
-
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use splat_raster::{PixelGrads, Rasterizer, RenderOptions, WgpuRasterizer};
+use splat_raster::{Rasterizer, RenderOptions, WgpuRasterizer};
 
 fn bench(c: &mut Criterion) {
     let r = WgpuRasterizer::new().expect("the wgpu bench needs an adapter");
@@ -26,26 +24,9 @@ fn bench(c: &mut Criterion) {
             fwd.stats,
             fwd.tile_pairs(),
         );
-        let d_color = vec![[0.1f32, -0.2, 0.3]; cam.pixel_count()];
-        let d_alpha = vec![0.05f32; cam.pixel_count()];
         let mut group = c.benchmark_group(format!("wgpu/{}k_{size}", n / 1000));
         group.throughput(Throughput::Elements(evals));
-        group.bench_function("forward", |b| {
-            b.iter(|| r.forward(black_box(g.view()), &cam, &opts).unwrap());
-        });
-        group.bench_function("forward_backward", |b| {
-            b.iter(|| {
-                let f = r.forward(black_box(g.view()), &cam, &opts).unwrap();
-                r.backward(
-                    g.view(),
-                    &cam,
-                    &opts,
-                    &f,
-                    PixelGrads::from_color(&d_color).with_alpha(&d_alpha),
-                )
-                .unwrap()
-            });
-        });
+        common::forward_and_backward(&mut group, "", &r, &g, &cam, &opts);
         group.finish();
     }
 }

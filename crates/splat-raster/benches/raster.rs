@@ -14,12 +14,10 @@
 
 mod common;
 
-use std::hint::black_box;
-
 use bench_support::CpuTime;
 use criterion::measurement::{Measurement, WallTime};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use splat_raster::{CpuKernel, CpuRasterizer, PixelGrads, Rasterizer, RenderOptions};
+use splat_raster::{CpuKernel, CpuRasterizer, Rasterizer, RenderOptions};
 
 fn bench_wall(c: &mut Criterion<WallTime>) {
     bench(c, "wall");
@@ -47,28 +45,11 @@ fn bench<M: Measurement>(c: &mut Criterion<M>, clock: &str) {
                 fwd.mean_contributors()
             );
         }
-        let d_color = vec![[0.1f32, -0.2, 0.3]; cam.pixel_count()];
-        let d_alpha = vec![0.05f32; cam.pixel_count()];
         let mut group = c.benchmark_group(format!("{clock}/{}k_{size}", n / 1000));
         group.throughput(Throughput::Elements(evals));
         for (prefix, kernel) in [("", CpuKernel::Simd), ("scalar_", CpuKernel::Scalar)] {
             let r = CpuRasterizer::new().with_kernel(kernel);
-            group.bench_function(format!("{prefix}forward"), |b| {
-                b.iter(|| r.forward(black_box(g.view()), &cam, &opts).unwrap());
-            });
-            group.bench_function(format!("{prefix}forward_backward"), |b| {
-                b.iter(|| {
-                    let f = r.forward(black_box(g.view()), &cam, &opts).unwrap();
-                    r.backward(
-                        g.view(),
-                        &cam,
-                        &opts,
-                        &f,
-                        PixelGrads::from_color(&d_color).with_alpha(&d_alpha),
-                    )
-                    .unwrap()
-                });
-            });
+            common::forward_and_backward(&mut group, prefix, &r, &g, &cam, &opts);
         }
         group.finish();
     }

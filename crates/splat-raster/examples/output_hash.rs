@@ -2,7 +2,9 @@
 //! scenes, so that a change meant to keep results bit-identical can be checked before and after:
 //! `cargo run --release -p splat-raster --example output_hash`.
 
+// The benches' scene; their criterion cases (`forward_and_backward`) are not used here.
 #[path = "../benches/common/mod.rs"]
+#[allow(dead_code)]
 mod common;
 
 use std::hash::{DefaultHasher, Hasher};

@@ -1,10 +1,14 @@
-//! The benchmark scene shared by the rasterizer benches (CPU and wgpu), so both measure the same
-//! Gaussians from the same camera.
+//! What the rasterizer benches (CPU and wgpu) share, so both measure the same Gaussians from the
+//! same camera the same way: the scene, and the `forward` and `forward_backward` cases.
 
+use std::hint::black_box;
+
+use criterion::BenchmarkGroup;
+use criterion::measurement::Measurement;
 use glam::Vec3;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use splat_raster::{Camera, Gaussians, sh_coeff_count};
+use splat_raster::{Camera, Gaussians, PixelGrads, Rasterizer, RenderOptions, sh_coeff_count};
 
 /// `n` random Gaussians (SH degree 3) in a cube of side 2, sized to their spacing, and a
 /// `size`×`size` camera at distance ~4.
@@ -38,4 +42,34 @@ pub fn scene(n: usize, size: u32, seed: u64) -> (Gaussians, Camera) {
         Vec3::Z,
     );
     (g, cam)
+}
+
+/// Adds `{prefix}forward` and `{prefix}forward_backward` of `r` on `g` seen from `cam` to
+/// `group`; the backward pass gets the same constant colour and alpha gradients in every bench.
+pub fn forward_and_backward<M: Measurement>(
+    group: &mut BenchmarkGroup<'_, M>,
+    prefix: &str,
+    r: &impl Rasterizer,
+    g: &Gaussians,
+    cam: &Camera,
+    opts: &RenderOptions,
+) {
+    let d_color = vec![[0.1f32, -0.2, 0.3]; cam.pixel_count()];
+    let d_alpha = vec![0.05f32; cam.pixel_count()];
+    group.bench_function(format!("{prefix}forward"), |b| {
+        b.iter(|| r.forward(black_box(g.view()), cam, opts).unwrap());
+    });
+    group.bench_function(format!("{prefix}forward_backward"), |b| {
+        b.iter(|| {
+            let f = r.forward(black_box(g.view()), cam, opts).unwrap();
+            r.backward(
+                g.view(),
+                cam,
+                opts,
+                &f,
+                PixelGrads::from_color(&d_color).with_alpha(&d_alpha),
+            )
+            .unwrap()
+        });
+    });
 }
