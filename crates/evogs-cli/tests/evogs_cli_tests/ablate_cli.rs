@@ -4,7 +4,7 @@
 
 use crate::support;
 
-use support::{evogs, s, stderr, synth};
+use support::{ablate_tiny, evogs, ok, s, stderr, synth, synth_with};
 
 #[test]
 fn ablates_three_rows_of_a_tiny_scene() {
@@ -12,21 +12,7 @@ fn ablates_three_rows_of_a_tiny_scene() {
     let data = dir.path().join("scene");
     synth("jump", &data, 32, 12);
     let out = dir.path().join("ablation");
-    let o = evogs(&[
-        "ablate",
-        "--data",
-        s(&data),
-        "--out",
-        s(&out),
-        "--preset",
-        "tiny",
-        "--iterations",
-        "30",
-        "--seed",
-        "3",
-        "--rows",
-        "phi,baseline,k0.5",
-    ]);
+    let o = ablate_tiny(&data, &out, 30, &["--rows", "phi,baseline,k0.5"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let log = stderr(&o);
     for name in ["baseline", "phi", "k0.5"] {
@@ -90,38 +76,15 @@ fn unknown_row_is_a_one_line_error() {
 fn seeds_run_every_row_per_seed_on_a_monocular_scene_and_report_mean_and_std() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("scene");
-    let o = evogs(&[
-        "synth",
-        "--preset",
+    ok(&synth_with(
         "wave",
-        "--protocol",
-        "monocular",
-        "--out",
-        s(&data),
-        "--size",
-        "24",
-        "--frames",
-        "8",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+        &data,
+        24,
+        8,
+        &["--protocol", "monocular"],
+    ));
     let out = dir.path().join("ablation");
-    let o = evogs(&[
-        "ablate",
-        "--data",
-        s(&data),
-        "--out",
-        s(&out),
-        "--preset",
-        "tiny",
-        "--iterations",
-        "20",
-        "--seed",
-        "3",
-        "--seeds",
-        "2",
-        "--rows",
-        "k0,phi",
-    ]);
+    let o = ablate_tiny(&data, &out, 20, &["--seeds", "2", "--rows", "k0,phi"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let log = stderr(&o);
     for name in ["phi", "k0"] {

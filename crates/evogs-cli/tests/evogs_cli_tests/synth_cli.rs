@@ -2,7 +2,7 @@
 
 use crate::support;
 
-use support::evogs;
+use support::{evogs, ok, synth_with};
 
 #[test]
 fn synth_help() {
@@ -18,25 +18,7 @@ fn synth_help() {
 fn synth_writes_a_readable_dataset() {
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().join("scene");
-    let out = evogs(&[
-        "synth",
-        "--preset",
-        "jump",
-        "--out",
-        out_dir.to_str().unwrap(),
-        "--seed",
-        "9",
-        "--size",
-        "24",
-        "--frames",
-        "6",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let stdout = String::from_utf8(out.stdout).unwrap();
+    let stdout = ok(&synth_with("jump", &out_dir, 24, 6, &["--seed", "9"]));
     assert!(
         stdout.contains("3000 Gaussians, 6/2/2 frames (train/test/val) at 24x24, effects: jump"),
         "{stdout}"
@@ -70,29 +52,15 @@ fn unknown_preset_and_bad_size_are_one_line_errors() {
 fn monocular_protocol_with_noise_is_written_and_reported() {
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().join("scene");
-    let out = evogs(&[
-        "synth",
-        "--preset",
-        "wave",
-        "--out",
-        out_dir.to_str().unwrap(),
-        "--size",
-        "16",
-        "--frames",
-        "5",
+    let extra = [
         "--protocol",
         "monocular",
         "--pose-noise",
         "0.01",
         "--image-noise",
         "0.02",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let stdout = String::from_utf8(out.stdout).unwrap();
+    ];
+    let stdout = ok(&synth_with("wave", &out_dir, 16, 5, &extra));
     assert!(
         stdout
             .contains("; protocol monocular (5 fixed-camera frames); noise: pose 0.01, image 0.02"),

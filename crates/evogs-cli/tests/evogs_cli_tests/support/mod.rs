@@ -104,17 +104,44 @@ pub fn quick_demo() -> &'static (String, PathBuf) {
 
 /// `evogs synth --preset PRESET --out OUT --size SIZE --frames FRAMES`, asserted to succeed.
 pub fn synth(preset: &str, out: &Path, size: u32, frames: u32) {
-    evogs_ok(&[
+    ok(&synth_with(preset, out, size, frames, &[]));
+}
+
+/// Runs `evogs synth --preset PRESET --out OUT --size SIZE --frames FRAMES EXTRA…`.
+pub fn synth_with(preset: &str, out: &Path, size: u32, frames: u32, extra: &[&str]) -> Output {
+    let (size, frames) = (size.to_string(), frames.to_string());
+    let args = [
         "synth",
         "--preset",
         preset,
         "--out",
         s(out),
         "--size",
-        &size.to_string(),
+        &size,
         "--frames",
-        &frames.to_string(),
-    ]);
+        &frames,
+    ];
+    evogs(&[&args[..], extra].concat())
+}
+
+/// Runs `evogs ablate --data DATA --out OUT --preset tiny --iterations ITERATIONS --seed 3
+/// EXTRA…`: the ablation ladder on a tiny scene.
+pub fn ablate_tiny(data: &Path, out: &Path, iterations: u32, extra: &[&str]) -> Output {
+    let iterations = iterations.to_string();
+    let args = [
+        "ablate",
+        "--data",
+        s(data),
+        "--out",
+        s(out),
+        "--preset",
+        "tiny",
+        "--iterations",
+        &iterations,
+        "--seed",
+        "3",
+    ];
+    evogs(&[&args[..], extra].concat())
 }
 
 /// The tiny scene most tests train on: the rigid preset at `size`×`size` with `frames` frames,
