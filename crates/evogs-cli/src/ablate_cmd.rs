@@ -7,11 +7,11 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
+use evogs_eval::eval::EvalLpips;
 use evogs_experiments::ablate::{
     AblationRequest, AblationResult, Progress, run_ablation, seeds_from, select,
 };
 use evogs_metrics::lpips::Backbone;
-use evogs_train::eval::EvalLpips;
 use evogs_train::{Preset, TrainConfig};
 use indicatif::{ProgressBar, ProgressStyle};
 

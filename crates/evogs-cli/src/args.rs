@@ -289,7 +289,7 @@ pub struct ExportArgs {
     /// chunks of 256 in Morton order) or splat (32 bytes a Gaussian: DC colour only, 8-bit colour,
     /// opacity and rotation; sorted by volume x opacity, largest first).
     #[arg(long, default_value = "ply", value_name = "ply|compressed-ply|splat")]
-    pub format: evogs_train::render::ExportFormat,
+    pub format: evogs_eval::render::ExportFormat,
 
     /// Output file (with --time) or folder (with --frames), each file written atomically.
     #[arg(long, value_name = "OUT")]

@@ -7,9 +7,9 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
+use evogs_eval::eval::EvalLpips;
 use evogs_experiments::bench::{BenchProgress, BenchRequest, BenchRun, BenchScene, run_bench};
 use evogs_metrics::lpips::Backbone;
-use evogs_train::eval::EvalLpips;
 use evogs_train::{Method, Preset, TrainConfig};
 
 /// Arguments of `evogs bench`.

@@ -9,11 +9,11 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
+use evogs_eval::eval::EvalLpips;
 use evogs_experiments::ablate::train_and_evaluate;
 use evogs_io::Split;
 use evogs_synth::{embedded_scene, write_dnerf};
 use evogs_train::data::load_split;
-use evogs_train::eval::EvalLpips;
 use evogs_train::{Method, Preset, TrainConfig};
 use splat_raster::BackendChoice;
 

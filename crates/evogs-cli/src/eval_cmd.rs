@@ -2,9 +2,9 @@
 //! line on stderr when LPIPS weights are missing (and how to install them), and goes on.
 
 use anyhow::Result;
+use evogs_eval::LoadedRun;
+use evogs_eval::eval::{EvalLpips, EvalReport, evaluate};
 use evogs_metrics::lpips::Backbone;
-use evogs_train::LoadedRun;
-use evogs_train::eval::{EvalLpips, EvalReport, evaluate};
 
 use crate::args::EvalArgs;
 

@@ -2,8 +2,8 @@
 //! folder with `sequence.json`), as 3DGS PLY, compressed PLY or `.splat`.
 
 use anyhow::Result;
-use evogs_train::LoadedRun;
-use evogs_train::render::{export_frame_as, export_sequence};
+use evogs_eval::LoadedRun;
+use evogs_eval::render::{export_frame_as, export_sequence};
 
 use crate::args::ExportArgs;
 

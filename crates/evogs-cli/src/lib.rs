@@ -10,8 +10,10 @@
 //! folder to a COLMAP dataset, via `evogs-prepare`), and `view` ([`view_cmd`]: the web viewer of
 //! `evogs-view`).
 //!
-//! What it is not: a trainer or a scene generator; training, evaluation, export and synthetic
-//! scenes live in `evogs-train`, file formats in `evogs-io`, rendering in `splat-raster`. Errors are `anyhow`
+//! What it is not: a trainer or a scene generator; training lives in `evogs-train`, the
+//! deformation backbones in `evogs-backbones`, evaluation, rendering and export of a run in
+//! `evogs-eval`, synthetic scenes in `evogs-synth`, file formats in `evogs-io`, rasterization in
+//! `splat-raster`. Errors are `anyhow`
 //! here and are shown as one line.
 
 pub mod ablate_cmd;

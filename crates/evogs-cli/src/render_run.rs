@@ -4,9 +4,9 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
+use evogs_eval::LoadedRun;
+use evogs_eval::render::{render_at, sweep};
 use evogs_io::read_nerfies_camera;
-use evogs_train::LoadedRun;
-use evogs_train::render::{render_at, sweep};
 use evogs_video::camera_path::{CameraSpec, dataset_camera};
 use splat_raster::Camera;
 

@@ -6,9 +6,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use evogs_eval::LoadedRun;
+use evogs_eval::render::render_at;
 use evogs_io::VideoWriter;
-use evogs_train::LoadedRun;
-use evogs_train::render::render_at;
 use evogs_video::video::{PathSpec, TimeSpec, plan_frames, side_by_side};
 use indicatif::{ProgressBar, ProgressStyle};
 use splat_raster::BackendChoice;

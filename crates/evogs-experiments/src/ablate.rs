@@ -12,9 +12,10 @@ use serde::Serialize;
 use crate::error::ExperimentError;
 use crate::write::{write_bytes, write_json, write_png};
 use evogs_backbones::{DensifyPolicy, EvoSettings, Gain, HistoryMode, Precision, Storage};
+use evogs_eval::LoadedRun;
+use evogs_eval::eval::{EvalLpips, evaluate};
 use evogs_train::config::{Method, TrainConfig};
-use evogs_train::eval::{EvalLpips, evaluate};
-use evogs_train::run::{LoadedRun, TrainRequest, train};
+use evogs_train::run::{TrainRequest, train};
 
 /// One row of the ladder: a name and the switches it sets.
 #[derive(Clone, Debug, PartialEq)]

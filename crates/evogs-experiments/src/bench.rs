@@ -26,11 +26,12 @@ use serde::Serialize;
 
 use crate::error::ExperimentError;
 use crate::write::{write_bytes, write_json, write_png};
+use evogs_eval::LoadedRun;
+use evogs_eval::eval::{EvalLpips, evaluate, non_finite_gaussians};
 use evogs_metrics::{ImageSize, psnr};
 use evogs_train::config::{Method, TrainConfig};
 use evogs_train::data::{SplitViews, load_split};
-use evogs_train::eval::{EvalLpips, evaluate, non_finite_gaussians};
-use evogs_train::run::{LoadedRun, TrainRequest, train};
+use evogs_train::run::{TrainRequest, train};
 
 /// One scene: a name (table rows, file names) and its dataset directory.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -265,7 +266,7 @@ pub struct BenchRun {
     /// Gaussians with a non-finite value (0 for a healthy run): the larger of the count in the
     /// trained canonical Gaussians and the most deformed ones at one evaluated time (both
     /// splits' views and temporal-metric times;
-    /// [`evogs_train::eval::EvalReport::non_finite_gaussians`]).
+    /// [`evogs_eval::eval::EvalReport::non_finite_gaussians`]).
     pub non_finite: usize,
     /// The headline split ([`headline_split`]).
     pub headline: String,
@@ -623,7 +624,7 @@ pub fn write_picture(
         let v = &views.views[k];
         let mut cells = vec![cell(&v.image)];
         for run in &mut loaded {
-            let image = evogs_train::render::render_at(run, &v.camera, v.time)?;
+            let image = evogs_eval::render::render_at(run, &v.camera, v.time)?;
             cells.push(cell(&image));
         }
         rows.push(cells);

@@ -12,8 +12,8 @@
 //!   [`plotting`]: what the plots share (text-less fallback, axis ranges);
 //! - [`error`]: [`ExperimentError`], the crate's one error type.
 //!
-//! What it is not: the trainer, the evaluator or a metric. Those are `evogs-train` and
-//! `evogs-metrics`; this crate only composes them into experiments.
+//! What it is not: the trainer, the evaluator or a metric. Those are `evogs-train`, `evogs-eval`
+//! and `evogs-metrics`; this crate only composes them into experiments.
 
 pub mod ablate;
 pub mod ablate_plot;

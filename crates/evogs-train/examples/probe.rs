@@ -18,11 +18,12 @@
 
 use std::path::PathBuf;
 
+use evogs_eval::LoadedRun;
 use evogs_io::Split;
 use evogs_metrics::{ImageSize, psnr};
 use evogs_train::config::{Method, Preset, TrainConfig};
 use evogs_train::data::load_split;
-use evogs_train::run::{LoadedRun, TrainRequest, train};
+use evogs_train::run::{TrainRequest, train};
 use splat_raster::RenderOptions;
 
 fn merge(base: &mut serde_json::Value, patch: &serde_json::Value) {

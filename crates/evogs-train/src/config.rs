@@ -531,7 +531,6 @@ impl TrainConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::ExportFormat;
     use evogs_backbones::DensifyPolicy;
 
     /// Each one-word setting: every spelling parses back to its value, `config.json` (serde)
@@ -583,25 +582,6 @@ mod tests {
                 DensifyPolicy::TriggerDeform,
             ],
             "one of standard, trigger, trigger+deform",
-        );
-    }
-
-    #[test]
-    fn export_formats_spell_alike() {
-        let all = [
-            ExportFormat::Ply,
-            ExportFormat::CompressedPly,
-            ExportFormat::Splat,
-        ];
-        let names: Vec<String> = all.iter().map(ExportFormat::to_string).collect();
-        assert_eq!(names, ExportFormat::VARIANTS);
-        for v in all {
-            assert_eq!(v.to_string().parse::<ExportFormat>().unwrap(), v);
-            assert_eq!(serde_json::to_string(&v).unwrap(), format!("\"{v}\""));
-        }
-        assert_eq!(
-            "tiff".parse::<ExportFormat>().unwrap_err(),
-            "unknown export format `tiff`; expected ply, compressed-ply or splat"
         );
     }
 

@@ -11,8 +11,9 @@
 //!   rasterizer's gradients turned back into rows;
 //! - [`state`]: canonical Gaussians, Adam groups and statistics, aligned through densify's plans;
 //! - [`trainer`]: the training loop and [`trainer::make_backbone`] (the backbone a config asks
-//!   for); [`run`]: run directories, `train` and resume;
-//! - [`checkpoint`]: exact checkpoints; [`eval`], [`render`]: evaluation, rendering, export;
+//!   for); [`run`]: run directories (their layout, atomic JSON files, the config and checkpoint
+//!   read back), `train` and resume;
+//! - [`checkpoint`]: exact checkpoints;
 //! - [`gain_report`]: K's distribution (overall, moving vs still, per frame), accumulated by the
 //!   run and saved in `train_metrics.json` (its table and the motion report, a diagnostic of
 //!   EvoGS's motion statistics, are in `evogs-experiments`);
@@ -23,21 +24,20 @@
 //! `scene/gaussian_model.py`; each module says what it follows.
 //!
 //! What it is not: a rasterizer, a network library, a deformation backbone, a file-format
-//! reader, a metrics library, a scene generator, an experiment or a plot (ablation ladder,
-//! benchmark, training plot), camera paths and videos, or a command line. Those are
-//! `splat-raster`, `tiny-nn`, `evogs-backbones`, `evogs-io`, `evogs-metrics`, `evogs-synth`,
-//! `evogs-experiments`, `evogs-video` and `evogs-cli`.
+//! reader, a metrics library, the evaluation, rendering and export of a finished run, a scene
+//! generator, an experiment or a plot (ablation ladder, benchmark, training plot), camera paths
+//! and videos, or a command line. Those are `splat-raster`, `tiny-nn`, `evogs-backbones`,
+//! `evogs-io`, `evogs-metrics`, `evogs-eval`, `evogs-synth`, `evogs-experiments`, `evogs-video`
+//! and `evogs-cli`.
 
 pub mod checkpoint;
 pub mod config;
 pub mod data;
 pub mod deformed;
 pub mod error;
-pub mod eval;
 pub mod gain_report;
 pub mod init;
 pub mod memory;
-pub mod render;
 pub mod run;
 pub mod state;
 pub mod timers;
@@ -46,5 +46,5 @@ pub mod trainer;
 
 pub use config::{BackboneKind, Background, Method, Preset, TrainConfig};
 pub use error::TrainError;
-pub use run::{LoadedRun, RunPaths, TrainRequest, TrainSummary, train};
+pub use run::{RunPaths, TrainRequest, TrainSummary, train};
 pub use trainer::{StepReport, Trainer};

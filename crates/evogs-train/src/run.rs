@@ -25,9 +25,6 @@ use std::time::Instant;
 
 use evogs_io::Split;
 use serde::{Deserialize, Serialize};
-use splat_raster::{
-    BackendChoice, BackendInfo, CpuRasterizer, DynRasterizer, Gaussians, select_rasterizer,
-};
 
 use evogs_backbones::Backbone;
 
@@ -38,7 +35,7 @@ use crate::error::TrainError;
 use crate::state::SceneState;
 use crate::timers::PhaseTimes;
 use crate::train_log::TrainLog;
-use crate::trainer::{StepReport, Trainer, deformed_gaussians, make_backbone};
+use crate::trainer::{StepReport, Trainer, make_backbone};
 
 /// The paths of a run directory.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -140,13 +137,15 @@ pub struct TrainSummary {
     pub gain: Option<crate::gain_report::GainSummary>,
 }
 
-pub(crate) fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), TrainError> {
+/// Writes `value` as pretty JSON to `path`, atomically (a run directory's JSON files).
+pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), TrainError> {
     let text = serde_json::to_string_pretty(value)
         .map_err(|e| TrainError::file(path, format!("cannot encode JSON: {e}")))?;
     write_text(path, &text)
 }
 
-pub(crate) fn write_text(path: &Path, text: &str) -> Result<(), TrainError> {
+/// Writes `text` to `path`, atomically (a run directory's text files).
+pub fn write_text(path: &Path, text: &str) -> Result<(), TrainError> {
     evogs_io::atomic::write_atomically(path, |w| {
         use std::io::Write;
         w.write_all(text.as_bytes())
@@ -158,7 +157,9 @@ pub(crate) fn write_text(path: &Path, text: &str) -> Result<(), TrainError> {
     Ok(())
 }
 
-pub(crate) fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T, TrainError> {
+/// Reads the JSON file `path` (a run directory's `config.json`, `train_metrics.json`, …); the
+/// error names the file.
+pub fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T, TrainError> {
     let text = std::fs::read_to_string(path).map_err(|e| TrainError::io(path, e))?;
     serde_json::from_str(&text).map_err(|e| TrainError::file(path, format!("invalid JSON: {e}")))
 }
@@ -234,7 +235,7 @@ fn settle_evo_state(paths: &RunPaths, iteration: u64) -> Result<(), TrainError> 
 
 /// Reads the checkpoint at `path` of a run configured by `config` into a fresh state and
 /// backbone (the backbone's weights only: an EvoGS evolution state is a file of its own).
-fn read_checkpoint(
+pub fn read_checkpoint(
     path: &Path,
     config: &TrainConfig,
 ) -> Result<(SceneState, Box<dyn Backbone>, CheckpointMeta), TrainError> {
@@ -247,7 +248,7 @@ fn read_checkpoint(
 
 /// The paths of the run directory `root` and its validated `config.json`: what opening a run,
 /// from its end-of-run files or its checkpoint, starts with.
-fn read_run_file(root: &Path) -> Result<(RunPaths, RunFile), TrainError> {
+pub fn read_run_file(root: &Path) -> Result<(RunPaths, RunFile), TrainError> {
     let paths = RunPaths::new(root);
     if !root.is_dir() {
         return Err(TrainError::file(root, "not a run directory"));
@@ -399,107 +400,4 @@ pub fn train(
     };
     write_json(&paths.train_metrics(), &summary)?;
     Ok(summary)
-}
-
-/// A trained run read back for evaluation, rendering and export.
-pub struct LoadedRun {
-    /// Its paths.
-    pub paths: RunPaths,
-    /// `config.json`.
-    pub run: RunFile,
-    /// `train_metrics.json`.
-    pub summary: TrainSummary,
-    /// Canonical Gaussians (`canonical.ply`).
-    pub canonical: Gaussians,
-    /// Backbone with the run's weights.
-    pub backbone: Box<dyn Backbone>,
-    /// The rasterizer evaluation and rendering use: the CPU one unless
-    /// [`LoadedRun::use_backend`] chose another.
-    pub raster: DynRasterizer,
-}
-
-impl LoadedRun {
-    /// Opens a run directory written by [`train`].
-    pub fn open(root: &Path) -> Result<Self, TrainError> {
-        let (paths, run) = read_run_file(root)?;
-        let summary: TrainSummary = read_json(&paths.train_metrics())?;
-        let canonical = evogs_io::read_ply(&paths.canonical())?.gaussians;
-        let mut backbone = make_backbone(&run.train)?;
-        backbone.load(&paths.weights())?;
-        backbone.load_state(&paths.evo_state())?;
-        Ok(Self {
-            paths,
-            run,
-            summary,
-            canonical,
-            backbone,
-            raster: Box::new(CpuRasterizer::new()),
-        })
-    }
-
-    /// Opens a run that is still training from its checkpoint (`checkpoint.safetensors`, read
-    /// by the trainer's loader) instead of the end-of-run files: the Gaussians and backbone of
-    /// the last checkpoint, with (EvoGS) the evolution state written with it, which is still
-    /// `evo_state.<iteration>.safetensors` for a moment after the checkpoint lands. Reads only:
-    /// nothing in the run directory changes. The summary holds the checkpoint's iteration, the
-    /// planned iterations and Gaussians; what only the end of the run knows (time, last loss
-    /// and PSNR) is NaN or zero.
-    pub fn open_checkpoint(root: &Path) -> Result<Self, TrainError> {
-        let (paths, run) = read_run_file(root)?;
-        let (state, mut backbone, meta) = read_checkpoint(&paths.checkpoint(), &run.train)?;
-        let pending = paths.pending_evo_state(meta.iteration);
-        let evo_state = if pending.is_file() {
-            pending
-        } else {
-            paths.evo_state()
-        };
-        backbone.load_state(&evo_state)?;
-        let canonical = state.gaussians().clone();
-        let summary = TrainSummary {
-            iteration: meta.iteration,
-            iterations: run.train.iterations,
-            iterations_this_process: 0,
-            seconds: 0.0,
-            iterations_per_second: 0.0,
-            last_loss: f64::NAN,
-            last_psnr: f64::NAN,
-            gaussians: canonical.len(),
-            net_width: run.train.net.width,
-            phases: PhaseTimes::default(),
-            gain: None,
-        };
-        Ok(Self {
-            paths,
-            run,
-            summary,
-            canonical,
-            backbone,
-            raster: Box::new(CpuRasterizer::new()),
-        })
-    }
-
-    /// Renders with the backend `choice` from now on; says which it is.
-    pub fn use_backend(&mut self, choice: BackendChoice) -> Result<BackendInfo, TrainError> {
-        let (raster, info) = select_rasterizer(choice)?;
-        self.raster = raster;
-        Ok(info)
-    }
-
-    /// Whether the run got past its warm-up (the network is used only then).
-    pub fn deforms(&self) -> bool {
-        self.summary.iteration >= self.run.train.warm_up
-    }
-
-    /// The deformed Gaussians at any finite `time` (a non-finite one is an error naming the
-    /// field `time`).
-    pub fn deformed(&mut self, time: f32) -> Result<Gaussians, TrainError> {
-        if !time.is_finite() {
-            return Err(TrainError::config(
-                "time",
-                format!("{time} is not a finite number"),
-            ));
-        }
-        let deforms = self.deforms();
-        deformed_gaussians(&self.canonical, self.backbone.as_mut(), deforms, time)
-    }
 }

@@ -20,16 +20,16 @@
 //! - [`CameraSpec`]: a camera file or `dataset:SPLIT:INDEX`, and [`split_cameras`]: a run's dataset
 //!   cameras at the run's resolution (the cameras evaluation renders from).
 //!
-//! What it is not: a renderer or an encoder (`evogs_train::render`, `evogs_io::VideoWriter`).
+//! What it is not: a renderer or an encoder (`evogs_eval::render`, `evogs_io::VideoWriter`).
 
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
+use evogs_eval::LoadedRun;
 use evogs_io::{Format, Split};
 use evogs_train::TrainError;
 use evogs_train::data::open_dataset;
-use evogs_train::run::LoadedRun;
 use glam::{DMat3, DVec3, Mat3, Quat, Vec3};
 use splat_raster::Camera;
 

@@ -9,7 +9,7 @@
 //!   runs side by side with labels.
 //!
 //! What it is not: a renderer or an encoder. Each frame is rendered by
-//! `evogs_train::render::render_at` and encoded by `evogs_io::VideoWriter`; this crate only says
+//! `evogs_eval::render::render_at` and encoded by `evogs_io::VideoWriter`; this crate only says
 //! what to render. It sits beside the training core, not in it: nothing in training depends on it.
 
 pub mod camera_path;

@@ -12,16 +12,16 @@
 //! training range [0, 1]; replays: the interpolated keyframe times), `T` freezes it ("bullet time"), `A:B` runs
 //! evenly from A to B (A ≤ B, both finite).
 //!
-//! What it is not: a renderer ([`evogs_train::render::render_at`] renders each frame) or an encoder
+//! What it is not: a renderer ([`evogs_eval::render::render_at`] renders each frame) or an encoder
 //! (`evogs_io::VideoWriter`).
 
 use std::fmt;
 use std::path::PathBuf;
 use std::str::FromStr;
 
+use evogs_eval::LoadedRun;
 use evogs_io::{ImageRgb, Split, read_camera_path};
 use evogs_train::TrainError;
-use evogs_train::run::LoadedRun;
 use splat_raster::Camera;
 
 use crate::camera_path::{

@@ -3,7 +3,7 @@
 //! What it is: an HTTP server (loopback by default) that serves one embedded page
 //! (`page/`, HTML/JS/CSS compiled into the binary, no external fetches, no build step) and the
 //! images that page asks for: views of a run rendered by the run's own model through
-//! `evogs_train::render::render_at`'s two halves (the function `evogs render --run` uses; the
+//! `evogs_eval::render::render_at`'s two halves (the function `evogs render --run` uses; the
 //! deformed Gaussians are kept while the time stays the same, so a view equals
 //! `evogs render`'s output at the same camera and time), ground-truth dataset images, and the
 //! current camera as a nerfies camera JSON that `evogs render --camera` reads.

@@ -17,10 +17,11 @@ use std::sync::mpsc::{Sender, channel};
 use std::sync::{Arc, PoisonError, RwLock};
 use std::time::{Duration, Instant, SystemTime};
 
+use evogs_eval::LoadedRun;
+use evogs_eval::render::render_deformed;
 use evogs_io::{Frame, ImageRgb, Split};
+use evogs_train::TrainError;
 use evogs_train::data::open_dataset;
-use evogs_train::render::render_deformed;
-use evogs_train::{LoadedRun, TrainError};
 use evogs_video::camera_path::{SceneFit, resize_camera, split_cameras};
 use splat_raster::{BackendChoice, Camera, ForwardOutput, Gaussians};
 

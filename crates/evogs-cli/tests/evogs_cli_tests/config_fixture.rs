@@ -8,7 +8,8 @@ use std::path::{Path, PathBuf};
 use clap::Parser;
 use evogs_cli::train_cmd::config_from_args;
 use evogs_cli::{Cli, Command};
-use evogs_train::run::{LoadedRun, RunFile, TrainRequest, train};
+use evogs_eval::LoadedRun;
+use evogs_train::run::{RunFile, TrainRequest, train};
 
 /// The fixtures with the flags (after `--data … --out …`) that wrote them.
 const FIXTURES: [(&str, &[&str]); 3] = [

@@ -8,8 +8,8 @@ use crate::support;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use evogs_eval::LoadedRun;
 use evogs_io::{CameraInfo, write_nerfies_camera};
-use evogs_train::LoadedRun;
 use evogs_video::video::{LABEL_BAR, PathSpec, TimeSpec, plan_frames};
 use image::{AnimationDecoder, RgbImage};
 use support::{command, diff, evogs, ok, one_line_error, png, rigid_scene, s, train_tiny};

@@ -6,10 +6,11 @@
 use crate::common;
 
 use evo_state::EvoState;
+use evogs_eval::LoadedRun;
+use evogs_eval::render::render_at;
 use evogs_io::Split;
 use evogs_train::data::load_split;
-use evogs_train::render::render_at;
-use evogs_train::run::{LoadedRun, RunPaths};
+use evogs_train::run::RunPaths;
 use evogs_train::{Method, Preset, TrainConfig, TrainRequest, Trainer, train};
 
 fn config(iterations: u64) -> TrainConfig {

@@ -9,8 +9,6 @@ mod appearance_gradients;
 mod common;
 mod datasets;
 mod deformation_learns;
-mod eval_non_finite;
-mod eval_table;
 mod evogs_gradients;
 mod evogs_train;
 mod motion_floor;

@@ -19,9 +19,11 @@ use evogs_io::{ImageRgb, save_png, write_ply};
 use splat_raster::{Camera, ForwardOutput, Gaussians, RenderOptions};
 use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 
-use crate::error::TrainError;
-use crate::run::LoadedRun;
 use evogs_backbones::{OneWord, unknown_message};
+use evogs_train::TrainError;
+use evogs_train::run::write_json;
+
+use crate::loaded::LoadedRun;
 
 /// Renders `run` from `camera` at any finite `time` (see the module docs for times outside
 /// [0, 1]) over the run's background, colours clamped to [0, 1]. Read-only.
@@ -80,7 +82,7 @@ pub fn sweep(
             format!("{count} frames; a sweep needs at least 2"),
         ));
     }
-    std::fs::create_dir_all(dir).map_err(|e| TrainError::io(dir, e))?;
+    std::fs::create_dir_all(dir).map_err(|e| TrainError::file(dir, e.to_string()))?;
     let (w, h) = (camera.width, camera.height);
     let mut strip = ImageRgb::filled(w * count as u32, h, [0.0; 3]);
     let mut frames = Vec::with_capacity(count);
@@ -217,7 +219,7 @@ pub fn export_sequence(
         seq.times.push(t);
         seq.gaussians.push(n);
     }
-    crate::run::write_json(&staged.stage("sequence.json"), &seq)?;
+    write_json(&staged.stage("sequence.json"), &seq)?;
     staged.commit()?;
     Ok(seq)
 }
@@ -231,4 +233,28 @@ fn bounds(means: &[[f32; 3]]) -> [[f32; 3]; 2] {
         }
     }
     b
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn export_formats_spell_alike() {
+        let all = [
+            ExportFormat::Ply,
+            ExportFormat::CompressedPly,
+            ExportFormat::Splat,
+        ];
+        let names: Vec<String> = all.iter().map(ExportFormat::to_string).collect();
+        assert_eq!(names, ExportFormat::VARIANTS);
+        for v in all {
+            assert_eq!(v.to_string().parse::<ExportFormat>().unwrap(), v);
+            assert_eq!(serde_json::to_string(&v).unwrap(), format!("\"{v}\""));
+        }
+        assert_eq!(
+            "tiff".parse::<ExportFormat>().unwrap_err(),
+            "unknown export format `tiff`; expected ply, compressed-ply or splat"
+        );
+    }
 }

@@ -4,9 +4,10 @@
 
 use crate::common;
 
+use evogs_eval::LoadedRun;
+use evogs_eval::eval::{EvalLpips, evaluate, markdown, non_finite_gaussians};
 use evogs_io::Split;
-use evogs_train::eval::{EvalLpips, evaluate, markdown, non_finite_gaussians};
-use evogs_train::{LoadedRun, Preset, TrainConfig, TrainRequest, train};
+use evogs_train::{Preset, TrainConfig, TrainRequest, train};
 
 fn tiny_run(dir: &std::path::Path) -> LoadedRun {
     let data = dir.join("scene");
@@ -61,6 +62,6 @@ fn an_exploding_deformation_is_reported_and_a_healthy_one_is_not() {
     assert!(markdown(&exploded).contains("**Non-finite deformed Gaussians** at 8"));
     // The JSON report carries the counts.
     let json = std::fs::read_to_string(run.paths.eval_json(Split::Val)).unwrap();
-    let back: evogs_train::eval::EvalReport = serde_json::from_str(&json).unwrap();
+    let back: evogs_eval::eval::EvalReport = serde_json::from_str(&json).unwrap();
     assert_eq!(back.non_finite_views, 8);
 }

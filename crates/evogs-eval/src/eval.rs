@@ -15,11 +15,13 @@ use evogs_io::{ImageRgb, Split, save_png};
 use serde::{Deserialize, Serialize};
 use splat_raster::RenderOptions;
 
-use crate::data::load_split;
-use crate::error::TrainError;
-use crate::run::{LoadedRun, write_json, write_text};
 use evogs_metrics::lpips::{Backbone, Lpips, LpipsError};
 use evogs_metrics::{ImageSize, flicker, psnr, ssim, trajectory_jitter};
+use evogs_train::TrainError;
+use evogs_train::data::{SplitViews, load_split};
+use evogs_train::run::{write_json, write_text};
+
+use crate::loaded::LoadedRun;
 
 /// One evaluated image.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -208,7 +210,7 @@ pub fn evaluate(
         sh_degree: None,
     };
     let dir = run.paths.renders(split);
-    std::fs::create_dir_all(&dir).map_err(|e| TrainError::io(&dir, e))?;
+    std::fs::create_dir_all(&dir).map_err(|e| TrainError::file(&dir, e.to_string()))?;
     let mut images = Vec::with_capacity(views.views.len());
     let mut lpips_missing = lpips.missing.clone();
     let mut non_finite = NonFiniteTally::default();
@@ -292,7 +294,7 @@ pub fn evaluate(
 
 fn temporal_metrics(
     run: &mut LoadedRun,
-    views: &crate::data::SplitViews,
+    views: &SplitViews,
     opts: &RenderOptions,
     non_finite: &mut NonFiniteTally,
 ) -> Result<Option<Temporal>, TrainError> {

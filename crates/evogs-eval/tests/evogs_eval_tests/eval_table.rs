@@ -4,10 +4,11 @@
 
 use crate::common;
 
+use evogs_eval::LoadedRun;
+use evogs_eval::eval::{EvalLpips, EvalReport, evaluate, markdown};
 use evogs_io::Split;
 use evogs_metrics::lpips::Backbone;
-use evogs_train::eval::{EvalLpips, EvalReport, evaluate, markdown};
-use evogs_train::{LoadedRun, Preset, TrainConfig, TrainRequest, train};
+use evogs_train::{Preset, TrainConfig, TrainRequest, train};
 
 /// Every run of digits becomes one `#`.
 fn mask_digits(s: &str) -> String {
