@@ -4,36 +4,13 @@
 
 use crate::common;
 
-use evogs_eval::LoadedRun;
 use evogs_eval::eval::{EvalLpips, evaluate, markdown, non_finite_gaussians};
 use evogs_io::Split;
-use evogs_train::{Preset, TrainConfig, TrainRequest, train};
-
-fn tiny_run(dir: &std::path::Path) -> LoadedRun {
-    let data = dir.join("scene");
-    common::write_scene(&data);
-    let out = dir.join("run");
-    let mut config = TrainConfig::preset(Preset::Tiny).with_iterations(40);
-    config.init_points = 300;
-    train(
-        &TrainRequest {
-            data,
-            out: out.clone(),
-            config,
-            resume: false,
-            stop_after: None,
-            resume_backend: None,
-        },
-        &mut |_, _| {},
-    )
-    .unwrap();
-    LoadedRun::open(&out).unwrap()
-}
 
 #[test]
 fn an_exploding_deformation_is_reported_and_a_healthy_one_is_not() {
     let dir = tempfile::tempdir().unwrap();
-    let mut run = tiny_run(dir.path());
+    let mut run = common::tiny_run(dir.path());
     assert!(run.deforms());
     let lpips = EvalLpips::default();
     let healthy = evaluate(&mut run, Split::Val, &lpips).unwrap();

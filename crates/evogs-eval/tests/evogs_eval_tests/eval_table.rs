@@ -4,11 +4,9 @@
 
 use crate::common;
 
-use evogs_eval::LoadedRun;
 use evogs_eval::eval::{EvalLpips, EvalReport, evaluate, markdown};
 use evogs_io::Split;
 use evogs_metrics::lpips::Backbone;
-use evogs_train::{Preset, TrainConfig, TrainRequest, train};
 
 /// Every run of digits becomes one `#`.
 fn mask_digits(s: &str) -> String {
@@ -26,24 +24,7 @@ fn mask_digits(s: &str) -> String {
 #[test]
 fn eval_table_of_a_tiny_run() {
     let dir = tempfile::tempdir().unwrap();
-    let data = dir.path().join("scene");
-    common::write_scene(&data);
-    let out = dir.path().join("run");
-    let mut config = TrainConfig::preset(Preset::Tiny).with_iterations(40);
-    config.init_points = 300;
-    train(
-        &TrainRequest {
-            data,
-            out: out.clone(),
-            config,
-            resume: false,
-            stop_after: None,
-            resume_backend: None,
-        },
-        &mut |_, _| {},
-    )
-    .unwrap();
-    let mut run = LoadedRun::open(&out).unwrap();
+    let mut run = common::tiny_run(dir.path());
     // AlexNet LPIPS as `evogs eval` computes it by default (scripts/test installs the weights).
     let lpips = EvalLpips::find(&[Backbone::Alex], None).unwrap();
     assert!(lpips.missing.is_empty(), "{:?}", lpips.missing);

@@ -128,20 +128,8 @@ pub fn synth_with(preset: &str, out: &Path, size: u32, frames: u32, extra: &[&st
 /// EXTRA…`: the ablation ladder on a tiny scene.
 pub fn ablate_tiny(data: &Path, out: &Path, iterations: u32, extra: &[&str]) -> Output {
     let iterations = iterations.to_string();
-    let args = [
-        "ablate",
-        "--data",
-        s(data),
-        "--out",
-        s(out),
-        "--preset",
-        "tiny",
-        "--iterations",
-        &iterations,
-        "--seed",
-        "3",
-    ];
-    evogs(&[&args[..], extra].concat())
+    let args = ["--iterations", &iterations, "--seed", "3"];
+    tiny("ablate", data, out, &[&args[..], extra].concat())
 }
 
 /// The tiny scene most tests train on: the rigid preset at `size`×`size` with `frames` frames,
@@ -155,8 +143,13 @@ pub fn rigid_scene(dir: &Path, size: u32, frames: u32) -> PathBuf {
 /// `evogs train --data DATA --out OUT --preset tiny EXTRA...` (not asserted: some tests expect
 /// it to fail).
 pub fn train_tiny(data: &Path, out: &Path, extra: &[&str]) -> Output {
+    tiny("train", data, out, extra)
+}
+
+/// `evogs COMMAND --data DATA --out OUT --preset tiny EXTRA...`.
+fn tiny(command: &str, data: &Path, out: &Path, extra: &[&str]) -> Output {
     let args = [
-        "train",
+        command,
         "--data",
         s(data),
         "--out",
