@@ -29,6 +29,9 @@
 //!   [`DeformNet`] (D-3DGS: sinusoidal xyz and t → depth-8 MLP with skip → 10 outputs).
 //! - [`hexfield`]: [`HexDeformNet`] (4DGaussians: HexPlane → feature layer → position, rotation
 //!   and scale heads, with the HexPlane's regularisers).
+//! - [`grid4d`]: [`Grid4dNet`] (Grid4D: spatial and three temporal hash grids → directional
+//!   attention → position (rigid warp), rotation and scale heads, with its smoothness
+//!   regulariser).
 //! - [`adam`]: [`Adam`] with groups, [`LrSchedule`] (constant or 3DGS exponential), per-row moment
 //!   reset and remapping; moments are public `Vec<f32>`.
 //! - [`weights`]: [`weights::save`] / [`weights::load`] of any [`Parameters`] as safetensors.
@@ -87,6 +90,7 @@ pub mod activation;
 pub mod adam;
 pub mod encoding;
 pub mod error;
+pub mod grid4d;
 pub mod hexfield;
 pub mod linalg;
 pub mod mlp;
@@ -108,6 +112,10 @@ pub use encoding::triplane::{
     TriPlaneGrads,
 };
 pub use error::NnError;
+pub use grid4d::{
+    Grid4dCache, Grid4dConfig, Grid4dGrads, Grid4dHead, Grid4dNet, Grid4dSmoothness,
+    is_grid4d_table,
+};
 pub use hexfield::{HEX_OUTPUT, HexDeformCache, HexDeformConfig, HexDeformGrads, HexDeformNet};
 pub use mlp::{Init, LayerShape, Mlp, MlpCache, MlpConfig, MlpGrads};
 pub use nets::{

@@ -6,6 +6,7 @@
 mod adam;
 mod common;
 mod encoders;
+mod grid4d;
 mod hashgrid;
 mod hexfield;
 mod hexplane;
