@@ -1,5 +1,8 @@
-//! The EvoGS backbone (DESIGN §4–5): the observation network Φ (tri-plane + cubic B-spline + MLP at
-//! half the baseline's width) wrapped by evo-state's [`EvoState`] with its gain network Ψ.
+//! The EvoGS backbone (DESIGN §4–5): the observation network Φ wrapped by evo-state's
+//! [`EvoState`] with its gain network Ψ. Φ is any [`Observer`]: EvoGS(D-3DGS)'s tri-plane +
+//! cubic B-spline + MLP at half the baseline's width ([`ObservationNet`], the default),
+//! EvoGS(4DGS)'s HexPlane field ([`crate::hex_phi::HexPhi`]) or EvoGS(Grid4D)'s hash-grid field
+//! ([`crate::grid4d_backbone::Grid4dPhi`]), each at half its width.
 //!
 //! - Training forward (`training = true`): z = Φ(canonical means, t), then evo-state's forward at
 //!   t; the corrected d̃ is the deformation. The step, z, Φ's cache and the stop-gradient
@@ -29,8 +32,8 @@ use densify::{Deformation, PerGaussian, residual_norms, thetas};
 use evo_state::{Backward, EvoConfig, EvoError, EvoState, Frames, Step};
 use splat_core::{GaussiansView, sigmoid};
 use tiny_nn::{
-    BSplineConfig, LrSchedule, ObservationCache, ObservationConfig, ObservationNet, Parameters,
-    PlaneCombine, StoreMut, StoreRef, TriPlaneConfig,
+    BSplineConfig, LrSchedule, ObservationConfig, ObservationNet, Parameters, PlaneCombine,
+    StoreMut, StoreRef, TriPlaneConfig,
 };
 
 use crate::backbone::{
@@ -39,6 +42,7 @@ use crate::backbone::{
 };
 use crate::error::BackboneError;
 use crate::evo_settings::EvoSettings;
+use crate::observer::Observer;
 
 /// evo-state's errors as the trainer's (the message names the Gaussian and component).
 fn evo_err(e: EvoError) -> BackboneError {
@@ -90,45 +94,65 @@ pub fn observation_config(
 }
 
 /// What the last training forward kept for its backward.
-struct Training {
+struct Training<C> {
     step: Step,
     z: Vec<f32>,
-    cache: ObservationCache,
+    cache: C,
     /// Φ's caches at the re-queried history times (history `requery` only).
-    history_caches: Vec<(f32, ObservationCache)>,
+    history_caches: Vec<(f32, C)>,
     opacity: Vec<f32>,
     committed: bool,
 }
 
 /// Φ with the evolution state and Ψ.
-pub struct EvoBackbone {
+pub struct EvoBackbone<P: Observer = ObservationNet> {
     settings: EvoSettings,
-    phi: ObservationNet,
+    phi: P,
     evo: EvoState,
     /// Whether `evo` was built for the run's frames and Gaussians (or loaded).
     ready: bool,
     /// Column of the N × 10 deformation of each evolution column.
     deform_from_evo: Vec<usize>,
-    training: Option<Training>,
+    training: Option<Training<P::Cache>>,
     backward: Option<Backward>,
+    /// Φ's own regulariser of the last backward (weighted).
+    phi_regulariser: f64,
     positions: Vec<f32>,
     times: Vec<f32>,
 }
 
-impl EvoBackbone {
-    /// Φ and Ψ for a run (its EvoGS settings, the baseline network's width, the half extent of
-    /// its initial cube), initialised from its seed ([`observation_config`]). The evolution
-    /// state is sized by [`PerGaussianState::prepare`] (or replaced by
-    /// [`PerGaussianState::load_state`]).
+impl EvoBackbone<ObservationNet> {
+    /// EvoGS(D-3DGS): the tri-plane Φ and Ψ for a run (its EvoGS settings, the baseline
+    /// network's width, the half extent of its initial cube), initialised from its seed
+    /// ([`observation_config`]). The evolution state is sized by [`PerGaussianState::prepare`]
+    /// (or replaced by [`PerGaussianState::load_state`]).
     pub fn new(
         settings: &EvoSettings,
         net_width: usize,
         half_extent: f32,
         seed: u64,
     ) -> Result<Self, BackboneError> {
+        let phi = ObservationNet::new(observation_config(settings, net_width, half_extent, seed))?;
+        Self::with_phi(settings, seed, phi)
+    }
+}
+
+impl<P: Observer> EvoBackbone<P> {
+    /// Φ (built for `settings`' components) with Ψ for a run, Ψ initialised from its `seed`.
+    pub fn with_phi(settings: &EvoSettings, seed: u64, phi: P) -> Result<Self, BackboneError> {
         let settings = settings.clone();
         settings.validate()?;
-        let phi = ObservationNet::new(observation_config(&settings, net_width, half_extent, seed))?;
+        if phi.output_width() != settings.components.dim() {
+            return Err(BackboneError::config(
+                "evogs.components",
+                format!(
+                    "Φ gives {} values per Gaussian, the components `{}` need {}",
+                    phi.output_width(),
+                    settings.components,
+                    settings.components.dim()
+                ),
+            ));
+        }
         let placeholder = Frames::from_timestamps([0.0])
             .map_err(|e| BackboneError::config("frames", e.to_string()))?;
         let evo = EvoState::new(
@@ -158,6 +182,7 @@ impl EvoBackbone {
             deform_from_evo,
             training: None,
             backward: None,
+            phi_regulariser: 0.0,
             positions: Vec::new(),
             times: Vec::new(),
         })
@@ -169,7 +194,7 @@ impl EvoBackbone {
     }
 
     /// The observation network Φ.
-    pub fn phi(&self) -> &ObservationNet {
+    pub fn phi(&self) -> &P {
         &self.phi
     }
 
@@ -211,7 +236,7 @@ impl EvoBackbone {
         z: &[f32],
         step: &mut Step,
         keep: bool,
-    ) -> Result<Vec<(f32, ObservationCache)>, BackboneError> {
+    ) -> Result<Vec<(f32, P::Cache)>, BackboneError> {
         let mut caches = Vec::new();
         let result = match self.settings.history {
             evo_state::HistoryMode::Buffer => self.evo.forward_into(time, z, None, step),
@@ -222,7 +247,7 @@ impl EvoBackbone {
                     |t: f32,
                      out: &mut [f32]|
                      -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-                        let (zt, cache) = phi.forward(positions, &vec![t; n], n)?;
+                        let (zt, cache) = phi.observe(positions, &vec![t; n], n)?;
                         out.copy_from_slice(&zt);
                         if keep {
                             caches.push((t, cache));
@@ -252,7 +277,7 @@ impl EvoBackbone {
     }
 }
 
-impl Parameters for EvoBackbone {
+impl<P: Observer> Parameters for EvoBackbone<P> {
     fn named_params(&self) -> Vec<(String, StoreRef<'_>)> {
         let mut out: Vec<(String, StoreRef<'_>)> = self
             .phi
@@ -276,7 +301,7 @@ impl Parameters for EvoBackbone {
     }
 }
 
-impl Backbone for EvoBackbone {
+impl<P: Observer> Backbone for EvoBackbone<P> {
     fn name(&self) -> &'static str {
         "evogs"
     }
@@ -301,7 +326,7 @@ impl Backbone for EvoBackbone {
             .unwrap_or_default();
         let z = self
             .phi
-            .forward_into(&self.positions, &self.times, n, &mut cache)?;
+            .observe_into(&self.positions, &self.times, n, &mut cache)?;
         let mut step = kept.map_or_else(Step::empty, |t| t.step);
         let history_caches = self.evolve(time, &z, &mut step, training)?;
         let out = self.widen(step.corrected());
@@ -357,13 +382,7 @@ impl Backbone for EvoBackbone {
         self.evo
             .backward_into(&t.step, &t.z, &dl_dd, &t.opacity, &mut bw)
             .map_err(evo_err)?;
-        let g = self.phi.backward(&t.cache, &bw.dz, false)?;
-        let mut flat: Vec<f32> = g
-            .triplane
-            .into_iter()
-            .chain(g.bspline)
-            .chain(g.mlp)
-            .collect();
+        let mut grads = self.phi.gradients(&t.cache, &bw.dz)?;
         // Re-queried history: d̂ = z(t_k1) + s (z(t_k1) - z(t_k2)) reaches Φ at those times.
         for hg in &bw.history {
             let (_, cache) = t
@@ -376,24 +395,12 @@ impl Backbone for EvoBackbone {
                         format!("no cache of Φ at the history time {}", hg.time),
                     )
                 })?;
-            let gh = self.phi.backward(cache, &hg.dz, false)?;
-            for (f, v) in flat
-                .iter_mut()
-                .zip(gh.triplane.into_iter().chain(gh.bspline).chain(gh.mlp))
-            {
-                *f += v;
+            let gh = self.phi.gradients(cache, &hg.dz)?;
+            for (g, h) in grads.iter_mut().zip(gh) {
+                g.iter_mut().zip(h).for_each(|(a, b)| *a += b);
             }
         }
-        let mut grads = Vec::new();
-        let mut at = 0;
-        for (name, buf) in self.phi.named_params() {
-            let len = buf.len();
-            let part = flat.get(at..at + len).ok_or_else(|| {
-                BackboneError::config("backbone", format!("Φ gradient too short at `{name}`"))
-            })?;
-            grads.push(part.to_vec());
-            at += len;
-        }
+        self.phi_regulariser = self.phi.regularise(&t.cache, &mut grads)?;
         let psi_len = self.evo.psi().param_count();
         grads.push(bw.dpsi.clone().unwrap_or_else(|| vec![0.0f32; psi_len]));
         self.evo.commit(&t.step).map_err(evo_err)?;
@@ -414,22 +421,24 @@ impl Backbone for EvoBackbone {
         self.backward.as_ref().map_or(0.0, |b| {
             self.settings.lambda_sup as f64 * b.losses.sup
                 + self.settings.lambda_prior as f64 * b.losses.prior
+                + self.phi_regulariser
         })
     }
 
     fn own_schedule(&self, name: &str) -> Option<LrSchedule> {
-        (name == "psi")
-            .then_some(self.settings.psi_lr)
-            .flatten()
-            .map(LrSchedule::Constant)
+        match name.strip_prefix("phi.") {
+            Some(phi) => self.phi.own_schedule(phi),
+            None => (name == "psi")
+                .then_some(self.settings.psi_lr)
+                .flatten()
+                .map(LrSchedule::Constant),
+        }
     }
 
     fn lr_scale(&self, name: &str) -> f32 {
-        if name.starts_with("phi.triplane") || name.starts_with("phi.bspline") {
-            self.settings.grid_lr_scale
-        } else {
-            1.0
-        }
+        name.strip_prefix("phi.").map_or(1.0, |phi| {
+            self.phi.lr_scale(phi, self.settings.grid_lr_scale)
+        })
     }
 
     fn appearance(&self) -> Appearance {
@@ -457,7 +466,7 @@ impl Backbone for EvoBackbone {
     }
 }
 
-impl PerGaussianState for EvoBackbone {
+impl<P: Observer> PerGaussianState for EvoBackbone<P> {
     fn prepare(
         &mut self,
         frame_times: &[f32],

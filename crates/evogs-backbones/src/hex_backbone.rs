@@ -17,7 +17,7 @@
 //! - the two-stage schedule: 4DGaussians' static coarse stage (`coarse_iterations = 3000`) is
 //!   the trainer's warm-up (its `warm_up`), during which no backbone runs.
 //!
-//! What it is not: EvoGS(4DGS) (Φ built from this field), which is not implemented yet.
+//! EvoGS(4DGS), Φ built from this field at half its width, is [`crate::hex_phi::HexPhi`].
 
 use std::path::Path;
 

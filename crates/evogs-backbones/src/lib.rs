@@ -6,8 +6,12 @@
 //! - [`backbone`]: the traits, the deformation row (`N × 14`, [`DEFORM_DIM`]) and the D-3DGS
 //!   deformation MLP ([`D3dgsBackbone`], shaped by [`NetSettings`]);
 //! - [`hex_backbone`]: 4DGaussians' HexPlane field ([`HexBackbone`], `--backbone 4dgs`);
+//! - [`grid4d_backbone`]: Grid4D's hash-grid field ([`Grid4dBackbone`], `--backbone grid4d`) and
+//!   the same field as EvoGS's Φ ([`Grid4dPhi`]);
 //! - [`evo_backbone`], [`evo_settings`]: EvoGS (Φ + evo-state + Ψ, [`EvoBackbone`]) and its
 //!   switches ([`EvoSettings`]), recorded in a run's `config.json`;
+//! - [`observer`]: what a field implements to be Φ ([`Observer`]); [`hex_phi`]: 4DGaussians'
+//!   field as Φ ([`HexPhi`]);
 //! - [`one_word`]: settings spelled by one word and the one message for an unknown word.
 //!
 //! A new backbone implements [`Backbone`] (and [`PerGaussianState`] only when it keeps rows of
@@ -27,7 +31,10 @@ pub mod backbone;
 pub mod error;
 pub mod evo_backbone;
 pub mod evo_settings;
+pub mod grid4d_backbone;
 pub mod hex_backbone;
+pub mod hex_phi;
+pub mod observer;
 pub mod one_word;
 
 pub use backbone::{
@@ -37,5 +44,8 @@ pub use backbone::{
 pub use error::BackboneError;
 pub use evo_backbone::EvoBackbone;
 pub use evo_settings::{DensifyPolicy, EvoSettings, Gain, HistoryMode, Layout, Precision, Storage};
+pub use grid4d_backbone::{Grid4dBackbone, Grid4dLr, Grid4dPhi, Grid4dRun};
 pub use hex_backbone::HexBackbone;
+pub use hex_phi::HexPhi;
+pub use observer::Observer;
 pub use one_word::{OneWord, unknown_message};

@@ -34,6 +34,11 @@ pub struct AblateArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub iterations: Option<u64>,
 
+    /// Deformation backbone of every row: the baseline rows train it, the EvoGS rows use Φ built
+    /// from its field (4dgs, grid4d; d3dgs: the tri-plane Φ).
+    #[arg(long, default_value = "d3dgs", value_name = "d3dgs|4dgs|grid4d")]
+    pub backbone: evogs_train::BackboneKind,
+
     /// Random seed for every row (the first seed with --seeds) [default: the preset's].
     #[arg(long, value_name = "S")]
     pub seed: Option<u64>,
@@ -65,6 +70,7 @@ pub fn run_ablate(args: &AblateArgs) -> Result<Vec<AblationResult>> {
     if let Some(s) = args.seed {
         config.seed = s;
     }
+    config.backbone = args.backbone;
     let rows = select(&args.rows)?;
     let seeds = seeds_from(config.seed, args.seeds as usize);
     let request = AblationRequest {

@@ -107,9 +107,11 @@ pub struct TrainArgs {
     #[arg(long, default_value = "baseline", value_name = "baseline|evogs")]
     pub method: evogs_train::Method,
 
-    /// Deformation backbone: d3dgs (Deformable-3D-Gaussians' MLP) or 4dgs (4DGaussians'
-    /// HexPlane field with its regularisers; baseline method only for now).
-    #[arg(long, default_value = "d3dgs", value_name = "d3dgs|4dgs")]
+    /// Deformation backbone: d3dgs (Deformable-3D-Gaussians' MLP), 4dgs (4DGaussians'
+    /// HexPlane field with its regularisers) or grid4d (Grid4D's 4D decomposed hash grids with
+    /// directional attention). With --method evogs, 4dgs's and grid4d's fields become Φ at half
+    /// their width.
+    #[arg(long, default_value = "d3dgs", value_name = "d3dgs|4dgs|grid4d")]
     pub backbone: evogs_train::BackboneKind,
 
     /// EvoGS gain K: learned (Ψ), or fixed at a number in [0, 1] (0 = prior only, 1 =

@@ -45,6 +45,11 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 1000, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub eval_every: u64,
 
+    /// Deformation backbone of every run (EvoGS runs use Φ built from its field; d3dgs: the
+    /// tri-plane Φ).
+    #[arg(long, default_value = "d3dgs", value_name = "d3dgs|4dgs|grid4d")]
+    pub backbone: evogs_train::BackboneKind,
+
     /// Seed of every run.
     #[arg(long, value_name = "S")]
     pub seed: Option<u64>,
@@ -69,6 +74,7 @@ pub fn run_bench_cmd(args: &BenchArgs) -> Result<Vec<BenchRun>> {
     if let Some(s) = args.seed {
         config.seed = s;
     }
+    config.backbone = args.backbone;
     let methods = args.methods.clone();
     let request = BenchRequest {
         scenes: args.data.iter().map(|d| BenchScene::from_dir(d)).collect(),

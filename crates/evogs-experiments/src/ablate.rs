@@ -571,9 +571,10 @@ pub fn table(config: &TrainConfig, results: &[AblationResult]) -> String {
     let with_val = results.iter().any(|r| r.scores.val_psnr.is_some());
     let multi = results.iter().any(|r| r.seeds.len() > 1);
     let mut s = format!(
-        "# evogs ablate: {} iterations per row, {}\n\n\
+        "# evogs ablate: backbone `{}`, {} iterations per row, {}\n\n\
          | row | switches |{} PSNR (dB) | SSIM | lpips_alex |{} flicker | jitter | training (s) | Gaussians | state (KiB) | K mean | K std (in run) | K moving / still |\n\
          | --- | --- |{} ---: | ---: | ---: |{} ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+        config.backbone,
         config.iterations,
         seeds_heading(config, results),
         if multi { " seeds |" } else { "" },
@@ -649,6 +650,7 @@ pub fn write_outputs(
     write_json(
         &out.join("ablation.json"),
         &serde_json::json!({
+            "backbone": config.backbone,
             "iterations": config.iterations,
             "seeds": results.first().map(|r| r.seeds.iter().map(|s| s.seed).collect::<Vec<_>>()),
             "rows": results,

@@ -508,7 +508,7 @@ fn fmt_opt(v: Option<f64>, digits: usize) -> String {
 /// published figure for each scene beside ours.
 pub fn table(config: &TrainConfig, runs: &[BenchRun]) -> String {
     let mut s = format!(
-        "# evogs bench: preset `{}`, {} iterations, seed {}\n\n\
+        "# evogs bench: backbone `{}`, preset `{}`, {} iterations, seed {}\n\n\
          Headline split: lego val, the other scenes test (as D-3DGS reports them). Times are \
          wall clock on the machine as it was (see the README for what else ran); curve \
          evaluations are excluded. LPIPS: AlexNet and VGG16 backbones (– where not computed); \
@@ -516,7 +516,7 @@ pub fn table(config: &TrainConfig, runs: &[BenchRun]) -> String {
          or deformed at an evaluated time.\n\n\
          | scene | method | split | PSNR (dB) | SSIM | LPIPS (Alex) | LPIPS (VGG) | other split PSNR | Gaussians | peak memory (MiB) | training (min) | non-finite | published (D-3DGS) |\n\
          | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |\n",
-        config.preset, config.iterations, config.seed
+        config.backbone, config.preset, config.iterations, config.seed
     );
     for r in runs {
         let head = r.score(&r.headline);

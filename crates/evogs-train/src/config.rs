@@ -72,7 +72,8 @@ impl OneWord for Preset {
 pub enum Method {
     /// D-3DGS: the deformation MLP alone.
     Baseline,
-    /// EvoGS(D-3DGS): Φ + evolution state + Ψ (settings in [`TrainConfig::evogs`]).
+    /// EvoGS(backbone): Φ + evolution state + Ψ (settings in [`TrainConfig::evogs`]; Φ is the
+    /// tri-plane network for d3dgs, the backbone's own field at half width for 4dgs and grid4d).
     Evogs,
 }
 
@@ -89,6 +90,9 @@ pub enum BackboneKind {
     #[serde(rename = "4dgs")]
     #[strum(serialize = "4dgs")]
     FourDgs,
+    /// Grid4D's 4D decomposed hash-grid field ([`evogs_backbones::Grid4dBackbone`]).
+    #[serde(rename = "grid4d")]
+    Grid4d,
 }
 
 /// Background colour composited behind the Gaussians and behind the images' alpha.
@@ -463,15 +467,6 @@ impl TrainConfig {
         }
         if self.method == Method::Evogs {
             self.evogs.validate()?;
-            if self.backbone != BackboneKind::D3dgs {
-                return Err(TrainError::config(
-                    "backbone",
-                    format!(
-                        "EvoGS({}) is not implemented yet; --method evogs needs --backbone d3dgs",
-                        self.backbone
-                    ),
-                ));
-            }
         }
         let d = &self.densify;
         for (field, set_by, is_set) in [
@@ -570,8 +565,12 @@ mod tests {
     fn one_word_settings_spell_alike_everywhere() {
         check_one_word(&[Method::Baseline, Method::Evogs], "baseline or evogs");
         check_one_word(
-            &[BackboneKind::D3dgs, BackboneKind::FourDgs],
-            "d3dgs or 4dgs",
+            &[
+                BackboneKind::D3dgs,
+                BackboneKind::FourDgs,
+                BackboneKind::Grid4d,
+            ],
+            "d3dgs, 4dgs or grid4d",
         );
         check_one_word(&[Background::White, Background::Black], "white or black");
         check_one_word(&Preset::ALL, "paper, cpu, tiny or dnerf");
@@ -632,7 +631,11 @@ mod tests {
             "d3dgs".parse::<BackboneKind>().unwrap(),
             BackboneKind::D3dgs
         );
-        assert!("grid4d".parse::<BackboneKind>().is_err());
+        assert_eq!(
+            "grid4d".parse::<BackboneKind>().unwrap(),
+            BackboneKind::Grid4d
+        );
+        assert!("grid".parse::<BackboneKind>().is_err());
         assert_eq!(BackboneKind::FourDgs.to_string(), "4dgs");
         let e = "evo".parse::<Method>().unwrap_err().to_string();
         assert!(e.contains("baseline or evogs"), "{e}");

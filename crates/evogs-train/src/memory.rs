@@ -164,13 +164,20 @@ fn per_row_network(config: &TrainConfig, frames: usize) -> (u64, u64) {
             // Plane features and the small decoder's layers.
             (F32 * (2 * 64 + net.width * 2 + 10) as u64, 0)
         }
-        (Method::Evogs, _) => {
+        (Method::Baseline, BackboneKind::Grid4d) => (F32 * grid4d_row(net.width, 10) as u64, 0),
+        (Method::Evogs, backbone) => {
             let s = &config.evogs;
             let dim = s.components.dim();
             let width = (net.width / 2).max(1);
-            let planes = 3 * s.triplane_channels * s.triplane_resolutions.len();
-            let input = planes + s.bspline_width;
-            let phi = 2 * input + width * s.hidden_layers + dim;
+            let phi = if backbone == BackboneKind::Grid4d {
+                grid4d_row(width, dim)
+            } else if backbone == BackboneKind::FourDgs {
+                2 * 64 + width * 2 + dim
+            } else {
+                let planes = 3 * s.triplane_channels * s.triplane_resolutions.len();
+                let input = planes + s.bspline_width;
+                2 * input + width * s.hidden_layers + dim
+            };
             // The step (prediction, observation, gain, corrected state and their gradients).
             let step = 8 * dim;
             let blocks = match s.history {
@@ -186,6 +193,14 @@ fn per_row_network(config: &TrainConfig, frames: usize) -> (u64, u64) {
             (F32 * (phi + step) as u64, evolution)
         }
     }
+}
+
+/// f32 values per Gaussian a Grid4D field of decoder `width` and `output` values keeps for its
+/// backward: the hash features (16 · 2 spatial, 3 · 32 · 2 temporal) and their gradients, the
+/// attention and temporal activations and their product's gradient, inputs, warp and output.
+fn grid4d_row(width: usize, output: usize) -> usize {
+    let features = 16 * 2 + 3 * 32 * 2;
+    2 * features + 4 * width + 3 + 4 + 7 + output
 }
 
 /// Bytes as `12.3 MiB` (binary units).

@@ -31,7 +31,7 @@ use splat_raster::{
     BackendInfo, DynRasterizer, Gaussians, PixelGrads, RenderOptions, select_rasterizer,
 };
 
-use crate::config::{BackboneKind, Method, TrainConfig};
+use crate::config::{BackboneKind, Method, Preset, TrainConfig};
 use crate::data::SplitViews;
 use crate::deformed::{DeformedGeometry, deformation_gradient_into};
 use crate::error::TrainError;
@@ -40,7 +40,10 @@ use crate::init::random_gaussians;
 use crate::memory::{MemoryEstimate, MemoryInputs};
 use crate::state::SceneState;
 use crate::timers::{Phase, PhaseTimes};
-use evogs_backbones::{Backbone, D3dgsBackbone, DensifyPolicy, EvoBackbone, HexBackbone};
+use evogs_backbones::{
+    Backbone, D3dgsBackbone, DensifyPolicy, EvoBackbone, Grid4dBackbone, Grid4dLr, Grid4dPhi,
+    Grid4dRun, HexBackbone, HexPhi,
+};
 use evogs_metrics::{ImageSize, LossWorkspace, psnr_from_mse};
 
 /// What one iteration did.
@@ -73,13 +76,50 @@ pub fn make_backbone(config: &TrainConfig) -> Result<Box<dyn Backbone>, TrainErr
                 config.init_half_extent,
                 config.seed,
             )?)),
+            BackboneKind::Grid4d => Ok(Box::new(Grid4dBackbone::new(&grid4d_run(config))?)),
         },
-        Method::Evogs => Ok(Box::new(EvoBackbone::new(
-            &config.evogs,
-            config.net.width,
-            config.init_half_extent,
-            config.seed,
-        )?)),
+        Method::Evogs => match config.backbone {
+            BackboneKind::D3dgs => Ok(Box::new(EvoBackbone::new(
+                &config.evogs,
+                config.net.width,
+                config.init_half_extent,
+                config.seed,
+            )?)),
+            BackboneKind::FourDgs => Ok(Box::new(EvoBackbone::with_phi(
+                &config.evogs,
+                config.seed,
+                HexPhi::new(&config.evogs, config.init_half_extent, config.seed)?,
+            )?)),
+            BackboneKind::Grid4d => Ok(Box::new(EvoBackbone::with_phi(
+                &config.evogs,
+                config.seed,
+                Grid4dPhi::new(&grid4d_run(config), &config.evogs)?,
+            )?)),
+        },
+    }
+}
+
+/// What the Grid4D backbone takes of a run (DESIGN §5.2c): the network width, the table size of
+/// the preset (Grid4D's 2^19 in `paper`, 2^15 in `cpu` and `dnerf`, where a CPU step runs dense
+/// Adam over every entry, 2^12 in `tiny`), the initial cube, the position and network rates.
+pub fn grid4d_run(config: &TrainConfig) -> Grid4dRun {
+    let lr = &config.lr;
+    Grid4dRun {
+        width: config.net.width,
+        log2_table: match config.preset {
+            Preset::Paper => 19,
+            Preset::Cpu | Preset::Dnerf => 15,
+            Preset::Tiny => 12,
+        },
+        half_extent: config.init_half_extent,
+        lr: Grid4dLr {
+            position_init: lr.position_init,
+            position_final: lr.position_final,
+            delay_mult: lr.position_delay_mult,
+            max_steps: lr.deform_max_steps,
+            scale: lr.deform_scale,
+        },
+        seed: config.seed,
     }
 }
 

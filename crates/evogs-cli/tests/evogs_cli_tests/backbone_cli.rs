@@ -1,6 +1,7 @@
-//! `evogs train --backbone 4dgs` end to end through the binary on a tiny dynamic scene: it
-//! trains well above the untrained floor, the run records the backbone and its weights, and
-//! unsupported combinations are one-line errors.
+//! `evogs train --backbone 4dgs|grid4d` end to end through the binary on a tiny dynamic scene:
+//! each backbone (and EvoGS(grid4d)) trains well above the untrained floor, the run records the
+//! backbone and its weights and keeps it on resume, `evogs ablate --backbone grid4d` runs its
+//! rows on it, and unsupported combinations are one-line errors.
 
 use crate::support;
 
@@ -8,37 +9,63 @@ use std::path::Path;
 use support::{evogs, json, rigid_scene, s, stderr, train_tiny};
 
 #[test]
-fn the_4dgs_backbone_trains_a_tiny_scene_and_is_recorded() {
+fn the_4dgs_backbone_and_evogs_4dgs_train_a_tiny_scene_and_are_recorded() {
     let dir = tempfile::tempdir().unwrap();
     let data = rigid_scene(dir.path(), 32, 16);
-    let train = |out: &Path, extra: &[&str]| {
-        let o = train_tiny(&data, out, &[&["--backbone", "4dgs"][..], extra].concat());
-        assert!(o.status.success(), "{}", stderr(&o));
-        let o = evogs(&["eval", "--run", s(out), "--split", "test"]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        json(&out.join("eval_test.json"))["mean_psnr"]
-            .as_f64()
-            .unwrap()
-    };
-    let untrained = dir.path().join("untrained");
-    let floor = train(&untrained, &["--iterations", "1"]);
-    let run = dir.path().join("run");
-    let psnr = train(&run, &["--seed", "3"]);
-    assert!(
-        psnr > floor + 5.0 && psnr > 14.0,
-        "trained {psnr} dB vs untrained {floor} dB"
+    let hex = ["--backbone", "4dgs"];
+    let floor = trained_psnr(
+        &data,
+        &dir.path().join("untrained"),
+        &[&hex[..], &["--iterations", "1"]].concat(),
     );
-    assert_eq!(json(&run.join("config.json"))["train"]["backbone"], "4dgs");
-    // The weights file holds the HexPlane and the MLPs under their names.
+    for (method, weights) in [
+        (
+            "baseline",
+            &[
+                "hexplane",
+                "trunk",
+                "head_position",
+                "head_rotation",
+                "head_scale",
+            ][..],
+        ),
+        (
+            "evogs",
+            &["phi.hexplane", "phi.trunk", "phi.head_scale", "psi"][..],
+        ),
+    ] {
+        let run = dir.path().join(method);
+        let psnr = trained_psnr(
+            &data,
+            &run,
+            &[&hex[..], &["--method", method, "--seed", "3"]].concat(),
+        );
+        assert!(
+            psnr > floor + 5.0 && psnr > 14.0,
+            "{method}: trained {psnr} dB vs untrained {floor} dB"
+        );
+        let config = json(&run.join("config.json"));
+        assert_eq!(config["train"]["backbone"], "4dgs");
+        assert_eq!(config["train"]["method"], method);
+        assert_weights(&run, weights);
+    }
+}
+
+/// Test PSNR of a tiny-preset run with `extra` flags, after `evogs eval`.
+fn trained_psnr(data: &Path, out: &Path, extra: &[&str]) -> f64 {
+    let o = train_tiny(data, out, extra);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = evogs(&["eval", "--run", s(out), "--split", "test"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    json(&out.join("eval_test.json"))["mean_psnr"]
+        .as_f64()
+        .unwrap()
+}
+
+fn assert_weights(run: &Path, names: &[&str]) {
     let bytes = std::fs::read(run.join("deform.safetensors")).unwrap();
     let text = String::from_utf8_lossy(&bytes[..bytes.len().min(4096)]);
-    for name in [
-        "hexplane",
-        "trunk",
-        "head_position",
-        "head_rotation",
-        "head_scale",
-    ] {
+    for name in names {
         assert!(
             text.contains(name),
             "{name} missing from the weights header"
@@ -47,20 +74,127 @@ fn the_4dgs_backbone_trains_a_tiny_scene_and_is_recorded() {
 }
 
 #[test]
+fn grid4d_and_evogs_grid4d_train_a_tiny_scene_and_are_kept_on_resume() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = rigid_scene(dir.path(), 32, 16);
+    let grid4d = ["--backbone", "grid4d"];
+    let floor = trained_psnr(
+        &data,
+        &dir.path().join("untrained"),
+        &[&grid4d[..], &["--iterations", "1"]].concat(),
+    );
+    let baseline = dir.path().join("baseline");
+    let psnr = trained_psnr(&data, &baseline, &[&grid4d[..], &["--seed", "3"]].concat());
+    assert!(
+        psnr > floor + 5.0 && psnr > 14.0,
+        "grid4d: trained {psnr} dB vs untrained {floor} dB"
+    );
+    assert_eq!(
+        json(&baseline.join("config.json"))["train"]["backbone"],
+        "grid4d"
+    );
+    assert_weights(
+        &baseline,
+        &[
+            "grid_xyz",
+            "grid_xyt",
+            "grid_yzt",
+            "grid_xzt",
+            "attention",
+            "temporal",
+            "head_position",
+        ],
+    );
+
+    // EvoGS(grid4d), stopped half-way and resumed: the resumed run is still EvoGS(grid4d).
+    let evo = dir.path().join("evogs");
+    let o = train_tiny(
+        &data,
+        &evo,
+        &[
+            &grid4d[..],
+            &["--method", "evogs", "--seed", "3", "--stop-after", "150"],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = evogs(&["train", "--out", s(&evo), "--resume"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let config = json(&evo.join("config.json"));
+    assert_eq!(config["train"]["backbone"], "grid4d");
+    assert_eq!(config["train"]["method"], "evogs");
+    assert_eq!(json(&evo.join("train_metrics.json"))["iteration"], 300);
+    assert_weights(
+        &evo,
+        &["phi.grid_xyz", "phi.grid_xzt", "phi.attention", "psi"],
+    );
+    let o = evogs(&["eval", "--run", s(&evo), "--split", "test"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let psnr = json(&evo.join("eval_test.json"))["mean_psnr"]
+        .as_f64()
+        .unwrap();
+    assert!(
+        psnr > floor + 5.0 && psnr > 14.0,
+        "EvoGS(grid4d): trained {psnr} dB vs untrained {floor} dB"
+    );
+
+    // The ablation ladder on the backbone: its rows record it.
+    let ablate = dir.path().join("ablate");
+    let o = evogs(&[
+        "ablate",
+        "--data",
+        s(&data),
+        "--out",
+        s(&ablate),
+        "--preset",
+        "tiny",
+        "--iterations",
+        "60",
+        "--rows",
+        "baseline,full",
+        "--backbone",
+        "grid4d",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let table = std::fs::read_to_string(ablate.join("ablation.md")).unwrap();
+    assert!(
+        table.starts_with("# evogs ablate: backbone `grid4d`"),
+        "{table}"
+    );
+    assert_eq!(json(&ablate.join("ablation.json"))["backbone"], "grid4d");
+    for row in ["baseline", "full"] {
+        let run = ablate.join(row);
+        assert_eq!(
+            json(&run.join("config.json"))["train"]["backbone"],
+            "grid4d",
+            "{row}"
+        );
+    }
+}
+
+#[test]
 fn unknown_or_unsupported_backbones_are_one_line_errors() {
     let dir = tempfile::tempdir().unwrap();
+    let data = rigid_scene(dir.path(), 16, 4);
     let out = dir.path().join("run");
     for (extra, want) in [
         (vec!["--backbone", "nope"], "unknown backbone `nope`"),
         (
-            vec!["--backbone", "4dgs", "--method", "evogs"],
-            "EvoGS(4dgs) is not implemented yet",
+            vec![
+                "--backbone",
+                "4dgs",
+                "--method",
+                "evogs",
+                "--components",
+                "pos,rot,scale,opacity",
+            ],
+            "EvoGS(4dgs)'s Φ has 4DGaussians' heads",
         ),
     ] {
         let mut a = vec![
             "train",
             "--data",
-            s(dir.path()),
+            s(&data),
             "--out",
             s(&out),
             "--preset",
