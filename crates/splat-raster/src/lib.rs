@@ -102,4 +102,22 @@ pub trait Rasterizer {
         fwd: &ForwardOutput,
         d: PixelGrads<'_>,
     ) -> Result<BackwardOutput, RasterError>;
+
+    /// [`backward`](Self::backward) into `out` (start from [`BackwardOutput::default`]),
+    /// reusing its buffers where the backend can: the CPU backend reuses its gradient arrays and
+    /// the per-entry buffer of the pass, so a training loop allocates nothing once the sizes stop
+    /// growing. `out` ends equal to what `backward` returns, whatever it held before; on an error
+    /// its content is unspecified. The default implementation calls `backward`.
+    fn backward_into(
+        &self,
+        g: GaussiansView<'_>,
+        cam: &Camera,
+        opts: &RenderOptions,
+        fwd: &ForwardOutput,
+        d: PixelGrads<'_>,
+        out: &mut BackwardOutput,
+    ) -> Result<(), RasterError> {
+        *out = self.backward(g, cam, opts, fwd, d)?;
+        Ok(())
+    }
 }

@@ -172,10 +172,31 @@ pub struct GaussianGrads {
 }
 
 /// What a backward pass returns: the gradients and what became of them.
+///
+/// Equality compares the gradients and the count, never the scratch buffers
+/// [`Rasterizer::backward_into`](crate::Rasterizer::backward_into) keeps in it.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct BackwardOutput {
     /// The gradients.
     pub grads: GaussianGrads,
     /// Gaussians whose gradient overflowed `f32` and was set to zero instead of NaN/Inf.
     pub zeroed_non_finite: usize,
+    /// Buffers only the backward pass uses, kept for the next one by
+    /// [`Rasterizer::backward_into`](crate::Rasterizer::backward_into) (empty after
+    /// [`Rasterizer::backward`](crate::Rasterizer::backward)).
+    pub(crate) scratch: BackwardScratch,
+}
+
+/// The CPU backward pass's own buffers (only their capacity outlives a pass).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct BackwardScratch {
+    /// Per tile-list entry, its gradient (tile-major, as the lists).
+    pub entries: Vec<crate::cpu::SplatGrads>,
+}
+
+impl PartialEq for BackwardScratch {
+    /// Scratch holds no result: any two are equal.
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
 }

@@ -61,11 +61,12 @@ pub(crate) fn validate(
             });
         }
     }
-    let finite = [
-        ("cx", vec![cam.cx]),
-        ("cy", vec![cam.cy]),
-        ("rotation", cam.rotation.to_cols_array().to_vec()),
-        ("translation", cam.translation.to_array().to_vec()),
+    let (rotation, translation) = (cam.rotation.to_cols_array(), cam.translation.to_array());
+    let finite: [(&str, &[f32]); 4] = [
+        ("cx", &[cam.cx]),
+        ("cy", &[cam.cy]),
+        ("rotation", &rotation),
+        ("translation", &translation),
     ];
     for (field, values) in finite {
         if let Some(&value) = values.iter().find(|v| !v.is_finite()) {

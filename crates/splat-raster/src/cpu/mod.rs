@@ -19,7 +19,8 @@ use std::sync::Arc;
 use rayon::prelude::*;
 
 use self::composite::{LANES, TileOut, lanes, scalar};
-use self::project::{CullReason, Splat, SplatGrads};
+pub(crate) use self::project::SplatGrads;
+use self::project::{CullReason, Splat};
 use self::simd::Isa;
 use self::tiles::TileLists;
 use crate::Rasterizer;
@@ -30,7 +31,7 @@ use crate::frame::Frame;
 use crate::gaussians::GaussiansView;
 use crate::options::{CullStats, RenderOptions};
 use crate::output::{
-    BackendState, BackwardOutput, Counters, ForwardOutput, GaussianGrads, PixelGrads,
+    BackendState, BackwardOutput, BackwardScratch, Counters, ForwardOutput, PixelGrads,
 };
 use crate::validate::{validate, validate_backward};
 
@@ -216,13 +217,20 @@ impl CpuRasterizer {
         let active = validate(&g, cam, opts)?;
         let frame = Frame::new(cam);
         let n = g.len();
-        // The previous pass's CPU buffers, or fresh ones.
+        // The previous pass's CPU buffers (borrowed in place: a pass allocates no state), or
+        // fresh ones.
+        if !matches!(out.state.backend, BackendState::Cpu(_)) {
+            out.state.backend = BackendState::Cpu(Box::default());
+        }
         #[allow(unreachable_patterns)]
-        let mut cpu =
-            match std::mem::replace(&mut out.state.backend, BackendState::Cpu(Box::default())) {
-                BackendState::Cpu(cpu) => cpu,
-                _ => Box::default(),
-            };
+        let cpu = match &mut out.state.backend {
+            BackendState::Cpu(cpu) => &mut **cpu,
+            _ => {
+                return Err(RasterError::ForwardMismatch(
+                    "the output holds another backend's state".into(),
+                ));
+            }
+        };
         cpu.kernels = self.kernels;
         let CpuState {
             splats: sorted,
@@ -231,7 +239,7 @@ impl CpuRasterizer {
             last,
             scratch,
             ..
-        } = &mut *cpu;
+        } = cpu;
         let Scratch {
             projected,
             splats,
@@ -352,6 +360,7 @@ impl CpuRasterizer {
                     depth[x] = depth_t[k];
                 }
             });
+        let tile_pairs = lists.ids.len();
         out.width = cam.width;
         out.height = cam.height;
         out.stats = stats;
@@ -361,19 +370,22 @@ impl CpuRasterizer {
         st.active_degree = active;
         st.background = opts.background;
         st.counters = counters;
-        st.tile_pairs = cpu.lists.ids.len();
-        st.backend = BackendState::Cpu(cpu);
+        st.tile_pairs = tile_pairs;
         Ok(())
     }
 
-    fn backward_impl(
+    /// The backward pass into `out`, reusing its gradient arrays and its per-entry scratch:
+    /// nothing is allocated once they are large enough. Every value of `out` is written, so the
+    /// result does not depend on what it held.
+    fn backward_into_impl(
         &self,
         g: GaussiansView<'_>,
         cam: &Camera,
         opts: &RenderOptions,
         fwd: &ForwardOutput,
         pixel_grads: PixelGrads<'_>,
-    ) -> Result<BackwardOutput, RasterError> {
+        out: &mut BackwardOutput,
+    ) -> Result<(), RasterError> {
         let active = validate_backward(&g, cam, opts, fwd, pixel_grads)?;
         let st = &fwd.state;
         let mismatch = |what: &str| Err(RasterError::ForwardMismatch(what.into()));
@@ -384,17 +396,14 @@ impl CpuRasterizer {
         };
         let frame = Frame::new(cam);
 
-        // Per list entry gradients, each tile writing its own slots.
+        // Per list entry gradients, each tile writing its own slots (all of them: the kernels
+        // write the entries before the tile's last contributor, the tile zeroes the rest first).
         let lists = &cpu.lists;
-        let mut entries = vec![SplatGrads::default(); lists.ids.len()];
-        let mut slots: Vec<&mut [SplatGrads]> = Vec::with_capacity(lists.offsets.len());
-        let mut rest = entries.as_mut_slice();
-        for t in 0..lists.offsets.len() - 1 {
-            let (head, tail) = rest.split_at_mut(lists.offsets[t + 1] - lists.offsets[t]);
-            slots.push(head);
-            rest = tail;
-        }
-        slots.into_par_iter().enumerate().for_each(|(tile, out)| {
+        let entries = &mut out.scratch.entries;
+        entries.clear();
+        entries.resize(lists.ids.len(), SplatGrads::default());
+        let tile_pass = |tile: usize, slots: &mut [SplatGrads]| {
+            slots.fill(SplatGrads::default());
             let range = tile * LANES..(tile + 1) * LANES;
             let (final_t, last) = (&cpu.final_t[range.clone()], &cpu.last[range]);
             let ids = lists.tile(tile);
@@ -408,7 +417,7 @@ impl CpuRasterizer {
                     final_t,
                     last,
                     pixel_grads,
-                    out,
+                    slots,
                     exp,
                 ),
                 Kernels::Lanes(isa) => simd::dispatch(
@@ -422,74 +431,122 @@ impl CpuRasterizer {
                         final_t,
                         last,
                         grads: pixel_grads,
-                        out,
+                        out: slots,
                     },
                 ),
             }
-        });
+        };
+        each_tile(
+            &lists.offsets,
+            0..lists.offsets.len() - 1,
+            entries,
+            &tile_pass,
+        );
         // Per Gaussian, its entries summed in tile order (a fixed order), then chained to the
-        // raw parameters.
+        // raw parameters; every row of every array is written.
         let n = g.len();
         let stride = g.sh_stride();
-        let mut sh = vec![0.0f32; n * stride];
-        let outcomes: Vec<Outcome> = sh
-            .par_chunks_mut(stride)
-            .enumerate()
-            .map(|(i, sh_out)| {
-                // Culled in the forward pass (off screen included; a drawn Gaussian touches a
-                // tile): zero gradient.
-                if lists.entries_of(i).is_empty() {
-                    return Outcome::Culled;
-                }
-                let mut d = SplatGrads::default();
-                for &e in lists.entries_of(i) {
-                    d.add(&entries[e as usize]);
-                }
-                let Some(grad) = project::project_backward_into(&frame, &g, active, i, &d, sh_out)
-                else {
-                    return Outcome::Culled;
-                };
-                let finite = grad.mean.iter().all(|v| v.is_finite())
-                    && grad.log_scale.iter().all(|v| v.is_finite())
-                    && grad.q.iter().all(|v| v.is_finite())
-                    && grad.logit.is_finite()
-                    && sh_out.iter().all(|v| v.is_finite())
-                    && d.u.is_finite()
-                    && d.v.is_finite();
-                if finite {
-                    Outcome::Drawn(grad, [d.u, d.v])
-                } else {
-                    sh_out.fill(0.0);
-                    Outcome::Zeroed
-                }
-            })
-            .collect();
-        let mut out = BackwardOutput {
-            grads: GaussianGrads {
-                means: vec![[0.0; 3]; n],
-                log_scales: vec![[0.0; 3]; n],
-                rotations: vec![[0.0; 4]; n],
-                opacity_logits: vec![0.0; n],
-                sh,
-                means2d: vec![[0.0; 2]; n],
-            },
-            zeroed_non_finite: 0,
-        };
         let grads = &mut out.grads;
-        for (i, outcome) in outcomes.into_iter().enumerate() {
-            match outcome {
-                Outcome::Culled => {}
-                Outcome::Zeroed => out.zeroed_non_finite += 1,
-                Outcome::Drawn(grad, uv) => {
-                    grads.means[i] = grad.mean;
-                    grads.log_scales[i] = grad.log_scale;
-                    grads.rotations[i] = grad.q;
-                    grads.opacity_logits[i] = grad.logit;
-                    grads.means2d[i] = uv;
-                }
-            }
+        for v in [&mut grads.means, &mut grads.log_scales] {
+            v.resize(n, [0.0; 3]);
         }
-        Ok(out)
+        grads.rotations.resize(n, [0.0; 4]);
+        grads.opacity_logits.resize(n, 0.0);
+        grads.sh.resize(n * stride, 0.0);
+        grads.means2d.resize(n, [0.0; 2]);
+        let entries = &*entries;
+        let zeroed = grads
+            .sh
+            .par_chunks_mut(stride)
+            .zip(grads.means.par_iter_mut())
+            .zip(grads.log_scales.par_iter_mut())
+            .zip(grads.rotations.par_iter_mut())
+            .zip(grads.opacity_logits.par_iter_mut())
+            .zip(grads.means2d.par_iter_mut())
+            .enumerate()
+            .map(
+                |(i, (((((sh_out, mean), log_scale), rotation), logit), uv))| {
+                    sh_out.fill(0.0);
+                    let outcome = backward_gaussian(&frame, &g, active, lists, entries, i, sh_out);
+                    let (raw, d_uv, zeroed) = match outcome {
+                        Outcome::Drawn(raw, d_uv) => (raw, d_uv, 0),
+                        Outcome::Culled => (project::RawGrads::default(), [0.0; 2], 0),
+                        Outcome::Zeroed => (project::RawGrads::default(), [0.0; 2], 1),
+                    };
+                    *mean = raw.mean;
+                    *log_scale = raw.log_scale;
+                    *rotation = raw.q;
+                    *logit = raw.logit;
+                    *uv = d_uv;
+                    zeroed
+                },
+            )
+            .sum();
+        out.zeroed_non_finite = zeroed;
+        Ok(())
+    }
+}
+
+/// Runs `pass(tile, slots)` for every tile of `tiles` in parallel, each on its own slots of
+/// `entries` (which start at `offsets[tiles.start]`), splitting the range in halves: no list of
+/// slots is built.
+fn each_tile<F>(
+    offsets: &[usize],
+    tiles: std::ops::Range<usize>,
+    entries: &mut [SplatGrads],
+    pass: &F,
+) where
+    F: Fn(usize, &mut [SplatGrads]) + Sync,
+{
+    match tiles.len() {
+        0 => {}
+        1 => pass(tiles.start, entries),
+        len => {
+            let mid = tiles.start + len / 2;
+            let (head, tail) = entries.split_at_mut(offsets[mid] - offsets[tiles.start]);
+            rayon::join(
+                || each_tile(offsets, tiles.start..mid, head, pass),
+                || each_tile(offsets, mid..tiles.end, tail, pass),
+            );
+        }
+    }
+}
+
+/// Gaussian `i`'s entries summed in tile order and chained to its raw parameters (its SH
+/// gradient into `sh_out`, which holds zeros).
+fn backward_gaussian(
+    frame: &Frame,
+    g: &GaussiansView<'_>,
+    active: u32,
+    lists: &TileLists,
+    entries: &[SplatGrads],
+    i: usize,
+    sh_out: &mut [f32],
+) -> Outcome {
+    // Culled in the forward pass (off screen included; a drawn Gaussian touches a tile): zero
+    // gradient.
+    if lists.entries_of(i).is_empty() {
+        return Outcome::Culled;
+    }
+    let mut d = SplatGrads::default();
+    for &e in lists.entries_of(i) {
+        d.add(&entries[e as usize]);
+    }
+    let Some(grad) = project::project_backward_into(frame, g, active, i, &d, sh_out) else {
+        return Outcome::Culled;
+    };
+    let finite = grad.mean.iter().all(|v| v.is_finite())
+        && grad.log_scale.iter().all(|v| v.is_finite())
+        && grad.q.iter().all(|v| v.is_finite())
+        && grad.logit.is_finite()
+        && sh_out.iter().all(|v| v.is_finite())
+        && d.u.is_finite()
+        && d.v.is_finite();
+    if finite {
+        Outcome::Drawn(grad, [d.u, d.v])
+    } else {
+        sh_out.fill(0.0);
+        Outcome::Zeroed
     }
 }
 
@@ -528,7 +585,23 @@ impl Rasterizer for CpuRasterizer {
         fwd: &ForwardOutput,
         d: PixelGrads<'_>,
     ) -> Result<BackwardOutput, RasterError> {
-        self.install(|| self.backward_impl(g, cam, opts, fwd, d))
+        let mut out = BackwardOutput::default();
+        self.install(|| self.backward_into_impl(g, cam, opts, fwd, d, &mut out))?;
+        // A lone pass keeps only the gradients.
+        out.scratch = BackwardScratch::default();
+        Ok(out)
+    }
+
+    fn backward_into(
+        &self,
+        g: GaussiansView<'_>,
+        cam: &Camera,
+        opts: &RenderOptions,
+        fwd: &ForwardOutput,
+        d: PixelGrads<'_>,
+        out: &mut BackwardOutput,
+    ) -> Result<(), RasterError> {
+        self.install(|| self.backward_into_impl(g, cam, opts, fwd, d, out))
     }
 }
 
@@ -540,6 +613,7 @@ mod tests {
     use super::simd::{F8, Portable, Simd, dispatch};
     use super::*;
     use crate::gaussians::Gaussians;
+    use crate::output::GaussianGrads;
 
     /// The vectorised `exp` on one value (the same value in any build).
     fn approx_exp(x: f32) -> f32 {
@@ -713,6 +787,54 @@ mod tests {
             let d = PixelGrads::from_color(&dc);
             let grads = |f: &ForwardOutput| r.backward(g.view(), &cam, &opts, f, d).unwrap().grads;
             prop_assert_eq!(grads(&out), grads(&fresh));
+        }
+
+        /// `backward_into` an output that held another scene's gradients (more or fewer
+        /// Gaussians, another image) gives what `backward` gives, bit for bit.
+        #[test]
+        fn backward_into_a_used_output_equals_a_fresh_backward(
+            before in proptest::collection::vec(gaussian(), 0..80),
+            parts in proptest::collection::vec(gaussian(), 1..60),
+            sizes in ((1u32..50, 1u32..40), (1u32..50, 1u32..40)),
+            degree in 0u32..=3,
+        ) {
+            let cam = |(width, height): (u32, u32)| Camera::from_center(
+                width, height, 30.0, 28.0, 0.45 * width as f32, 0.55 * height as f32,
+                Mat3::IDENTITY, Vec3::ZERO,
+            );
+            let (cam_before, cam) = (cam(sizes.0), cam(sizes.1));
+            let opts = RenderOptions { background: [0.2, 0.5, 0.9], sh_degree: None };
+            let r = CpuRasterizer::new();
+            // The earlier scene at SH degree 0 and this one at `degree`: the SH stride changes too.
+            let g_before = scene(&before);
+            let mut g = scene(&parts);
+            g.sh = g.sh.chunks_exact(3)
+                .flat_map(|dc| {
+                    let mut row = vec![0.1f32; crate::sh_coeff_count(degree) * 3];
+                    row[..3].copy_from_slice(dc);
+                    row
+                })
+                .collect();
+            g.sh_degree = degree;
+            let pixel_grads = |cam: &Camera| -> Vec<[f32; 3]> {
+                (0..cam.pixel_count()).map(|p| [0.3, -0.7, 0.5].map(|v: f32| v * ((p % 5) as f32 - 1.7))).collect()
+            };
+            let mut out = BackwardOutput::default();
+            let (dc_before, dc) = (pixel_grads(&cam_before), pixel_grads(&cam));
+            let f_before = r.forward(g_before.view(), &cam_before, &opts).unwrap();
+            r.backward_into(g_before.view(), &cam_before, &opts, &f_before, PixelGrads::from_color(&dc_before), &mut out).unwrap();
+            let f = r.forward(g.view(), &cam, &opts).unwrap();
+            let fresh = r.backward(g.view(), &cam, &opts, &f, PixelGrads::from_color(&dc)).unwrap();
+            r.backward_into(g.view(), &cam, &opts, &f, PixelGrads::from_color(&dc), &mut out).unwrap();
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            let (a, b) = (&out.grads, &fresh.grads);
+            prop_assert_eq!(bits(a.means.as_flattened()), bits(b.means.as_flattened()));
+            prop_assert_eq!(bits(a.log_scales.as_flattened()), bits(b.log_scales.as_flattened()));
+            prop_assert_eq!(bits(a.rotations.as_flattened()), bits(b.rotations.as_flattened()));
+            prop_assert_eq!(bits(&a.opacity_logits), bits(&b.opacity_logits));
+            prop_assert_eq!(bits(&a.sh), bits(&b.sh));
+            prop_assert_eq!(bits(a.means2d.as_flattened()), bits(b.means2d.as_flattened()));
+            prop_assert_eq!(out.zeroed_non_finite, fresh.zeroed_non_finite);
         }
     }
 

@@ -141,6 +141,7 @@ impl WgpuRasterizer {
         Ok(BackwardOutput {
             grads,
             zeroed_non_finite,
+            ..BackwardOutput::default()
         })
     }
 }
