@@ -11,9 +11,14 @@
 //! storage are updated in f32 and rounded back (saturating, counted): updates smaller than half an
 //! f16 ulp of a weight are lost, as with any pure-f16 storage.
 
+use half::f16;
+use rayon::prelude::*;
+
 use crate::error::{NnError, check_len};
 use crate::precision::{F16_MAX, StoreMut};
-use half::f16;
+
+/// Values per parallel task of an Adam step.
+const STEP_CHUNK: usize = 1 << 14;
 
 /// A learning rate as a function of the step.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -194,16 +199,12 @@ impl Adam {
     ) -> Result<u64, NnError> {
         let (b1, b2, eps) = (self.beta1, self.beta2, self.eps);
         let g = self.checked_group(id)?;
-        check_len(
-            &format!("Adam group `{}` parameters", g.name),
-            g.m.len(),
-            params.len(),
-        )?;
-        check_len(
-            &format!("Adam group `{}` gradients", g.name),
-            g.m.len(),
-            grads.len(),
-        )?;
+        // The messages are built only for a mismatch: a step allocates nothing.
+        for (what, len) in [("parameters", params.len()), ("gradients", grads.len())] {
+            if len != g.m.len() {
+                check_len(&format!("Adam group `{}` {what}", g.name), g.m.len(), len)?;
+            }
+        }
         g.step += 1;
         let lr = g.schedule.at(iteration);
         let bc1 = 1.0 - (b1 as f64).powi(g.step.min(i32::MAX as u64) as i32);
@@ -215,23 +216,38 @@ impl Adam {
             *v = b2 * *v + (1.0 - b2) * gr * gr;
             step_size * *m / (v.sqrt() / bc2_sqrt + eps)
         };
-        let mut sat = 0;
-        match params {
+        // Element by element, so chunks in parallel give the same values for any thread count.
+        let sat = match params {
             StoreMut::F32(p) => {
-                for (((p, m), v), &gr) in p.iter_mut().zip(&mut g.m).zip(&mut g.v).zip(grads) {
-                    *p -= update(m, v, gr);
-                }
+                p.par_chunks_mut(STEP_CHUNK)
+                    .zip(g.m.par_chunks_mut(STEP_CHUNK))
+                    .zip(g.v.par_chunks_mut(STEP_CHUNK))
+                    .zip(grads.par_chunks(STEP_CHUNK))
+                    .for_each(|(((p, m), v), grads)| {
+                        for (((p, m), v), &gr) in p.iter_mut().zip(m).zip(v).zip(grads) {
+                            *p -= update(m, v, gr);
+                        }
+                    });
+                0
             }
-            StoreMut::F16(p) => {
-                for (((p, m), v), &gr) in p.iter_mut().zip(&mut g.m).zip(&mut g.v).zip(grads) {
-                    let x = p.to_f32() - update(m, v, gr);
-                    if x.abs() > F16_MAX {
-                        sat += 1;
+            StoreMut::F16(p) => p
+                .par_chunks_mut(STEP_CHUNK)
+                .zip(g.m.par_chunks_mut(STEP_CHUNK))
+                .zip(g.v.par_chunks_mut(STEP_CHUNK))
+                .zip(grads.par_chunks(STEP_CHUNK))
+                .map(|(((p, m), v), grads)| {
+                    let mut sat = 0;
+                    for (((p, m), v), &gr) in p.iter_mut().zip(m).zip(v).zip(grads) {
+                        let x = p.to_f32() - update(m, v, gr);
+                        if x.abs() > F16_MAX {
+                            sat += 1;
+                        }
+                        *p = f16::from_f32(x.clamp(-F16_MAX, F16_MAX));
                     }
-                    *p = f16::from_f32(x.clamp(-F16_MAX, F16_MAX));
-                }
-            }
-        }
+                    sat
+                })
+                .sum(),
+        };
         Ok(sat)
     }
 

@@ -758,6 +758,8 @@ fn store_rounded(store: &mut StoreMut<'_>, vals: &mut [f32]) -> u64 {
 /// Row-wise concatenation `[a, b]` of `nr` rows of widths `wa` and `wb`.
 fn concat_rows(a: &[f32], wa: usize, b: &[f32], wb: usize, nr: usize, out: &mut Vec<f32>) {
     out.clear();
+    // One allocation at most (not a doubling per row when the buffer is new).
+    out.reserve(nr * (wa + wb));
     for r in 0..nr {
         out.extend_from_slice(&a[r * wa..(r + 1) * wa]);
         out.extend_from_slice(&b[r * wb..(r + 1) * wb]);
