@@ -62,6 +62,31 @@ pub trait Backbone: Send {
     /// network input is detached (D-3DGS: `deform.step(gaussians.get_xyz.detach(), t)`).
     fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, BackboneError>;
 
+    /// [`Backbone::forward`] into `out`, whatever it held, reusing its allocation where the
+    /// backbone can (the trainer keeps one buffer for every iteration). The default calls
+    /// `forward`.
+    fn forward_into(
+        &mut self,
+        canonical: GaussiansView<'_>,
+        time: f32,
+        training: bool,
+        out: &mut Vec<f32>,
+    ) -> Result<(), BackboneError> {
+        *out = self.forward(canonical, time, training)?;
+        Ok(())
+    }
+
+    /// [`Backbone::backward`] into `out`, whatever it held, reusing its buffers where the
+    /// backbone can. The default calls `backward`.
+    fn backward_into(
+        &mut self,
+        d_deform: &[f32],
+        out: &mut Vec<Vec<f32>>,
+    ) -> Result<(), BackboneError> {
+        *out = self.backward(d_deform)?;
+        Ok(())
+    }
+
     /// Named parameter buffers, in a fixed order.
     fn params(&self) -> Vec<(String, StoreRef<'_>)>;
 
@@ -304,6 +329,8 @@ pub struct D3dgsBackbone {
     cache: Option<DeformCache>,
     positions: Vec<f32>,
     times: Vec<f32>,
+    /// The geometric columns of the last deformation gradient, reused every backward.
+    d_geometry: Vec<f32>,
 }
 
 impl D3dgsBackbone {
@@ -328,6 +355,7 @@ impl D3dgsBackbone {
             cache: None,
             positions: Vec::new(),
             times: Vec::new(),
+            d_geometry: Vec::new(),
         })
     }
 }
@@ -343,6 +371,24 @@ impl Backbone for D3dgsBackbone {
         time: f32,
         training: bool,
     ) -> Result<Vec<f32>, BackboneError> {
+        let mut out = Vec::new();
+        self.forward_into(canonical, time, training, &mut out)?;
+        Ok(out)
+    }
+
+    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, BackboneError> {
+        let mut out = Vec::new();
+        self.backward_into(d_deform, &mut out)?;
+        Ok(out)
+    }
+
+    fn forward_into(
+        &mut self,
+        canonical: GaussiansView<'_>,
+        time: f32,
+        training: bool,
+        out: &mut Vec<f32>,
+    ) -> Result<(), BackboneError> {
         let n = canonical.len();
         self.positions.clear();
         self.positions
@@ -356,26 +402,39 @@ impl Backbone for D3dgsBackbone {
         if training {
             self.cache = Some(cache);
         }
-        let mut out = vec![0.0f32; n * DEFORM_DIM];
+        // Every value is written: the geometric columns from the network, the rest zero.
+        out.resize(n * DEFORM_DIM, 0.0);
         for (row, g) in out
             .chunks_exact_mut(DEFORM_DIM)
             .zip(geometry.chunks_exact(GEOMETRY_DIM))
         {
             row[..GEOMETRY_DIM].copy_from_slice(g);
+            row[GEOMETRY_DIM..].fill(0.0);
         }
-        Ok(out)
+        Ok(())
     }
 
-    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, BackboneError> {
+    fn backward_into(
+        &mut self,
+        d_deform: &[f32],
+        out: &mut Vec<Vec<f32>>,
+    ) -> Result<(), BackboneError> {
         let cache = self.cache.as_ref().ok_or_else(|| {
             BackboneError::config("backbone", "backward called without a training forward")
         })?;
-        let geometry: Vec<f32> = d_deform
-            .chunks_exact(DEFORM_DIM)
-            .flat_map(|r| r[..GEOMETRY_DIM].iter().copied())
-            .collect();
-        let g = self.net.backward(cache, &geometry, false)?;
-        Ok(vec![g.mlp])
+        self.d_geometry.clear();
+        self.d_geometry.extend(
+            d_deform
+                .chunks_exact(DEFORM_DIM)
+                .flat_map(|r| r[..GEOMETRY_DIM].iter().copied()),
+        );
+        let g = self.net.backward(cache, &self.d_geometry, false)?;
+        out.truncate(1);
+        match out.first_mut() {
+            Some(grads) => *grads = g.mlp,
+            None => out.push(g.mlp),
+        }
+        Ok(())
     }
 
     fn params(&self) -> Vec<(String, StoreRef<'_>)> {

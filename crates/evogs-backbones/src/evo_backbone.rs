@@ -119,6 +119,8 @@ pub struct EvoBackbone<P: Observer = ObservationNet> {
     phi_regulariser: f64,
     positions: Vec<f32>,
     times: Vec<f32>,
+    /// dL/d(evolution columns) of the last backward, reused every backward.
+    dl_dd: Vec<f32>,
 }
 
 impl EvoBackbone<ObservationNet> {
@@ -185,6 +187,7 @@ impl<P: Observer> EvoBackbone<P> {
             phi_regulariser: 0.0,
             positions: Vec::new(),
             times: Vec::new(),
+            dl_dd: Vec::new(),
         })
     }
 
@@ -261,10 +264,13 @@ impl<P: Observer> EvoBackbone<P> {
         Ok(caches)
     }
 
-    fn widen(&self, corrected: &[f32]) -> Vec<f32> {
+    /// The evolution's columns of `corrected` placed in N × [`DEFORM_DIM`] rows in `out` (every
+    /// value written: the columns the layout leaves out are zero).
+    fn widen_into(&self, corrected: &[f32], out: &mut Vec<f32>) {
         let d = self.deform_from_evo.len();
         let n = corrected.len() / d.max(1);
-        let mut out = vec![0.0f32; n * DEFORM_DIM];
+        out.clear();
+        out.resize(n * DEFORM_DIM, 0.0);
         for (row, src) in out
             .chunks_exact_mut(DEFORM_DIM)
             .zip(corrected.chunks_exact(d))
@@ -273,7 +279,6 @@ impl<P: Observer> EvoBackbone<P> {
                 row[col] = v;
             }
         }
-        out
     }
 }
 
@@ -312,6 +317,24 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
         time: f32,
         training: bool,
     ) -> Result<Vec<f32>, BackboneError> {
+        let mut out = Vec::new();
+        self.forward_into(canonical, time, training, &mut out)?;
+        Ok(out)
+    }
+
+    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, BackboneError> {
+        let mut out = Vec::new();
+        self.backward_into(d_deform, &mut out)?;
+        Ok(out)
+    }
+
+    fn forward_into(
+        &mut self,
+        canonical: GaussiansView<'_>,
+        time: f32,
+        training: bool,
+        out: &mut Vec<f32>,
+    ) -> Result<(), BackboneError> {
         let n = canonical.len();
         self.check_ready(n)?;
         self.positions.clear();
@@ -327,15 +350,13 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
         let z = self
             .phi
             .observe_into(&self.positions, &self.times, n, &mut cache)?;
-        let mut step = kept.map_or_else(Step::empty, |t| t.step);
+        let (mut step, mut opacity) =
+            kept.map_or_else(|| (Step::empty(), Vec::new()), |t| (t.step, t.opacity));
         let history_caches = self.evolve(time, &z, &mut step, training)?;
-        let out = self.widen(step.corrected());
+        self.widen_into(step.corrected(), out);
         if training {
-            let opacity = canonical
-                .opacity_logits
-                .iter()
-                .map(|&o| sigmoid(o))
-                .collect();
+            opacity.clear();
+            opacity.extend(canonical.opacity_logits.iter().map(|&o| sigmoid(o)));
             self.training = Some(Training {
                 step,
                 z,
@@ -345,10 +366,14 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
                 committed: false,
             });
         }
-        Ok(out)
+        Ok(())
     }
 
-    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, BackboneError> {
+    fn backward_into(
+        &mut self,
+        d_deform: &[f32],
+        out: &mut Vec<Vec<f32>>,
+    ) -> Result<(), BackboneError> {
         let t = self.training.as_mut().ok_or_else(|| {
             BackboneError::config("backbone", "backward called without a training forward")
         })?;
@@ -369,7 +394,9 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
                 ),
             ));
         }
-        let mut dl_dd = vec![0.0f32; n * d];
+        let dl_dd = &mut self.dl_dd;
+        dl_dd.clear();
+        dl_dd.resize(n * d, 0.0);
         for (dst, src) in dl_dd
             .chunks_exact_mut(d)
             .zip(d_deform.chunks_exact(DEFORM_DIM))
@@ -380,7 +407,7 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
         }
         let mut bw = self.backward.take().unwrap_or_default();
         self.evo
-            .backward_into(&t.step, &t.z, &dl_dd, &t.opacity, &mut bw)
+            .backward_into(&t.step, &t.z, dl_dd, &t.opacity, &mut bw)
             .map_err(evo_err)?;
         let mut grads = self.phi.gradients(&t.cache, &bw.dz)?;
         // Re-queried history: d̂ = z(t_k1) + s (z(t_k1) - z(t_k2)) reaches Φ at those times.
@@ -403,10 +430,11 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
         self.phi_regulariser = self.phi.regularise(&t.cache, &mut grads)?;
         let psi_len = self.evo.psi().param_count();
         grads.push(bw.dpsi.clone().unwrap_or_else(|| vec![0.0f32; psi_len]));
+        *out = grads;
         self.evo.commit(&t.step).map_err(evo_err)?;
         t.committed = true;
         self.backward = Some(bw);
-        Ok(grads)
+        Ok(())
     }
 
     fn params(&self) -> Vec<(String, StoreRef<'_>)> {

@@ -73,6 +73,19 @@ pub struct SceneState {
     groups: GaussianGroups,
     /// One group per backbone parameter buffer, in the backbone's order.
     net_groups: Vec<GroupId>,
+    /// The SH rows split into the `f_dc` and `f_rest` groups' layout around each Adam step,
+    /// reused every step (only their capacity outlives a step).
+    sh_split: ShSplit,
+}
+
+/// Buffers of [`SceneState::step_gaussians`]: the SH DC and higher bands of every Gaussian and
+/// of its gradient, each contiguous.
+#[derive(Clone, Debug, Default)]
+struct ShSplit {
+    dc: Vec<f32>,
+    dc_grad: Vec<f32>,
+    rest: Vec<f32>,
+    rest_grad: Vec<f32>,
 }
 
 /// Per-Gaussian lr schedules (3DGS `training_setup` with D-3DGS's `spatial_lr_scale`).
@@ -160,6 +173,7 @@ impl SceneState {
             adam,
             groups,
             net_groups,
+            sh_split: ShSplit::default(),
         })
     }
 
@@ -296,16 +310,23 @@ impl SceneState {
             StoreMut::F32(g.means.as_flattened_mut()),
             grads.means.as_flattened(),
         )?;
-        let (mut dc, mut dc_grad) = (Vec::new(), Vec::new());
-        let (mut hi, mut hi_grad) = (Vec::new(), Vec::new());
+        let ShSplit {
+            dc,
+            dc_grad,
+            rest: hi,
+            rest_grad: hi_grad,
+        } = &mut self.sh_split;
+        for v in [&mut *dc, &mut *dc_grad, &mut *hi, &mut *hi_grad] {
+            v.clear();
+        }
         for (row, grow) in g.sh.chunks_exact(stride).zip(grads.sh.chunks_exact(stride)) {
             dc.extend_from_slice(&row[..3]);
             dc_grad.extend_from_slice(&grow[..3]);
             hi.extend_from_slice(&row[3..]);
             hi_grad.extend_from_slice(&grow[3..]);
         }
-        adam.step(ids.f_dc, lr_step, StoreMut::F32(&mut dc), &dc_grad)?;
-        adam.step(ids.f_rest, lr_step, StoreMut::F32(&mut hi), &hi_grad)?;
+        adam.step(ids.f_dc, lr_step, StoreMut::F32(dc), dc_grad)?;
+        adam.step(ids.f_rest, lr_step, StoreMut::F32(hi), hi_grad)?;
         for (i, row) in g.sh.chunks_exact_mut(stride).enumerate() {
             row[..3].copy_from_slice(&dc[i * 3..i * 3 + 3]);
             row[3..].copy_from_slice(&hi[i * rest..(i + 1) * rest]);

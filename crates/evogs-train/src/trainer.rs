@@ -28,7 +28,8 @@ use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 use splat_raster::{
-    BackendInfo, DynRasterizer, Gaussians, PixelGrads, RenderOptions, select_rasterizer,
+    BackendInfo, BackwardOutput, DynRasterizer, ForwardOutput, Gaussians, PixelGrads,
+    RenderOptions, select_rasterizer,
 };
 
 use crate::config::{BackboneKind, Method, Preset, TrainConfig};
@@ -194,6 +195,14 @@ pub struct Trainer {
     geometry: DeformedGeometry,
     /// dL/d(deformation) rows of the iteration, reused every iteration.
     deformation_grad: Vec<f32>,
+    /// The backbone's deformation rows of the iteration, reused every iteration.
+    deformation: Vec<f32>,
+    /// The backbone's parameter gradients of the iteration, reused every iteration.
+    net_grads: Vec<Vec<f32>>,
+    /// The rasterizer's forward output (images and backward state), reused every iteration.
+    fwd: ForwardOutput,
+    /// The rasterizer's gradients, reused every iteration.
+    bwd: BackwardOutput,
 }
 
 impl Trainer {
@@ -276,6 +285,10 @@ impl Trainer {
             loss: LossWorkspace::new(),
             geometry: DeformedGeometry::default(),
             deformation_grad: Vec::new(),
+            deformation: Vec::new(),
+            net_grads: Vec::new(),
+            fwd: ForwardOutput::default(),
+            bwd: BackwardOutput::default(),
         })
     }
 
@@ -344,22 +357,28 @@ impl Trainer {
     pub fn view_at(&mut self, iteration: u64) -> usize {
         let n = self.train.views.len() as u64;
         let epoch = (iteration - 1) / n;
-        if self.order.0 != epoch {
+        let (cached, perm) = &mut self.order;
+        if *cached != epoch {
             let mut rng = ChaCha8Rng::seed_from_u64(self.config.seed);
             rng.set_stream(epoch);
-            let mut perm: Vec<usize> = (0..n as usize).collect();
+            perm.clear();
+            perm.extend(0..n as usize);
             perm.shuffle(&mut rng);
-            self.order = (epoch, perm);
+            *cached = epoch;
         }
         self.order.1[((iteration - 1) % n) as usize]
     }
 
-    /// Frees the buffers reused across iterations (the deformed Gaussians, the deformation's
-    /// gradient rows, the loss's workspace); the next [`Trainer::step`] allocates them again and
-    /// computes the same values.
+    /// Frees the buffers reused across iterations (the deformed Gaussians, the deformation rows
+    /// and their gradient, the network's gradients, the rasterizer's outputs, the loss's
+    /// workspace); the next [`Trainer::step`] allocates them again and computes the same values.
     pub fn release_buffers(&mut self) {
         self.geometry = DeformedGeometry::default();
         self.deformation_grad = Vec::new();
+        self.deformation = Vec::new();
+        self.net_grads = Vec::new();
+        self.fwd = ForwardOutput::default();
+        self.bwd = BackwardOutput::default();
         self.loss = LossWorkspace::new();
     }
 
@@ -373,19 +392,19 @@ impl Trainer {
         let vi = self.view_at(i);
         let deforms = self.deforms_at(i);
         t = self.times.lap(Phase::Data, t);
-        let d = if deforms {
+        if deforms {
             let view = &self.train.views[vi];
-            Some(
-                self.backbone
-                    .forward(self.state.gaussians().view(), view.time, true)?,
-            )
-        } else {
-            None
-        };
+            self.backbone.forward_into(
+                self.state.gaussians().view(),
+                view.time,
+                true,
+                &mut self.deformation,
+            )?;
+        }
         t = self.times.lap(Phase::NetForward, t);
         self.geometry.assign(
             self.state.gaussians(),
-            d.as_deref(),
+            deforms.then_some(self.deformation.as_slice()),
             self.backbone.appearance(),
         );
         let gview = self.geometry.view(self.state.gaussians());
@@ -395,30 +414,30 @@ impl Trainer {
             sh_degree: Some(self.state.active_sh()),
         };
         t = self.times.lap(Phase::Data, t);
-        let fwd = self.raster.forward(gview, &view.camera, &opts)?;
+        let fwd = &mut self.fwd;
+        self.raster.forward_into(gview, &view.camera, &opts, fwd)?;
         t = self.times.lap(Phase::RasterForward, t);
         let size = ImageSize::new(view.image.width as usize, view.image.height as usize);
         let loss = self.loss.compute(size, &fwd.color, &view.image.pixels)?;
         let train_psnr = psnr_from_mse(loss.mse);
         t = self.times.lap(Phase::Loss, t);
-        let grads = self
-            .raster
-            .backward(
-                gview,
-                &view.camera,
-                &opts,
-                &fwd,
-                PixelGrads::from_color(self.loss.gradient()),
-            )?
-            .grads;
+        self.raster.backward_into(
+            gview,
+            &view.camera,
+            &opts,
+            fwd,
+            PixelGrads::from_color(self.loss.gradient()),
+            &mut self.bwd,
+        )?;
+        let (fwd, grads) = (&self.fwd, &self.bwd.grads);
         t = self.times.lap(Phase::RasterBackward, t);
-        let net_grads = if deforms {
+        if deforms {
             let stride = self.state.gaussians().sh_stride();
-            deformation_gradient_into(&grads, stride, &mut self.deformation_grad);
-            Some(self.backbone.backward(&self.deformation_grad)?)
-        } else {
-            None
-        };
+            deformation_gradient_into(grads, stride, &mut self.deformation_grad);
+            self.backbone
+                .backward_into(&self.deformation_grad, &mut self.net_grads)?;
+        }
+        let net_grads = deforms.then_some(self.net_grads.as_slice());
         t = self.times.lap(Phase::NetBackward, t);
         let (w, h) = (view.camera.width, view.camera.height);
         let schedule = self.densify.schedule;
@@ -455,9 +474,9 @@ impl Trainer {
             let lr_step = i as i64 - 1;
             if !schedule.densifies(i) {
                 self.state
-                    .step_gaussians(&grads, lr_step, schedule.resets_opacity(i))?;
+                    .step_gaussians(grads, lr_step, schedule.resets_opacity(i))?;
             }
-            if let Some(g) = &net_grads {
+            if let Some(g) = net_grads {
                 self.state
                     .step_network(self.backbone.as_mut(), g, lr_step)?;
             }
@@ -475,7 +494,7 @@ impl Trainer {
             psnr: train_psnr,
             gaussians: self.state.len(),
             densified,
-            net_grad_norm: net_grads.as_ref().map(|g| {
+            net_grad_norm: net_grads.map(|g| {
                 g.iter()
                     .flatten()
                     .map(|&v| f64::from(v) * f64::from(v))

@@ -308,45 +308,51 @@ fn every_switch_combination_trains_finitely_and_stays_aligned() {
     }
 }
 
-/// The buffers the trainer reuses across iterations (deformed Gaussians, deformation gradient
-/// rows, the loss's workspace) change nothing: a run that frees them before every step, so that
-/// each step allocates afresh, reports the same losses and ends with the same Gaussians bit for
-/// bit, through densification (which grows the buffers) and opacity and colour deformation.
+/// The buffers the trainer reuses across iterations (deformed Gaussians, deformation rows and
+/// their gradient, the network's gradients, the rasterizer's outputs, the loss's workspace)
+/// change nothing: a run that frees them before every step, so that each step allocates afresh,
+/// reports the same losses and ends with the same Gaussians bit for bit, through densification
+/// (which grows the buffers) and, for EvoGS, opacity and colour deformation; for both methods.
 #[test]
 fn reused_buffers_give_the_same_steps_as_fresh_ones_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("scene");
     common::write_scene(&data);
-    let mut c = config(40);
-    c.warm_up = 5;
-    c.densify.schedule.from = 10;
-    c.densify.schedule.interval = 10;
-    c.evogs.components = "pos,rot,scale,opacity,colour".parse().unwrap();
-    let views = train_views(&data, &c);
-    let run = |fresh: bool| {
-        let mut trainer = Trainer::new(c.clone(), views.clone()).unwrap();
-        let mut reports = Vec::new();
-        while trainer.iteration() < c.iterations {
-            if fresh {
-                trainer.release_buffers();
-            }
-            let r = trainer.step().unwrap();
-            reports.push((r.loss.to_bits(), r.psnr.to_bits(), r.gaussians));
+    for method in [Method::Baseline, Method::Evogs] {
+        let mut c = config(40);
+        c.method = method;
+        c.warm_up = 5;
+        c.densify.schedule.from = 10;
+        c.densify.schedule.interval = 10;
+        if method == Method::Evogs {
+            c.evogs.components = "pos,rot,scale,opacity,colour".parse().unwrap();
         }
-        let g = trainer.state().gaussians();
-        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-        (
-            reports,
-            bits(g.means.as_flattened()),
-            bits(g.opacity_logits.as_slice()),
-            bits(g.sh.as_slice()),
-        )
-    };
-    let (reused, fresh) = (run(false), run(true));
-    let counts: Vec<usize> = reused.0.iter().map(|r| r.2).collect();
-    assert!(
-        counts.first() != counts.last(),
-        "densification changed the count: {counts:?}"
-    );
-    assert!(reused == fresh, "reused and fresh buffers differ");
+        let views = train_views(&data, &c);
+        let run = |fresh: bool| {
+            let mut trainer = Trainer::new(c.clone(), views.clone()).unwrap();
+            let mut reports = Vec::new();
+            while trainer.iteration() < c.iterations {
+                if fresh {
+                    trainer.release_buffers();
+                }
+                let r = trainer.step().unwrap();
+                reports.push((r.loss.to_bits(), r.psnr.to_bits(), r.gaussians));
+            }
+            let g = trainer.state().gaussians();
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            (
+                reports,
+                bits(g.means.as_flattened()),
+                bits(g.opacity_logits.as_slice()),
+                bits(g.sh.as_slice()),
+            )
+        };
+        let (reused, fresh) = (run(false), run(true));
+        let counts: Vec<usize> = reused.0.iter().map(|r| r.2).collect();
+        assert!(
+            counts.first() != counts.last(),
+            "{method}: densification changed the count: {counts:?}"
+        );
+        assert!(reused == fresh, "{method}: reused and fresh buffers differ");
+    }
 }

@@ -3,6 +3,7 @@
 //! module on its threads together). One module alone:
 //! `cargo test -p evogs-train --test evogs_train_tests <module>::`.
 
+mod allocations;
 mod appearance_gradients;
 // Shared with evogs-cli's tests (they include it by path), so it stays at tests/common.
 #[path = "../common/mod.rs"]
