@@ -1,0 +1,72 @@
+//! Instruction profile of lego training iterations (issue P): the `iteration` bench's fixed
+//! frame and state (the lego fixture's view `r_24` upsampled 4× to 400×400, the `cpu` preset's
+//! settings, a 20-iteration warm-up, densification off), trained 25 iterations, then STEPS
+//! iterations in [`measured`], the function to collect under callgrind:
+//!
+//! ```text
+//! cargo build --release -p evogs-train --example iteration_profile
+//! valgrind --tool=callgrind --collect-atstart=no --toggle-collect='iteration_profile::measured*' \
+//!     target/release/examples/iteration_profile baseline|evogs STEPS ['{"init_points":38000}']
+//! callgrind_annotate --inclusive=yes callgrind.out.PID
+//! ```
+//! The optional JSON is merged into the config (e.g. the Gaussian count, or EvoGS's settings
+//! `{"evogs":{"gain":"0.5"}}`). Without valgrind it prints the trainer's phase times of the
+//! measured iterations.
+
+use std::path::Path;
+
+use evogs_io::Split;
+use evogs_train::data::load_split;
+use evogs_train::{Method, Preset, TrainConfig, Trainer};
+
+/// The iterations callgrind collects.
+#[inline(never)]
+fn measured(t: &mut Trainer, steps: u64) {
+    for _ in 0..steps {
+        t.step().expect("a training step");
+    }
+}
+
+fn merge(base: &mut serde_json::Value, patch: &serde_json::Value) {
+    match (base, patch) {
+        (serde_json::Value::Object(b), serde_json::Value::Object(p)) => {
+            for (k, v) in p {
+                merge(b.entry(k.clone()).or_insert(serde_json::Value::Null), v);
+            }
+        }
+        (b, p) => *b = p.clone(),
+    }
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    let usage = "usage: iteration_profile baseline|evogs STEPS [CONFIG_PATCH_JSON]";
+    let method: Method = args.get(1).ok_or(usage)?.parse()?;
+    let steps: u64 = args.get(2).ok_or(usage)?.parse()?;
+    let mut c = TrainConfig::preset(Preset::Cpu).with_iterations(1_000_000);
+    c.method = method;
+    c.seed = 1;
+    c.warm_up = 20;
+    c.densify.schedule.from = 999_999;
+    c.densify.schedule.until = 1_000_000;
+    if let Some(patch) = args.get(3) {
+        let mut value = serde_json::to_value(&c)?;
+        merge(&mut value, &serde_json::from_str(patch)?);
+        c = serde_json::from_value(value)?;
+    }
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../evogs-io/tests/data/dnerf-lego");
+    let mut views = load_split(&data, Split::Train, c.time_from, c.background.rgb(), 4.0)?;
+    views.views.retain(|v| v.path.ends_with("r_24.png"));
+    let mut t = Trainer::new(c, views)?;
+    while t.iteration() < 25 {
+        t.step()?;
+    }
+    t.reset_times();
+    measured(&mut t, steps);
+    eprintln!(
+        "{method}, {} Gaussians, {steps} iterations:\n{}",
+        t.state().len(),
+        t.times()
+    );
+    Ok(())
+}
