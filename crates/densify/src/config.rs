@@ -162,8 +162,17 @@ pub struct DensifyConfig {
     pub percent_dense: f32,
     /// Opacity below which a Gaussian is pruned (0.005).
     pub min_opacity: f32,
-    /// Max screen radius (px) above which a Gaussian is pruned (20).
-    pub max_screen_radius: f32,
+    /// Screen radius (px) above which a Gaussian is pruned after the first opacity reset, when
+    /// `Some` (the 3DGS paper's 20); `None` (the default): no screen-size prune.
+    ///
+    /// `None` is what 3DGS's and Deformable-3D-Gaussians' code do: `densification_postfix`
+    /// zeroes `max_radii2D` just before `densify_and_prune` compares it with 20, so the test
+    /// never fires and their published figures were made without it. With it, EvoGS collapsed on
+    /// D-NeRF jumpingjacks at 400×400 (3 517 Gaussians at the first reset, 133 from 450
+    /// iterations later): its trigger keeps large Gaussians from splitting, so they stay above
+    /// 20 px and are pruned in turn, and each prune leaves the survivors larger. Run configs
+    /// written before this was optional hold `20.0`, which reads back as `Some(20.0)`.
+    pub max_screen_radius: Option<f32>,
     /// Max scale above `max_world_fraction · extent` is pruned (0.1).
     pub max_world_fraction: f32,
     /// Children per split (2); each gets scale / (0.8 · children).
@@ -245,7 +254,7 @@ impl Default for DensifyConfig {
             grad_threshold: 0.0002,
             percent_dense: 0.01,
             min_opacity: 0.005,
-            max_screen_radius: 20.0,
+            max_screen_radius: None,
             max_world_fraction: 0.1,
             split_children: 2,
             reset_opacity: 0.01,
@@ -277,10 +286,10 @@ impl DensifyConfig {
         let finite_pos = [
             ("grad_threshold", self.grad_threshold),
             ("percent_dense", self.percent_dense),
-            ("max_screen_radius", self.max_screen_radius),
             ("max_world_fraction", self.max_world_fraction),
         ];
-        for (field, v) in finite_pos {
+        let screen = self.max_screen_radius.map(|v| ("max_screen_radius", v));
+        for (field, v) in finite_pos.into_iter().chain(screen) {
             if !(v.is_finite() && v > 0.0) {
                 return bad(field, v.to_string(), "must be finite and positive");
             }

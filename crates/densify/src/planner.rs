@@ -10,11 +10,13 @@
 //!    `mean + R(q) (s ⊙ n)`, `n ~ N(0, I)`, i.e. sampled from N(mean, Σ) in world space, with
 //!    scale `s / (0.8 N)`; the parent is removed;
 //! 4. prune, over the resulting set, opacity < `min_opacity`, and after the first opacity reset
-//!    also max screen radius > 20 px and max scale > 0.1 · extent.
+//!    also max scale > 0.1 · extent, and max screen radius > `max_screen_radius` when that is
+//!    set.
 //!
-//! One deliberate difference: in the original code `densification_postfix` zeroes
-//! `max_radii2D` before the prune of step 4 reads it, which disables the screen-size prune; we
-//! use the maximum radius accumulated over the interval, as the method describes (new rows have
+//! The screen-size prune is off by default, as in the original code, where
+//! `densification_postfix` zeroes `max_radii2D` before the prune of step 4 reads it (see
+//! [`DensifyConfig::max_screen_radius`] for why we follow the code, not the paper). When set, it
+//! uses the maximum radius accumulated over the interval, as the paper describes (new rows have
 //! no screen statistics and are not screen-pruned).
 //!
 //! EvoGS: the trigger adds `mean residual < τ_r` and `mean θ < τ_θ` to the gradient criterion of
@@ -201,7 +203,7 @@ pub fn make_plan(
                 Prune::No
             } else if opacity_logit < min_logit {
                 Prune::Opacity
-            } else if prunes_large && radius > config.max_screen_radius {
+            } else if prunes_large && config.max_screen_radius.is_some_and(|r| radius > r) {
                 Prune::Screen
             } else if prunes_large && max_log(log_scale) > ln_world {
                 Prune::World

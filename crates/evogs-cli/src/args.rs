@@ -190,7 +190,7 @@ pub struct TrainArgs {
     /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
     #[arg(
         long,
-        conflicts_with_all = ["data", "time_from", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "max_gaussians", "memory_limit", "checkpoint_every"]
+        conflicts_with_all = ["data", "time_from", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "max_gaussians", "max_screen_radius", "memory_limit", "checkpoint_every"]
     )]
     pub resume: bool,
 
@@ -208,6 +208,12 @@ pub struct TrainArgs {
     /// densified first) [preset: dnerf 10000, the others no limit].
     #[arg(long, value_name = "N")]
     pub max_gaussians: Option<usize>,
+
+    /// Prune Gaussians whose screen radius exceeded this many pixels since the last
+    /// densification, after the first opacity reset (the 3DGS paper's 20) [default: no
+    /// screen-size prune, as 3DGS's and D-3DGS's code; see docs/DESIGN.md].
+    #[arg(long, value_name = "PX")]
+    pub max_screen_radius: Option<f32>,
 
     /// Peak memory the run may use, e.g. 8G or 512M: the run refuses to start when its estimate
     /// (printed at the start) already exceeds it, and densification stops growing the Gaussians

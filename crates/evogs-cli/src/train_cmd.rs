@@ -62,6 +62,9 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     if let Some(v) = args.max_gaussians {
         config.densify.max_gaussians = Some(v);
     }
+    if let Some(v) = args.max_screen_radius {
+        config.densify.max_screen_radius = Some(v);
+    }
     config.memory_limit = args.memory_limit;
     if let Some(n) = args.checkpoint_every {
         config.checkpoint_every = n;

@@ -159,13 +159,28 @@ fn prune_removes_transparent_gaussians_at_any_densify_step() {
 }
 
 #[test]
-fn screen_prune_applies_only_after_the_first_opacity_reset() {
+fn screen_prune_is_off_by_default_as_in_3dgs_code() {
+    let g = gaussians(3, 0.005);
+    let mut stats = stats_with_grads(&[0.0; 3]);
+    stats.max_radius = vec![500.0, 21.0, 3.0];
+    assert_eq!(standard().max_screen_radius, None);
+    let plan = plan_at(&standard(), &g, &stats, 3100);
+    assert_eq!(plan.rows.kept, vec![0, 1, 2]);
+    assert_eq!(plan.summary.pruned_screen, 0);
+}
+
+#[test]
+fn screen_prune_when_set_applies_only_after_the_first_opacity_reset() {
+    let config = DensifyConfig {
+        max_screen_radius: Some(20.0),
+        ..standard()
+    };
     let g = gaussians(3, 0.005);
     let mut stats = stats_with_grads(&[0.0; 3]);
     stats.max_radius = vec![21.0, 20.0, 3.0];
-    let before = plan_at(&standard(), &g, &stats, 3000);
+    let before = plan_at(&config, &g, &stats, 3000);
     assert_eq!(before.rows.kept, vec![0, 1, 2]);
-    let after = plan_at(&standard(), &g, &stats, 3100);
+    let after = plan_at(&config, &g, &stats, 3100);
     assert_eq!(after.rows.kept, vec![1, 2], "radius 20 is not > 20");
     assert_eq!(after.summary.pruned_screen, 1);
 }
@@ -505,6 +520,17 @@ fn bad_inputs_name_the_field_and_change_nothing() {
     )
     .unwrap_err();
     assert!(err.to_string().contains("min_opacity"), "{err}");
+    for radius in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+        let bad = DensifyConfig {
+            max_screen_radius: Some(radius),
+            ..standard()
+        };
+        let err = bad.validate().unwrap_err();
+        assert!(
+            err.to_string().contains("max_screen_radius"),
+            "{radius}: {err}"
+        );
+    }
 
     // A non-finite d̃ is an error naming the Gaussian when that row is densified, and unused
     // otherwise.

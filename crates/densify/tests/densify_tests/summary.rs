@@ -60,6 +60,13 @@ fn plan_summaries_per_policy() {
         ),
         ("EvoGS (both)", DensifyConfig::evogs()),
         (
+            "3DGS + screen prune at 20 px (the paper's)",
+            DensifyConfig {
+                max_screen_radius: Some(20.0),
+                ..DensifyConfig::default()
+            },
+        ),
+        (
             "prune only",
             DensifyConfig {
                 clone: false,

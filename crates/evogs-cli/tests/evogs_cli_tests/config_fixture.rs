@@ -1,6 +1,7 @@
 //! `config.json` files written by an older evogs (main at 6068508, before the settings became the
-//! libraries' own types) still load, give the settings the same flags give today, are written
-//! back byte for byte, and a run resumed from such a config keeps it. How the fixtures were made:
+//! libraries' own types) still load, give the settings the same flags give today (with
+//! `--max-screen-radius 20`: the screen-size prune was always on then), are written back byte
+//! for byte, and a run resumed from such a config keeps it. How the fixtures were made:
 //! `tests/data/config-6068508/README.md`.
 
 use std::path::{Path, PathBuf};
@@ -11,7 +12,8 @@ use evogs_cli::{Cli, Command};
 use evogs_eval::LoadedRun;
 use evogs_train::run::{RunFile, TrainRequest, train};
 
-/// The fixtures with the flags (after `--data … --out …`) that wrote them.
+/// The fixtures with the flags (after `--data … --out …`) that wrote them, and
+/// `--max-screen-radius 20` (see the module's doc).
 const FIXTURES: [(&str, &[&str]); 3] = [
     (
         "evogs-tiny.json",
@@ -24,6 +26,8 @@ const FIXTURES: [(&str, &[&str]); 3] = [
             "2",
             "--seed",
             "3",
+            "--max-screen-radius",
+            "20",
         ],
     ),
     (
@@ -65,6 +69,8 @@ const FIXTURES: [(&str, &[&str]); 3] = [
             "1",
             "--time-from",
             "name",
+            "--max-screen-radius",
+            "20",
         ],
     ),
     (
@@ -80,6 +86,8 @@ const FIXTURES: [(&str, &[&str]); 3] = [
             "2",
             "--downscale",
             "2",
+            "--max-screen-radius",
+            "20",
         ],
     ),
 ];
