@@ -1,4 +1,5 @@
-//! `--resume` ends where an uninterrupted run ends.
+//! `--resume` ends where an uninterrupted run ends, for the D-3DGS and the Grid4D backbone
+//! (whose regulariser draws random rows every step).
 //!
 //! The runs are compared **bit for bit** (Gaussians, every Adam moment and step count,
 //! statistics, network weights), and the uninterrupted run uses one thread while the interrupted
@@ -14,17 +15,22 @@ use evogs_train::checkpoint::load_checkpoint;
 use evogs_train::run::RunPaths;
 use evogs_train::state::SceneState;
 use evogs_train::trainer::make_backbone;
-use evogs_train::{Preset, TrainConfig, TrainRequest, train};
+use evogs_train::{BackboneKind, Preset, TrainConfig, TrainRequest, train};
 
-fn config() -> TrainConfig {
+fn config_of(backbone: BackboneKind) -> TrainConfig {
     let mut c = TrainConfig::preset(Preset::Tiny).with_iterations(60);
     c.init_points = 400;
     c.checkpoint_every = 7;
+    c.backbone = backbone;
     c
 }
 
-fn final_state(root: &std::path::Path) -> (SceneState, Vec<f32>, u64) {
-    let c = config();
+fn config() -> TrainConfig {
+    config_of(BackboneKind::D3dgs)
+}
+
+fn final_state(root: &std::path::Path, backbone: BackboneKind) -> (SceneState, Vec<f32>, u64) {
+    let c = config_of(backbone);
     let mut backbone = make_backbone(&c).unwrap();
     let init = evogs_train::init::random_gaussians(1, 1.0, c.sh_degree, 0);
     let mut state = SceneState::new(init, backbone.as_ref(), &c.lr).unwrap();
@@ -48,6 +54,15 @@ fn bits(v: &[f32]) -> Vec<u32> {
 
 #[test]
 fn resumed_run_matches_uninterrupted_run_bit_for_bit() {
+    resumes_bit_for_bit(BackboneKind::D3dgs);
+}
+
+#[test]
+fn resumed_grid4d_run_matches_uninterrupted_run_bit_for_bit() {
+    resumes_bit_for_bit(BackboneKind::Grid4d);
+}
+
+fn resumes_bit_for_bit(backbone: BackboneKind) {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("scene");
     common::write_scene(&data);
@@ -60,7 +75,7 @@ fn resumed_run_matches_uninterrupted_run_bit_for_bit() {
     let request = |out: &str, resume: bool, stop_after: Option<u64>| TrainRequest {
         data: data.clone(),
         out: dir.path().join(out),
-        config: config(),
+        config: config_of(backbone),
         resume,
         stop_after,
         resume_backend: None,
@@ -80,8 +95,8 @@ fn resumed_run_matches_uninterrupted_run_bit_for_bit() {
         assert_eq!(rest.iteration, 60);
         assert_eq!(rest.iterations_this_process, 30);
     });
-    let (a, wa, ia) = final_state(&dir.path().join("straight"));
-    let (b, wb, ib) = final_state(&dir.path().join("resumed"));
+    let (a, wa, ia) = final_state(&dir.path().join("straight"), backbone);
+    let (b, wb, ib) = final_state(&dir.path().join("resumed"), backbone);
     assert_eq!((ia, ib), (60, 60));
     assert_eq!(a.len(), b.len());
     let ga = a.gaussians();
@@ -107,7 +122,7 @@ fn resumed_run_matches_uninterrupted_run_bit_for_bit() {
     assert_eq!(bits(&a.stats().grad_sum), bits(&b.stats().grad_sum));
     assert_eq!(a.stats().visible, b.stats().visible);
     // The run did train the network (past the warm-up) and densify.
-    assert!(config().warm_up < 30);
+    assert!(config_of(backbone).warm_up < 30);
     assert!(
         a.adam()
             .groups()
