@@ -321,6 +321,50 @@ pub struct NetSettings {
     pub init: NetInit,
 }
 
+/// A backbone's network inputs for a forward at `time`: the canonical means, flattened (N × 3),
+/// into `positions`, and `time` once per Gaussian into `times` (both cleared first).
+pub(crate) fn fill_inputs(
+    canonical: GaussiansView<'_>,
+    time: f32,
+    positions: &mut Vec<f32>,
+    times: &mut Vec<f32>,
+) {
+    positions.clear();
+    positions.extend(canonical.means.iter().flat_map(|m| m.iter().copied()));
+    times.clear();
+    times.resize(canonical.len(), time);
+}
+
+/// Deformation rows (N × [`DEFORM_DIM`]) into `out`, every value written, from a network's output
+/// rows of `stride` values whose first [`GEOMETRY_DIM`] are position, rotation and scale; the
+/// appearance columns are zero.
+pub(crate) fn geometry_rows_into(geometry: &[f32], stride: usize, n: usize, out: &mut Vec<f32>) {
+    out.resize(n * DEFORM_DIM, 0.0);
+    for (row, g) in out
+        .chunks_exact_mut(DEFORM_DIM)
+        .zip(geometry.chunks_exact(stride))
+    {
+        row[..GEOMETRY_DIM].copy_from_slice(&g[..GEOMETRY_DIM]);
+        row[GEOMETRY_DIM..].fill(0.0);
+    }
+}
+
+/// The geometric columns (N × [`GEOMETRY_DIM`]) of the deformation rows' gradient into `out`
+/// (cleared first): what a network with geometry heads only gets back.
+pub(crate) fn geometry_gradient_into(d_deform: &[f32], out: &mut Vec<f32>) {
+    out.clear();
+    out.extend(
+        d_deform
+            .chunks_exact(DEFORM_DIM)
+            .flat_map(|r| r[..GEOMETRY_DIM].iter().copied()),
+    );
+}
+
+/// The error of a backward pass that has no training forward to go back through.
+pub(crate) fn no_training_forward() -> BackboneError {
+    BackboneError::config("backbone", "backward called without a training forward")
+}
+
 /// D-3DGS's deformation network (`utils/time_utils.py` `DeformNetwork`: sinusoidal encodings of
 /// xyz (10 frequencies) and t (6 for synthetic scenes), 8 ReLU layers with the input re-joined
 /// after layer 4, linear heads for position, rotation and scale), as `tiny_nn::DeformNet`.
@@ -390,11 +434,7 @@ impl Backbone for D3dgsBackbone {
         out: &mut Vec<f32>,
     ) -> Result<(), BackboneError> {
         let n = canonical.len();
-        self.positions.clear();
-        self.positions
-            .extend(canonical.means.iter().flat_map(|m| m.iter().copied()));
-        self.times.clear();
-        self.times.resize(n, time);
+        fill_inputs(canonical, time, &mut self.positions, &mut self.times);
         let mut cache = self.cache.take().unwrap_or_default();
         let geometry = self
             .net
@@ -402,15 +442,7 @@ impl Backbone for D3dgsBackbone {
         if training {
             self.cache = Some(cache);
         }
-        // Every value is written: the geometric columns from the network, the rest zero.
-        out.resize(n * DEFORM_DIM, 0.0);
-        for (row, g) in out
-            .chunks_exact_mut(DEFORM_DIM)
-            .zip(geometry.chunks_exact(GEOMETRY_DIM))
-        {
-            row[..GEOMETRY_DIM].copy_from_slice(g);
-            row[GEOMETRY_DIM..].fill(0.0);
-        }
+        geometry_rows_into(&geometry, GEOMETRY_DIM, n, out);
         Ok(())
     }
 
@@ -419,15 +451,8 @@ impl Backbone for D3dgsBackbone {
         d_deform: &[f32],
         out: &mut Vec<Vec<f32>>,
     ) -> Result<(), BackboneError> {
-        let cache = self.cache.as_ref().ok_or_else(|| {
-            BackboneError::config("backbone", "backward called without a training forward")
-        })?;
-        self.d_geometry.clear();
-        self.d_geometry.extend(
-            d_deform
-                .chunks_exact(DEFORM_DIM)
-                .flat_map(|r| r[..GEOMETRY_DIM].iter().copied()),
-        );
+        let cache = self.cache.as_ref().ok_or_else(no_training_forward)?;
+        geometry_gradient_into(d_deform, &mut self.d_geometry);
         let g = self.net.backward(cache, &self.d_geometry, false)?;
         out.truncate(1);
         match out.first_mut() {

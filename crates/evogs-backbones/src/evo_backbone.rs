@@ -38,7 +38,7 @@ use tiny_nn::{
 
 use crate::backbone::{
     Appearance, Backbone, COLOUR_COLUMN, DEFORM_DIM, DensifyCues, GainStats, OPACITY_COLUMN,
-    PerGaussianState,
+    PerGaussianState, fill_inputs, no_training_forward,
 };
 use crate::error::BackboneError;
 use crate::evo_settings::EvoSettings;
@@ -337,11 +337,7 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
     ) -> Result<(), BackboneError> {
         let n = canonical.len();
         self.check_ready(n)?;
-        self.positions.clear();
-        self.positions
-            .extend(canonical.means.iter().flat_map(|m| m.iter().copied()));
-        self.times.clear();
-        self.times.resize(n, time);
+        fill_inputs(canonical, time, &mut self.positions, &mut self.times);
         let mut kept = self.training.take();
         let mut cache = kept
             .as_mut()
@@ -374,9 +370,7 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
         d_deform: &[f32],
         out: &mut Vec<Vec<f32>>,
     ) -> Result<(), BackboneError> {
-        let t = self.training.as_mut().ok_or_else(|| {
-            BackboneError::config("backbone", "backward called without a training forward")
-        })?;
+        let t = self.training.as_mut().ok_or_else(no_training_forward)?;
         if t.committed {
             return Err(BackboneError::config(
                 "backbone",

@@ -38,7 +38,10 @@ use tiny_nn::{
     StoreMut, StoreRef, is_grid4d_table,
 };
 
-use crate::backbone::{Backbone, DEFORM_DIM, GEOMETRY_DIM};
+use crate::backbone::{
+    Backbone, GEOMETRY_DIM, fill_inputs, geometry_gradient_into, geometry_rows_into,
+    no_training_forward,
+};
 use crate::error::BackboneError;
 use crate::evo_settings::EvoSettings;
 use crate::observer::Observer;
@@ -255,8 +258,8 @@ impl Backbone for Grid4dBackbone {
         training: bool,
     ) -> Result<Vec<f32>, BackboneError> {
         let n = canonical.len();
-        let positions: Vec<f32> = canonical.means.iter().flat_map(|m| *m).collect();
-        let times = vec![time; n];
+        let (mut positions, mut times) = (Vec::new(), Vec::new());
+        fill_inputs(canonical, time, &mut positions, &mut times);
         let mut cache = self.cache.take().unwrap_or_default();
         let geometry = self
             .field
@@ -265,25 +268,16 @@ impl Backbone for Grid4dBackbone {
         if training {
             self.cache = Some(cache);
         }
-        let mut out = vec![0.0f32; n * DEFORM_DIM];
-        for (row, g) in out
-            .chunks_exact_mut(DEFORM_DIM)
-            .zip(geometry.chunks_exact(GEOMETRY_DIM))
-        {
-            row[..GEOMETRY_DIM].copy_from_slice(g);
-        }
+        let mut out = Vec::new();
+        geometry_rows_into(&geometry, GEOMETRY_DIM, n, &mut out);
         Ok(out)
     }
 
     fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, BackboneError> {
-        let cache = self.cache.take().ok_or_else(|| {
-            BackboneError::config("backbone", "backward called without a training forward")
-        })?;
-        let geometry: Vec<f32> = d_deform
-            .chunks_exact(DEFORM_DIM)
-            .flat_map(|r| r[..GEOMETRY_DIM].iter().copied())
-            .collect();
-        let mut g = self.field.net.backward(&cache, &geometry)?;
+        let cache = self.cache.take().ok_or_else(no_training_forward)?;
+        let mut d_geometry = Vec::new();
+        geometry_gradient_into(d_deform, &mut d_geometry);
+        let mut g = self.field.net.backward(&cache, &d_geometry)?;
         self.field.regularise(&cache, &mut g)?;
         self.cache = Some(cache);
         Ok(g.into_buffers())

@@ -26,7 +26,9 @@ use tiny_nn::{
     HEX_OUTPUT, HexDeformCache, HexDeformConfig, HexDeformNet, Parameters, StoreMut, StoreRef,
 };
 
-use crate::backbone::{Backbone, DEFORM_DIM, GEOMETRY_DIM};
+use crate::backbone::{
+    Backbone, fill_inputs, geometry_gradient_into, geometry_rows_into, no_training_forward,
+};
 use crate::error::BackboneError;
 
 /// 4DGaussians' `plane_tv_weight` (D-NeRF).
@@ -71,29 +73,20 @@ impl Backbone for HexBackbone {
         training: bool,
     ) -> Result<Vec<f32>, BackboneError> {
         let n = canonical.len();
-        let positions: Vec<f32> = canonical.means.iter().flat_map(|m| *m).collect();
-        let times = vec![time; n];
+        let (mut positions, mut times) = (Vec::new(), Vec::new());
+        fill_inputs(canonical, time, &mut positions, &mut times);
         let (geometry, cache) = self.net.forward(&positions, &times, n)?;
         self.cache = training.then_some(cache);
-        let mut out = vec![0.0f32; n * DEFORM_DIM];
-        for (row, g) in out
-            .chunks_exact_mut(DEFORM_DIM)
-            .zip(geometry.chunks_exact(HEX_OUTPUT))
-        {
-            row[..GEOMETRY_DIM].copy_from_slice(g);
-        }
+        let mut out = Vec::new();
+        geometry_rows_into(&geometry, HEX_OUTPUT, n, &mut out);
         Ok(out)
     }
 
     fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, BackboneError> {
-        let cache = self.cache.as_ref().ok_or_else(|| {
-            BackboneError::config("backbone", "backward called without a training forward")
-        })?;
-        let geometry: Vec<f32> = d_deform
-            .chunks_exact(DEFORM_DIM)
-            .flat_map(|r| r[..GEOMETRY_DIM].iter().copied())
-            .collect();
-        let mut g = self.net.backward(cache, &geometry)?;
+        let cache = self.cache.as_ref().ok_or_else(no_training_forward)?;
+        let mut d_geometry = Vec::new();
+        geometry_gradient_into(d_deform, &mut d_geometry);
+        let mut g = self.net.backward(cache, &d_geometry)?;
         self.regularisers =
             self.net
                 .regularise(SPACE_SMOOTHNESS, TIME_SMOOTHNESS, TIME_L1, &mut g)?;
