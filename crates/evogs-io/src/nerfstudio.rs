@@ -22,8 +22,8 @@
 //!   (in [0, 1]) when every frame has one; when none has, [`TimeFrom`] over the image paths
 //!   (relative to DIR); some with and some without is an error.
 //! - Split: `train_filenames` / `val_filenames` / `test_filenames` when present (names relative
-//!   to DIR; each must be a frame; `train_filenames` required once any is given). Otherwise
-//!   nerfstudio's default `fraction` rule: `ceil(0.9·N)` training frames at
+//!   to DIR; each must be a frame; `train_filenames` required once any is given, and not empty).
+//!   Otherwise nerfstudio's default `fraction` rule: `ceil(0.9·N)` training frames at
 //!   `floor(linspace(0, N − 1, ceil(0.9·N)))`, the rest test (nerfstudio's val and test).
 //! - Points: `ply_file_path` when given (already in the stored coordinates, as
 //!   `ns-process-data` writes it). Otherwise, when `colmap/sparse/0` exists, its `points3D`
@@ -378,6 +378,9 @@ pub fn read_nerfstudio_dataset(dir: &Path, time_from: TimeFrom) -> Result<Datase
                 "train_filenames",
                 "missing while val_filenames or test_filenames is given",
             ));
+        }
+        [Some(train), ..] if train.is_empty() => {
+            return Err(top.error("train_filenames", "names no frame: nothing to train on"));
         }
         [Some(train), val, test] => [train, val.unwrap_or_default(), test.unwrap_or_default()],
     };

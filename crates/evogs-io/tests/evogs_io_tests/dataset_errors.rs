@@ -304,6 +304,14 @@ fn nerfstudio_errors_name_file_and_field() {
         "train_filenames",
         "missing",
     );
+    // Found by the fuzz replay's mutation pass: an empty list was accepted as a dataset with no
+    // frame in any split.
+    check(
+        &|j| j["train_filenames"] = serde_json::json!([]),
+        &plain,
+        "train_filenames",
+        "names no frame",
+    );
     check(
         &|j| j["train_filenames"] = serde_json::json!(["a.png", "d.png"]),
         &plain,
