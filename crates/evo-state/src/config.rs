@@ -3,9 +3,10 @@
 //!
 //! The switches a user picks ([`Gain`], [`HistoryMode`], [`Storage`], and splat-core's
 //! [`Layout`]) have one command-line spelling each ([`FromStr`] / [`fmt::Display`]) and, with the
-//! `serde` feature, one file spelling (lowercase names; a fixed gain is `{"fixed": k}`). The
-//! one-word enums derive theirs with `strum` (`EnumString`, `Display`, `IntoStaticStr`,
-//! `VariantNames`); [`Gain`], which carries a number, and [`Layout`], a set, spell themselves.
+//! `serde` feature, one file spelling (lowercase names; a fixed gain is `{"fixed": k}`), as does
+//! the whole [`EvoConfig`]. The one-word enums derive theirs with `strum` (`EnumString`,
+//! `Display`, `IntoStaticStr`, `VariantNames`); [`Gain`], which carries a number, and [`Layout`],
+//! a set, spell themselves.
 
 use std::fmt;
 use std::str::FromStr;
@@ -123,47 +124,103 @@ impl fmt::Display for Gain {
 }
 
 /// Configuration of an [`crate::EvoState`].
+///
+/// With the `serde` feature it is written as one object in evogs's `config.json` (embedded in the
+/// trainer's EvoGS settings): `layout` is spelled `components` and `storage` `buffer` there (the
+/// trainer's `--components` and `--buffer`); `beta` and `max_gap` are written only where they
+/// differ from their defaults; `extent` is not written (it is the scene's, set when the state is
+/// built). A file that predates `evolution` or `motion_floor` reads them as their defaults here
+/// (on, and 1e-6).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct EvoConfig {
-    /// The deformation components a row of z, d̂ and d̃ holds; D = `layout.dim()`.
-    pub layout: Layout,
-    /// Element type of the buffer of corrected states and of the residual memory.
-    pub storage: Storage,
-    /// Residual memory momentum β (DESIGN §4.8: 0.9).
-    pub beta: f32,
-    /// History frames must lie within this many frames of the one after them (DESIGN §4.3: 3).
-    pub max_gap: usize,
-    /// Motion floor, relative to the scene extent (DESIGN §4.7: 1e-6 here, the trainer uses 1e-3): below it θ = 0.
-    pub motion_floor: f32,
-    /// Scene extent (scene units); Ψ's inputs in scene units are divided by it.
-    pub extent: f32,
     /// `false`: the baseline, d̃ = z, nothing stored, EvoGS losses zero.
+    #[cfg_attr(feature = "serde", serde(default = "serde_defaults::evolution"))]
     pub evolution: bool,
     /// How K is chosen once three history frames exist (default: learned by Ψ).
     pub gain: Gain,
     /// Where the history states come from (default: the buffer).
     pub history: HistoryMode,
+    /// Element type of the buffer of corrected states and of the residual memory.
+    #[cfg_attr(feature = "serde", serde(rename = "buffer"))]
+    pub storage: Storage,
+    /// The deformation components a row of z, d̂ and d̃ holds; D = `layout.dim()`.
+    #[cfg_attr(feature = "serde", serde(rename = "components"))]
+    pub layout: Layout,
+    /// Motion floor, relative to the scene extent (DESIGN §4.7: 1e-6 here, the trainer uses 1e-3): below it θ = 0.
+    #[cfg_attr(feature = "serde", serde(default = "serde_defaults::motion_floor"))]
+    pub motion_floor: f32,
     /// λ1, weight of L_sup (DESIGN §4.11: 0.5).
     pub lambda_sup: f32,
     /// λ2, weight of L_prior (DESIGN §4.11: 0.5).
     pub lambda_prior: f32,
+    /// Residual memory momentum β (DESIGN §4.8: 0.9).
+    #[cfg_attr(
+        feature = "serde",
+        serde(
+            default = "serde_defaults::beta",
+            skip_serializing_if = "serde_defaults::is_beta"
+        )
+    )]
+    pub beta: f32,
+    /// History frames must lie within this many frames of the one after them (DESIGN §4.3: 3).
+    #[cfg_attr(
+        feature = "serde",
+        serde(
+            default = "serde_defaults::max_gap",
+            skip_serializing_if = "serde_defaults::is_max_gap"
+        )
+    )]
+    pub max_gap: usize,
+    /// Scene extent (scene units); Ψ's inputs in scene units are divided by it. Not recorded by
+    /// `serde` (read back as the default, 1).
+    #[cfg_attr(feature = "serde", serde(skip, default = "serde_defaults::extent"))]
+    pub extent: f32,
 }
 
 impl Default for EvoConfig {
     fn default() -> Self {
         Self {
-            layout: Layout::default(),
-            storage: Storage::F32,
-            beta: 0.9,
-            max_gap: 3,
-            motion_floor: 1e-6,
-            extent: 1.0,
             evolution: true,
             gain: Gain::Learned,
             history: HistoryMode::Buffer,
+            storage: Storage::F32,
+            layout: Layout::default(),
+            motion_floor: 1e-6,
             lambda_sup: 0.5,
             lambda_prior: 0.5,
+            beta: 0.9,
+            max_gap: 3,
+            extent: 1.0,
         }
+    }
+}
+
+/// serde's defaults and omissions: [`EvoConfig::default`]'s values.
+#[cfg(feature = "serde")]
+mod serde_defaults {
+    use super::EvoConfig;
+
+    pub(super) fn evolution() -> bool {
+        EvoConfig::default().evolution
+    }
+    pub(super) fn motion_floor() -> f32 {
+        EvoConfig::default().motion_floor
+    }
+    pub(super) fn beta() -> f32 {
+        EvoConfig::default().beta
+    }
+    pub(super) fn is_beta(v: &f32) -> bool {
+        v.to_bits() == beta().to_bits()
+    }
+    pub(super) fn max_gap() -> usize {
+        EvoConfig::default().max_gap
+    }
+    pub(super) fn is_max_gap(v: &usize) -> bool {
+        *v == max_gap()
+    }
+    pub(super) fn extent() -> f32 {
+        EvoConfig::default().extent
     }
 }
 
