@@ -49,22 +49,6 @@ fn evo_err(e: EvoError) -> BackboneError {
     BackboneError::config("evolution state", e.to_string())
 }
 
-/// evo-state's configuration for `settings` in a scene of the given extent.
-pub fn evo_config(settings: &EvoSettings, extent: f32) -> EvoConfig {
-    EvoConfig {
-        layout: settings.components,
-        storage: settings.buffer,
-        extent,
-        evolution: settings.evolution,
-        gain: settings.gain,
-        history: settings.history,
-        lambda_sup: settings.lambda_sup,
-        lambda_prior: settings.lambda_prior,
-        motion_floor: settings.motion_floor,
-        ..EvoConfig::default()
-    }
-}
-
 /// Φ's configuration for a run: half the baseline network's width (`net_width`), scene box
 /// `[-h, h]³` of the initial cube (`half_extent`), output D, initialised from the run's `seed`.
 pub fn observation_config(
@@ -87,7 +71,7 @@ pub fn observation_config(
         bspline: BSplineConfig::new(s.bspline_controls, s.bspline_width),
         width: (net_width / 2).max(1),
         hidden_layers: s.hidden_layers,
-        output: s.components.dim(),
+        output: s.evo.dim(),
         precision: s.net_precision,
         seed: seed ^ 0xE70_6500,
     }
@@ -144,27 +128,23 @@ impl<P: Observer> EvoBackbone<P> {
     pub fn with_phi(settings: &EvoSettings, seed: u64, phi: P) -> Result<Self, BackboneError> {
         let settings = settings.clone();
         settings.validate()?;
-        if phi.output_width() != settings.components.dim() {
+        let layout = settings.evo.layout;
+        if phi.output_width() != layout.dim() {
             return Err(BackboneError::config(
                 "evogs.components",
                 format!(
                     "Φ gives {} values per Gaussian, the components `{}` need {}",
                     phi.output_width(),
-                    settings.components,
-                    settings.components.dim()
+                    layout,
+                    layout.dim()
                 ),
             ));
         }
         let placeholder = Frames::from_timestamps([0.0])
             .map_err(|e| BackboneError::config("frames", e.to_string()))?;
-        let evo = EvoState::new(
-            evo_config(&settings, 1.0),
-            placeholder,
-            0,
-            seed ^ 0x9A1_0000,
-        )
-        .map_err(evo_err)?;
-        let layout = settings.components;
+        // The extent is the scene's: `prepare` builds the state again with it.
+        let evo =
+            EvoState::new(settings.evo, placeholder, 0, seed ^ 0x9A1_0000).map_err(evo_err)?;
         let mut deform_from_evo = Vec::with_capacity(layout.dim());
         for (component, range) in layout.components() {
             let base = match component {
@@ -241,7 +221,7 @@ impl<P: Observer> EvoBackbone<P> {
         keep: bool,
     ) -> Result<Vec<(f32, P::Cache)>, BackboneError> {
         let mut caches = Vec::new();
-        let result = match self.settings.history {
+        let result = match self.settings.evo.history {
             evo_state::HistoryMode::Buffer => self.evo.forward_into(time, z, None, step),
             evo_state::HistoryMode::Requery => {
                 let (phi, positions) = (&self.phi, &self.positions);
@@ -441,8 +421,8 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
 
     fn loss_terms(&self) -> f64 {
         self.backward.as_ref().map_or(0.0, |b| {
-            self.settings.lambda_sup as f64 * b.losses.sup
-                + self.settings.lambda_prior as f64 * b.losses.prior
+            self.settings.evo.lambda_sup as f64 * b.losses.sup
+                + self.settings.evo.lambda_prior as f64 * b.losses.prior
                 + self.phi_regulariser
         })
     }
@@ -464,7 +444,7 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
     }
 
     fn appearance(&self) -> Appearance {
-        let c = self.settings.components;
+        let c = self.settings.evo.layout;
         Appearance {
             opacity: c.opacity,
             colour: c.colour,
@@ -501,8 +481,11 @@ impl<P: Observer> PerGaussianState for EvoBackbone<P> {
         let frames = Frames::from_timestamps(frame_times.iter().copied())
             .map_err(|e| BackboneError::config("frames", e.to_string()))?;
         let psi = self.evo.psi().params();
-        let mut evo =
-            EvoState::new(evo_config(&self.settings, extent), frames, rows, 0).map_err(evo_err)?;
+        let config = EvoConfig {
+            extent,
+            ..self.settings.evo
+        };
+        let mut evo = EvoState::new(config, frames, rows, 0).map_err(evo_err)?;
         evo.psi_mut().set_params(&psi).map_err(evo_err)?;
         self.evo = evo;
         self.ready = true;
@@ -527,7 +510,7 @@ impl<P: Observer> PerGaussianState for EvoBackbone<P> {
         let Some(t) = &self.training else {
             return Ok(DensifyCues::default());
         };
-        let layout = self.settings.components;
+        let layout = self.settings.evo.layout;
         Ok(DensifyCues {
             residual_norm: residual_norms(&t.step, &t.z, &layout, extent)?,
             theta: thetas(&t.step),
@@ -545,7 +528,7 @@ impl<P: Observer> PerGaussianState for EvoBackbone<P> {
     fn latest_deformation(&self) -> Option<Deformation<'_>> {
         self.training.as_ref().map(|t| Deformation {
             corrected: t.step.corrected(),
-            layout: self.settings.components,
+            layout: self.settings.evo.layout,
         })
     }
 
@@ -570,7 +553,11 @@ impl<P: Observer> PerGaussianState for EvoBackbone<P> {
             ));
         }
         let evo = EvoState::load(path).map_err(|e| BackboneError::file(path, e.to_string()))?;
-        let want = evo_config(&self.settings, evo.config().extent);
+        // The extent is the scene's, saved with the state.
+        let want = EvoConfig {
+            extent: evo.config().extent,
+            ..self.settings.evo
+        };
         if *evo.config() != want {
             return Err(BackboneError::file(
                 path,

@@ -10,7 +10,7 @@
 //! | [`Precision`] | `f32`, `f16` | Φ's storage (`--net-precision`) |
 //! | [`Layout`] | `pos,rot,scale[,opacity,colour]` | the deformation components |
 //!
-//! The motion floor ([`EvoSettings::motion_floor`], `--motion-floor`) is the trainer's own,
+//! The motion floor (`motion_floor` of [`EvoSettings::evo`], `--motion-floor`) is the trainer's own,
 //! 1e-3 of the scene extent per frame spacing instead of evo-state's default 1e-6 (DESIGN §4.7): see
 //! [`TRAINER_MOTION_FLOOR`] for the measurement and the reasoning. Φ's tri-plane and B-spline
 //! train at 10× the network lr ([`EvoSettings::grid_lr_scale`], `--grid-lr-scale`; see
@@ -25,10 +25,10 @@
 use serde::{Deserialize, Serialize};
 use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 
-/// The switches' types are the libraries' own, recorded in `config.json` through their `serde`
-/// features: evo-state's gain, history mode and buffer storage, tiny-nn's precision and
-/// splat-core's deformation layout.
-pub use evo_state::{Gain, HistoryMode, Layout, Storage};
+/// The settings' types are the libraries' own, recorded in `config.json` through their `serde`
+/// features: evo-state's configuration with its gain, history mode and buffer storage, tiny-nn's
+/// precision and splat-core's deformation layout.
+pub use evo_state::{EvoConfig, Gain, HistoryMode, Layout, Storage};
 pub use tiny_nn::Precision;
 
 use crate::error::BackboneError;
@@ -59,25 +59,29 @@ impl OneWord for DensifyPolicy {
     const ONE_OF: bool = true;
 }
 
-/// EvoGS's settings: the switches and Φ's shape.
+/// EvoGS's settings: evo-state's configuration, the densification policy and Φ's shape.
+///
+/// Recorded in `config.json` as one flat object: evo-state's [`EvoConfig`] (its own `serde`
+/// spelling: `evolution`, `gain`, `history`, `buffer`, `components`, `motion_floor`, `lambda_sup`,
+/// `lambda_prior`), then the fields below. Fields a file predates read as what its run trained
+/// with: `evolution` on and `motion_floor` 1e-6 (evo-state's defaults), `grid_lr_scale` 1 and
+/// `psi_lr` none (see those fields).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct EvoSettings {
-    /// Evolution on (the method); `false` runs Φ alone (d̃ = z, no buffer, no Ψ, EvoGS losses zero), the
-    /// ablation "Φ without evolution". Absent in older `config.json` files: on.
-    #[serde(default = "evolution_on")]
-    pub evolution: bool,
-    /// `--gain`.
-    pub gain: Gain,
-    /// `--history`.
-    pub history: HistoryMode,
+    /// evo-state's configuration, the one source of the evolution's settings: `evolution`
+    /// (`false` runs Φ alone, the ablation "Φ without evolution": d̃ = z, no buffer, no Ψ, EvoGS
+    /// losses zero), `gain` (`--gain`), `history` (`--history`), `storage` (`--buffer`), `layout`
+    /// (`--components`), `motion_floor` (`--motion-floor`: below this speed per frame spacing,
+    /// relative to the scene extent, a Gaussian counts as still and its θ is 0; see
+    /// [`TRAINER_MOTION_FLOOR`]), λ1 `lambda_sup` and λ2 `lambda_prior` (0.5 each). Its `extent`
+    /// is the scene's: the backbone sets it when it sizes the state
+    /// ([`crate::PerGaussianState::prepare`]); it is not recorded.
+    #[serde(flatten)]
+    pub evo: EvoConfig,
     /// `--densify`.
     pub densify: DensifyPolicy,
-    /// `--buffer`: storage of the buffer of corrected states.
-    pub buffer: Storage,
     /// `--net-precision`: storage of Φ's parameters and activations.
     pub net_precision: Precision,
-    /// `--components`.
-    pub components: Layout,
     /// Φ's tri-plane channels per plane.
     pub triplane_channels: usize,
     /// Φ's tri-plane resolutions.
@@ -88,11 +92,6 @@ pub struct EvoSettings {
     pub bspline_width: usize,
     /// Hidden layers of Φ's decoder (its width is half the baseline network's width).
     pub hidden_layers: usize,
-    /// `--motion-floor`: below this speed per frame spacing, relative to the scene extent, a
-    /// Gaussian counts as still and its θ is 0 (see [`TRAINER_MOTION_FLOOR`]). Absent in older
-    /// `config.json` files: evo-state's 1e-6, which those runs were trained with.
-    #[serde(default = "spec_motion_floor")]
-    pub motion_floor: f32,
     /// `--grid-lr-scale`: factor on the network lr for Φ's tri-plane features and B-spline
     /// controls (the decoder MLP and Ψ keep the network lr); default [`TRAINER_GRID_LR_SCALE`].
     /// Absent in older `config.json` files: 1, which those runs were trained with.
@@ -103,10 +102,6 @@ pub struct EvoSettings {
     /// decaying schedule, which those runs keep.
     #[serde(default)]
     pub psi_lr: Option<f32>,
-    /// λ1, weight of L_sup (0.5).
-    pub lambda_sup: f32,
-    /// λ2, weight of L_prior (0.5).
-    pub lambda_prior: f32,
 }
 
 /// Φ's grid and spline train at 10× the deformation-network lr (D-3DGS's 8e-4 → 1.6e-6): the
@@ -129,11 +124,6 @@ fn unit_scale() -> f32 {
     1.0
 }
 
-/// serde's default of [`EvoSettings::motion_floor`]: evo-state's default (DESIGN §4.7).
-fn spec_motion_floor() -> f32 {
-    evo_state::EvoConfig::default().motion_floor
-}
-
 /// The trainer's motion floor: 1e-3 of the scene extent per frame spacing, a deliberate
 /// deviation from the paper's 1e-6 (DESIGN §4.7; evo-state keeps 1e-6, the trainer sets its own).
 ///
@@ -153,35 +143,27 @@ fn spec_motion_floor() -> f32 {
 /// `--motion-floor`, recorded in `config.json`.
 pub const TRAINER_MOTION_FLOOR: f32 = 1e-3;
 
-/// serde's default of [`EvoSettings::evolution`].
-fn evolution_on() -> bool {
-    true
-}
-
 impl Default for EvoSettings {
-    /// The method: learned gain, buffer history, trigger + deformation-aware densification, f32
-    /// storage, position + rotation + scale; Φ with 8 channels at resolutions 32 and 64 (concatenated),
+    /// The method: evo-state's defaults (learned gain, buffer history, f32 storage, position +
+    /// rotation + scale, λ1 = λ2 = 0.5) with the trainer's motion floor; trigger +
+    /// deformation-aware densification; Φ with 8 channels at resolutions 32 and 64 (concatenated),
     /// 16 control vectors of width 8 and 2 hidden layers; the trainer's motion floor and grid lr
     /// scale.
     fn default() -> Self {
         Self {
-            evolution: true,
-            gain: Gain::Learned,
-            history: HistoryMode::Buffer,
+            evo: EvoConfig {
+                motion_floor: TRAINER_MOTION_FLOOR,
+                ..EvoConfig::default()
+            },
             densify: DensifyPolicy::TriggerDeform,
-            buffer: Storage::F32,
             net_precision: Precision::F32,
-            components: Layout::default(),
             triplane_channels: 8,
             triplane_resolutions: vec![32, 64],
             bspline_controls: 16,
             bspline_width: 8,
             hidden_layers: 2,
-            motion_floor: TRAINER_MOTION_FLOOR,
             grid_lr_scale: TRAINER_GRID_LR_SCALE,
             psi_lr: Some(TRAINER_PSI_LR),
-            lambda_sup: 0.5,
-            lambda_prior: 0.5,
         }
     }
 }
@@ -189,14 +171,15 @@ impl Default for EvoSettings {
 impl EvoSettings {
     /// Checks the settings a training run with `--method evogs` needs.
     pub fn validate(&self) -> Result<(), BackboneError> {
-        let c = self.components;
+        let e = &self.evo;
+        let c = e.layout;
         if !(c.position || c.rotation || c.scale || c.opacity || c.colour) {
             return Err(BackboneError::config(
                 "evogs.components",
                 "at least one component is needed",
             ));
         }
-        if let Gain::Fixed(k) = self.gain
+        if let Gain::Fixed(k) = e.gain
             && !(0.0..=1.0).contains(&k)
         {
             return Err(BackboneError::config(
@@ -222,10 +205,10 @@ impl EvoSettings {
                 "needs at least 4 control vectors of width at least 1",
             ));
         }
-        if !(self.motion_floor.is_finite() && self.motion_floor >= 0.0) {
+        if !(e.motion_floor.is_finite() && e.motion_floor >= 0.0) {
             return Err(BackboneError::config(
                 "evogs.motion_floor",
-                format!("{}: must be finite and non-negative", self.motion_floor),
+                format!("{}: must be finite and non-negative", e.motion_floor),
             ));
         }
         if !(self.grid_lr_scale.is_finite() && self.grid_lr_scale > 0.0) {
@@ -243,8 +226,8 @@ impl EvoSettings {
             ));
         }
         for (field, v) in [
-            ("evogs.lambda_sup", self.lambda_sup),
-            ("evogs.lambda_prior", self.lambda_prior),
+            ("evogs.lambda_sup", e.lambda_sup),
+            ("evogs.lambda_prior", e.lambda_prior),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(BackboneError::config(
@@ -254,5 +237,117 @@ impl EvoSettings {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The settings as `config.json` holds them.
+    fn json(s: &EvoSettings) -> serde_json::Map<String, serde_json::Value> {
+        match serde_json::to_value(s).unwrap() {
+            serde_json::Value::Object(m) => m,
+            other => panic!("not an object: {other}"),
+        }
+    }
+
+    #[test]
+    fn evo_states_config_is_written_flat_with_the_files_names() {
+        let s = EvoSettings::default();
+        // Today's format: evo-state's recorded fields, then the trainer's, in this order. The
+        // scene extent and evo-state's constants at their defaults are not written.
+        let text = serde_json::to_string(&s).unwrap();
+        let at = |key: &str| text.find(&format!("\"{key}\":"));
+        let keys = [
+            "evolution",
+            "gain",
+            "history",
+            "buffer",
+            "components",
+            "motion_floor",
+            "lambda_sup",
+            "lambda_prior",
+            "densify",
+            "net_precision",
+            "triplane_channels",
+            "triplane_resolutions",
+            "bspline_controls",
+            "bspline_width",
+            "hidden_layers",
+            "grid_lr_scale",
+            "psi_lr",
+        ];
+        let places: Vec<usize> = keys
+            .iter()
+            .map(|k| at(k).unwrap_or_else(|| panic!("{k} missing in {text}")))
+            .collect();
+        assert!(places.is_sorted(), "{text}");
+        assert_eq!(json(&s).len(), keys.len(), "{text}");
+        for k in ["extent", "beta", "max_gap"] {
+            assert_eq!(at(k), None, "{text}");
+        }
+        let back: EvoSettings = serde_json::from_value(serde_json::to_value(&s).unwrap()).unwrap();
+        assert_eq!(back, s);
+        // A changed constant is written and read back.
+        let mut other = EvoSettings::default();
+        other.evo.beta = 0.5;
+        other.evo.max_gap = 4;
+        let m = json(&other);
+        assert_eq!(m["beta"], serde_json::json!(0.5));
+        assert_eq!(m["max_gap"], serde_json::json!(4));
+        let back: EvoSettings = serde_json::from_value(serde_json::Value::Object(m)).unwrap();
+        assert_eq!(back, other);
+    }
+
+    #[test]
+    fn the_extent_is_the_scenes_not_the_files() {
+        let mut s = EvoSettings::default();
+        s.evo.extent = 7.0;
+        let mut m = json(&s);
+        assert!(!m.contains_key("extent"));
+        m.insert("extent".into(), serde_json::json!(7.0));
+        let back: EvoSettings = serde_json::from_value(serde_json::Value::Object(m)).unwrap();
+        assert_eq!(back.evo.extent, EvoConfig::default().extent);
+    }
+
+    #[test]
+    fn fields_older_files_lack_read_as_those_runs_trained_with() {
+        let mut m = json(&EvoSettings::default());
+        for key in ["evolution", "motion_floor", "grid_lr_scale", "psi_lr"] {
+            m.remove(key).unwrap();
+        }
+        let old: EvoSettings = serde_json::from_value(serde_json::Value::Object(m)).unwrap();
+        assert!(old.evo.evolution);
+        assert_eq!(
+            old.evo.motion_floor, 1e-6,
+            "evo-state's (the paper's) floor"
+        );
+        assert_eq!(old.grid_lr_scale, 1.0);
+        assert_eq!(old.psi_lr, None);
+        let paper = EvoConfig::default();
+        assert_eq!((old.evo.beta, old.evo.max_gap), (paper.beta, paper.max_gap));
+        // Evolution off survives the round trip.
+        let mut off = EvoSettings::default();
+        off.evo.evolution = false;
+        let back: EvoSettings =
+            serde_json::from_value(serde_json::to_value(&off).unwrap()).unwrap();
+        assert!(!back.evo.evolution);
+    }
+
+    #[test]
+    fn a_fixed_gain_and_every_switch_round_trip() {
+        let mut s = EvoSettings::default();
+        s.evo.gain = Gain::Fixed(0.5);
+        s.evo.history = HistoryMode::Requery;
+        s.evo.storage = Storage::F16;
+        s.evo.layout = "pos,rot,scale,opacity,colour".parse().unwrap();
+        s.densify = DensifyPolicy::Trigger;
+        s.net_precision = Precision::F16;
+        let m = json(&s);
+        assert_eq!(m["gain"], serde_json::json!({"fixed": 0.5}));
+        assert_eq!(m["buffer"], serde_json::json!("f16"));
+        let back: EvoSettings = serde_json::from_value(serde_json::Value::Object(m)).unwrap();
+        assert_eq!(back, s);
     }
 }

@@ -319,7 +319,8 @@ impl Grid4dPhi {
     /// run's seed.
     pub fn new(run: &Grid4dRun, settings: &EvoSettings) -> Result<Self, BackboneError> {
         let heads = settings
-            .components
+            .evo
+            .layout
             .components()
             .into_iter()
             .map(|(c, _)| match c {

@@ -29,7 +29,7 @@ impl HexPhi {
     /// Φ for a run (its EvoGS settings, the half extent `h` of its initial cube `[-h, h]³`, its
     /// seed): errors unless the components are position, rotation and scale.
     pub fn new(settings: &EvoSettings, half_extent: f32, seed: u64) -> Result<Self, BackboneError> {
-        let layout = settings.components;
+        let layout = settings.evo.layout;
         if layout != Layout::default() {
             return Err(BackboneError::config(
                 "evogs.components",

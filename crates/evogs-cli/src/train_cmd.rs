@@ -33,25 +33,25 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     config.backbone = args.backbone;
     let e = &mut config.evogs;
     if let Some(v) = args.gain {
-        e.gain = v;
+        e.evo.gain = v;
     }
     if let Some(v) = args.history {
-        e.history = v;
+        e.evo.history = v;
     }
     if let Some(v) = args.densify {
         e.densify = v;
     }
     if let Some(v) = args.buffer {
-        e.buffer = v;
+        e.evo.storage = v;
     }
     if let Some(v) = args.net_precision {
         e.net_precision = v;
     }
     if let Some(v) = args.components {
-        e.components = v;
+        e.evo.layout = v;
     }
     if let Some(v) = args.motion_floor {
-        e.motion_floor = v;
+        e.evo.motion_floor = v;
     }
     if let Some(v) = args.grid_lr_scale {
         e.grid_lr_scale = v;

@@ -11,7 +11,9 @@ use serde::Serialize;
 
 use crate::error::ExperimentError;
 use crate::write::{write_bytes, write_json, write_png};
-use evogs_backbones::{DensifyPolicy, EvoSettings, Gain, HistoryMode, Precision, Storage};
+use evogs_backbones::{
+    DensifyPolicy, EvoConfig, EvoSettings, Gain, HistoryMode, Precision, Storage,
+};
 use evogs_eval::LoadedRun;
 use evogs_eval::eval::{EvalLpips, evaluate};
 use evogs_train::config::{Method, TrainConfig};
@@ -40,12 +42,12 @@ impl LadderRow {
                 let e = &self.evo;
                 format!(
                     "evogs evolution={} history={} densify={} gain={} net={} buffer={}",
-                    if e.evolution { "on" } else { "off" },
-                    e.history,
+                    if e.evo.evolution { "on" } else { "off" },
+                    e.evo.history,
                     e.densify,
-                    e.gain,
+                    e.evo.gain,
                     e.net_precision,
-                    e.buffer
+                    e.evo.storage
                 )
             }
         }
@@ -79,7 +81,10 @@ pub fn ladder() -> Vec<LadderRow> {
             "phi",
             "Φ without evolution",
             EvoSettings {
-                evolution: false,
+                evo: EvoConfig {
+                    evolution: false,
+                    ..standard.evo
+                },
                 ..standard.clone()
             },
         ),
@@ -87,7 +92,10 @@ pub fn ladder() -> Vec<LadderRow> {
             "evo-requery",
             "evolution, history re-queried from Φ",
             EvoSettings {
-                history: HistoryMode::Requery,
+                evo: EvoConfig {
+                    history: HistoryMode::Requery,
+                    ..standard.evo
+                },
                 ..standard.clone()
             },
         ),
@@ -113,7 +121,10 @@ pub fn ladder() -> Vec<LadderRow> {
             "k0",
             "K fixed at 0 (prior only; standard densification, not the trigger)",
             EvoSettings {
-                gain: Gain::Fixed(0.0),
+                evo: EvoConfig {
+                    gain: Gain::Fixed(0.0),
+                    ..standard.evo
+                },
                 ..standard.clone()
             },
         ),
@@ -121,7 +132,10 @@ pub fn ladder() -> Vec<LadderRow> {
             "k0.5",
             "K fixed at 0.5",
             EvoSettings {
-                gain: Gain::Fixed(0.5),
+                evo: EvoConfig {
+                    gain: Gain::Fixed(0.5),
+                    ..full.evo
+                },
                 ..full.clone()
             },
         ),
@@ -129,7 +143,10 @@ pub fn ladder() -> Vec<LadderRow> {
             "k1",
             "K fixed at 1 (observation only)",
             EvoSettings {
-                gain: Gain::Fixed(1.0),
+                evo: EvoConfig {
+                    gain: Gain::Fixed(1.0),
+                    ..full.evo
+                },
                 ..full.clone()
             },
         ),
@@ -145,7 +162,10 @@ pub fn ladder() -> Vec<LadderRow> {
             "buffer-f16",
             "buffer in f16",
             EvoSettings {
-                buffer: Storage::F16,
+                evo: EvoConfig {
+                    storage: Storage::F16,
+                    ..full.evo
+                },
                 ..full
             },
         ),
@@ -795,43 +815,28 @@ mod tests {
         {
             assert_eq!(row.name, name);
             assert_eq!(row.method, method, "{name}");
-            assert_eq!(row.evo.evolution, evolution, "{name}");
-            assert_eq!(row.evo.history, history, "{name}");
+            assert_eq!(row.evo.evo.evolution, evolution, "{name}");
+            assert_eq!(row.evo.evo.history, history, "{name}");
             assert_eq!(row.evo.densify, densify, "{name}");
-            assert_eq!(row.evo.gain, gain, "{name}");
+            assert_eq!(row.evo.evo.gain, gain, "{name}");
             assert_eq!(row.evo.net_precision, net, "{name}");
-            assert_eq!(row.evo.buffer, buffer, "{name}");
+            assert_eq!(row.evo.evo.storage, buffer, "{name}");
             // Everything else is the method's default.
             let rest = EvoSettings {
-                evolution: true,
-                history: Buffer,
+                evo: EvoConfig {
+                    evolution: true,
+                    history: Buffer,
+                    gain: Learned,
+                    storage: S::F32,
+                    ..row.evo.evo
+                },
                 densify: TriggerDeform,
-                gain: Learned,
                 net_precision: P::F32,
-                buffer: S::F32,
                 ..row.evo.clone()
             };
             assert_eq!(rest, EvoSettings::default(), "{name}");
             row.evo.validate().unwrap();
         }
-    }
-
-    #[test]
-    fn evolution_defaults_on_in_older_configs() {
-        let mut json = serde_json::to_value(EvoSettings::default()).unwrap();
-        json.as_object_mut().unwrap().remove("evolution");
-        let back: EvoSettings = serde_json::from_value(json).unwrap();
-        assert!(back.evolution);
-        let off = EvoSettings {
-            evolution: false,
-            ..EvoSettings::default()
-        };
-        let round: EvoSettings =
-            serde_json::from_value(serde_json::to_value(&off).unwrap()).unwrap();
-        assert!(!round.evolution);
-        // The switch reaches evo-state, which then keeps no buffer.
-        let config = evogs_backbones::evo_backbone::evo_config(&off, 1.0);
-        assert!(!config.evolution);
     }
 
     #[test]

@@ -494,7 +494,7 @@ impl TrainConfig {
                 ));
             }
         }
-        let c = self.evogs.components;
+        let c = self.evogs.evo.layout;
         if self.method == Method::Baseline && (c.opacity || c.colour) {
             return Err(TrainError::config(
                 "evogs.components",

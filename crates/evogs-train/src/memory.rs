@@ -167,7 +167,7 @@ fn per_row_network(config: &TrainConfig, frames: usize) -> (u64, u64) {
         (Method::Baseline, BackboneKind::Grid4d) => (F32 * grid4d_row(net.width, 10) as u64, 0),
         (Method::Evogs, backbone) => {
             let s = &config.evogs;
-            let dim = s.components.dim();
+            let dim = s.evo.dim();
             let width = (net.width / 2).max(1);
             let phi = if backbone == BackboneKind::Grid4d {
                 grid4d_row(width, dim)
@@ -180,16 +180,8 @@ fn per_row_network(config: &TrainConfig, frames: usize) -> (u64, u64) {
             };
             // The step (prediction, observation, gain, corrected state and their gradients).
             let step = 8 * dim;
-            let blocks = match s.history {
-                evo_state::HistoryMode::Buffer => 2,
-                evo_state::HistoryMode::Requery => 1,
-            };
-            let storage = s.buffer.bytes();
-            let evolution = if s.evolution {
-                (blocks * frames * dim * storage) as u64
-            } else {
-                0
-            };
+            // The buffer (history `buffer` only) and the per-frame memory, as evo-state counts them.
+            let evolution = (s.evo.buffer_bytes(1, frames) + s.evo.memory_bytes(1, frames)) as u64;
             (F32 * (phi + step) as u64, evolution)
         }
     }
@@ -285,15 +277,15 @@ mod tests {
     fn the_evolution_buffer_and_memory_grow_with_frames_and_storage() {
         let mut c = TrainConfig::preset(Preset::Cpu);
         c.method = Method::Evogs;
-        let dim = c.evogs.components.dim() as u64;
+        let dim = c.evogs.evo.dim() as u64;
         let e = MemoryEstimate::new(&c, &inputs());
         assert_eq!(e.evolution_per_gaussian, 2 * 50 * dim * 4);
-        c.evogs.buffer = Storage::F16;
+        c.evogs.evo.storage = Storage::F16;
         assert_eq!(
             MemoryEstimate::new(&c, &inputs()).evolution_per_gaussian,
             2 * 50 * dim * 2
         );
-        c.evogs.history = HistoryMode::Requery;
+        c.evogs.evo.history = HistoryMode::Requery;
         assert_eq!(
             MemoryEstimate::new(&c, &inputs()).evolution_per_gaussian,
             50 * dim * 2

@@ -513,7 +513,7 @@ impl Trainer {
     /// An empty [`GainReport`] for this run: still below the motion floor in scene units per
     /// frame spacing (EvoGS's `motion_floor · extent`; evo-state's default for the baseline).
     pub fn new_gain_report(&self) -> GainReport {
-        GainReport::new(self.config.evogs.motion_floor * self.extent)
+        GainReport::new(self.config.evogs.evo.motion_floor * self.extent)
     }
 
     /// The last training step of the evolution (EvoGS only), for [`GainReport::add`].

@@ -1,8 +1,10 @@
 //! `config.json` files written by an older evogs (main at 6068508, before the settings became the
 //! libraries' own types) still load, give the settings the same flags give today (with
-//! `--max-screen-radius 20`: the screen-size prune was always on then), are written back byte
-//! for byte, and a run resumed from such a config keeps it. How the fixtures were made:
-//! `tests/data/config-6068508/README.md`.
+//! `--max-screen-radius 20`: the screen-size prune was always on then), and a run resumed from
+//! such a config keeps it. Today's format is pinned by the same three runs' files written by
+//! today's evogs (`tests/data/config-current`): each old file loads as its current twin and is
+//! written back as the twin's bytes, and each twin is written back byte for byte. How the
+//! fixtures were made: `tests/data/config-6068508/README.md`, `tests/data/config-current/README.md`.
 
 use std::path::{Path, PathBuf};
 
@@ -92,9 +94,15 @@ const FIXTURES: [(&str, &[&str]); 3] = [
     ),
 ];
 
-fn fixture(name: &str) -> (String, RunFile) {
+/// The fixtures of evogs at 6068508.
+const OLD: &str = "config-6068508";
+/// The same runs' files in today's format.
+const CURRENT: &str = "config-current";
+
+fn fixture(dir: &str, name: &str) -> (String, RunFile) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data/config-6068508")
+        .join("tests/data")
+        .join(dir)
         .join(name);
     let text = std::fs::read_to_string(&path).unwrap();
     let run: RunFile =
@@ -107,9 +115,10 @@ fn lego() -> PathBuf {
 }
 
 #[test]
-fn old_configs_load_as_the_same_flags_give_and_are_written_back_unchanged() {
+fn old_configs_load_as_the_same_flags_give_and_are_written_back_in_todays_format() {
     for (name, flags) in FIXTURES {
-        let (text, run) = fixture(name);
+        let (_, run) = fixture(OLD, name);
+        let (current_text, current) = fixture(CURRENT, name);
         let mut argv = vec!["evogs", "train", "--data", "d", "--out", "o"];
         argv.extend_from_slice(flags);
         let Command::Train(args) = Cli::try_parse_from(argv).unwrap().command else {
@@ -117,15 +126,24 @@ fn old_configs_load_as_the_same_flags_give_and_are_written_back_unchanged() {
         };
         let today = config_from_args(&args).unwrap();
         assert_eq!(run.train, today, "{name}");
-        // The file format is unchanged: today's writer gives the same bytes.
-        assert_eq!(serde_json::to_string_pretty(&run).unwrap(), text, "{name}");
+        assert_eq!(current.train, today, "{name}");
+        // Today's format: an old file is written back as its current twin, byte for byte, and
+        // the twin as itself. (The format changed once since 6068508, in the order of the
+        // `evogs` object's keys: evo-state's config is embedded first.)
+        let text = serde_json::to_string_pretty(&run).unwrap();
+        assert_eq!(text, current_text, "{name}");
+        assert_eq!(
+            serde_json::to_string_pretty(&current).unwrap(),
+            current_text,
+            "{name}"
+        );
     }
 }
 
 #[test]
 fn a_run_resumed_from_an_old_config_keeps_its_settings() {
     for (name, _) in FIXTURES {
-        let (_, old) = fixture(name);
+        let (_, old) = fixture(OLD, name);
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("run");
         let mut request = TrainRequest {

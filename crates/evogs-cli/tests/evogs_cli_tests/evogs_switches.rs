@@ -33,32 +33,32 @@ fn each_switch_reaches_the_config() {
     let table: Vec<(&[&str], Check, String)> = vec![
         (
             &["--gain", "learned"],
-            |e| format!("{:?}", e.gain),
+            |e| format!("{:?}", e.evo.gain),
             format!("{:?}", Gain::Learned),
         ),
         (
             &["--gain", "0"],
-            |e| format!("{:?}", e.gain),
+            |e| format!("{:?}", e.evo.gain),
             format!("{:?}", Gain::Fixed(0.0)),
         ),
         (
             &["--gain", "0.5"],
-            |e| format!("{:?}", e.gain),
+            |e| format!("{:?}", e.evo.gain),
             format!("{:?}", Gain::Fixed(0.5)),
         ),
         (
             &["--gain", "1"],
-            |e| format!("{:?}", e.gain),
+            |e| format!("{:?}", e.evo.gain),
             format!("{:?}", Gain::Fixed(1.0)),
         ),
         (
             &["--history", "buffer"],
-            |e| e.history.to_string(),
+            |e| e.evo.history.to_string(),
             HistoryMode::Buffer.to_string(),
         ),
         (
             &["--history", "requery"],
-            |e| e.history.to_string(),
+            |e| e.evo.history.to_string(),
             HistoryMode::Requery.to_string(),
         ),
         (
@@ -78,12 +78,12 @@ fn each_switch_reaches_the_config() {
         ),
         (
             &["--buffer", "f32"],
-            |e| e.buffer.to_string(),
+            |e| e.evo.storage.to_string(),
             Storage::F32.to_string(),
         ),
         (
             &["--buffer", "f16"],
-            |e| e.buffer.to_string(),
+            |e| e.evo.storage.to_string(),
             Storage::F16.to_string(),
         ),
         (
@@ -98,22 +98,22 @@ fn each_switch_reaches_the_config() {
         ),
         (
             &["--components", "pos,rot,scale"],
-            |e| format!("{:?}", e.components),
+            |e| format!("{:?}", e.evo.layout),
             format!("{:?}", comps(true, true, true)),
         ),
         (
             &["--components", "pos"],
-            |e| format!("{:?}", e.components),
+            |e| format!("{:?}", e.evo.layout),
             format!("{:?}", comps(true, false, false)),
         ),
         (
             &["--components", "rotation,scale"],
-            |e| format!("{:?}", e.components),
+            |e| format!("{:?}", e.evo.layout),
             format!("{:?}", comps(false, true, true)),
         ),
         (
             &["--components", "pos,rot,scale,opacity,colour"],
-            |e| format!("{:?}", e.components),
+            |e| format!("{:?}", e.evo.layout),
             format!(
                 "{:?}",
                 Layout {
@@ -130,7 +130,7 @@ fn each_switch_reaches_the_config() {
         ),
         (
             &["--motion-floor", "5e-4"],
-            |e| e.motion_floor.to_string(),
+            |e| e.evo.motion_floor.to_string(),
             5e-4f32.to_string(),
         ),
     ];

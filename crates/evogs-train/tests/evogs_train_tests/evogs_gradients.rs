@@ -42,11 +42,11 @@ fn gaussians(rng: &mut Lcg) -> Gaussians {
 
 fn backbone(gain: Gain, components: Layout, history: HistoryMode) -> EvoBackbone {
     let mut c = TrainConfig::preset(Preset::Tiny);
-    c.evogs.history = history;
+    c.evogs.evo.history = history;
     c.method = Method::Evogs;
     c.net.width = 16;
-    c.evogs.gain = gain;
-    c.evogs.components = components;
+    c.evogs.evo.gain = gain;
+    c.evogs.evo.layout = components;
     c.evogs.triplane_channels = 2;
     c.evogs.triplane_resolutions = vec![4];
     c.evogs.bspline_controls = 5;

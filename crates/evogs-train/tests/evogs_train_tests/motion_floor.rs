@@ -6,9 +6,8 @@
 
 use densify::{DensifyStats, PlanInput, make_plan, residual_norms, thetas};
 use evo_state::EvoState;
-use evogs_backbones::EvoSettings;
-use evogs_backbones::evo_backbone::evo_config;
 use evogs_backbones::evo_settings::TRAINER_MOTION_FLOOR;
+use evogs_backbones::{EvoConfig, EvoSettings};
 use evogs_train::trainer::densify_config;
 use evogs_train::{Method, Preset, TrainConfig};
 use splat_raster::Gaussians;
@@ -25,7 +24,11 @@ fn step_at_frame_3(
 ) -> (EvoState, evo_state::Step) {
     let n = positions.len();
     let frames = evo_state::Frames::from_timestamps([0.0, 0.25, 0.5, 0.75, 1.0]).unwrap();
-    let mut st = EvoState::new(evo_config(settings, EXTENT), frames, n, 3).unwrap();
+    let config = EvoConfig {
+        extent: EXTENT,
+        ..settings.evo
+    };
+    let mut st = EvoState::new(config, frames, n, 3).unwrap();
     let row = |p: [f32; 3]| {
         let mut r = [0.0f32; D];
         r[..3].copy_from_slice(&p);
@@ -53,14 +56,18 @@ fn trigger(
     motion_floor: f32,
     positions: &[[[f32; 3]; 3]],
 ) -> (Vec<f32>, densify::PlanSummary, Vec<u32>) {
+    let defaults = EvoSettings::default();
     let settings = EvoSettings {
-        motion_floor,
-        ..EvoSettings::default()
+        evo: EvoConfig {
+            motion_floor,
+            ..defaults.evo
+        },
+        ..defaults
     };
     let (_, step) = step_at_frame_3(&settings, positions);
     let theta = thetas(&step).expect("three history frames give statistics");
     let n = positions.len();
-    let layout = settings.components;
+    let layout = settings.evo.layout;
     let z = {
         // The same z the step was made with: the prior, so every residual is zero.
         step.prior().unwrap().to_vec()
@@ -188,8 +195,7 @@ fn motion_just_above_the_floor_is_measured() {
 #[test]
 fn settings_record_the_floor_and_old_configs_read_specs() {
     let s = EvoSettings::default();
-    assert_eq!(s.motion_floor, TRAINER_MOTION_FLOOR);
-    assert_eq!(evo_config(&s, EXTENT).motion_floor, TRAINER_MOTION_FLOOR);
+    assert_eq!(s.evo.motion_floor, TRAINER_MOTION_FLOOR);
     let mut json = serde_json::to_value(&s).unwrap();
     assert_eq!(
         json["motion_floor"],
@@ -198,13 +204,11 @@ fn settings_record_the_floor_and_old_configs_read_specs() {
     json.as_object_mut().unwrap().remove("motion_floor");
     let old: EvoSettings = serde_json::from_value(json).unwrap();
     assert_eq!(
-        old.motion_floor, 1e-6,
+        old.evo.motion_floor, 1e-6,
         "runs written before the field trained with the paper's"
     );
-    let bad = EvoSettings {
-        motion_floor: f32::NAN,
-        ..EvoSettings::default()
-    };
+    let mut bad = EvoSettings::default();
+    bad.evo.motion_floor = f32::NAN;
     let e = bad.validate().unwrap_err().to_string();
     assert!(e.contains("evogs.motion_floor"), "{e}");
 }
