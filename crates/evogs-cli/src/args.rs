@@ -29,7 +29,8 @@ impl ValueEnum for TimeFromArg {
     }
 }
 
-/// Dynamic 3D Gaussian Splatting with EvoGS: train on D-NeRF scenes, evaluate, render, export.
+/// Dynamic 3D Gaussian Splatting with EvoGS: train on a dynamic scene (any detected dataset
+/// layout), evaluate, render, export, view.
 #[derive(Debug, Parser)]
 #[command(name = "evogs", version)]
 pub struct Cli {
