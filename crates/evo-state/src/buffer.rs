@@ -8,8 +8,9 @@ use rayon::prelude::*;
 use crate::config::Storage;
 use splat_core::{NewRows, RowPlan, RowPlanError};
 
-/// Largest finite f16 value; f16 storage saturates here.
-pub const F16_MAX: f32 = 65504.0;
+/// Largest finite f16 value; f16 storage saturates here (tiny-nn's, whose f16 network storage
+/// saturates at the same bound).
+pub use tiny_nn::F16_MAX;
 
 /// One frame's block in its storage type.
 #[derive(Debug, Clone, PartialEq)]
