@@ -474,7 +474,9 @@ impl EvoState {
     /// commit).
     fn normalise_inputs(&self, inputs: &mut [f32], rows: usize, width: usize) -> Vec<f64> {
         let features = width - 1;
-        let sums = inputs
+        // Per-chunk sums in parallel, then added in chunk order: the same bits for any thread
+        // count (rayon's `reduce` would add them in a tree shaped by its splitting).
+        let partial: Vec<Vec<f64>> = inputs
             .par_chunks(CHUNK * width)
             .map(|chunk| {
                 let mut acc = vec![0.0f64; features];
@@ -485,15 +487,13 @@ impl EvoState {
                 }
                 acc
             })
-            .reduce(
-                || vec![0.0f64; features],
-                |mut a, b| {
-                    for (x, y) in a.iter_mut().zip(b) {
-                        *x += y;
-                    }
-                    a
-                },
-            );
+            .collect();
+        let mut sums = vec![0.0f64; features];
+        for acc in &partial {
+            for (s, a) in sums.iter_mut().zip(acc) {
+                *s += a;
+            }
+        }
         let mean_sq: Vec<f64> = sums.iter().map(|s| s / rows.max(1) as f64).collect();
         let floors = crate::norm::rms_floors(
             self.dim(),

@@ -2,7 +2,7 @@
 
 use rayon::prelude::*;
 
-use crate::ssim::ssim_sum_and_grad;
+use crate::ssim::{SUM_CHUNK, ssim_sum_and_grad};
 use crate::{ImageSize, MetricsError, Real, check_image};
 
 /// Weight of the L1 term.
@@ -39,23 +39,27 @@ pub fn photometric_loss<T: Real>(
     let mut d_rendered = ssim_grad.unwrap_or_default();
     let l1_step = T::from_f64(L1_WEIGHT / n);
     let zero = T::default();
-    let l1_sum: f64 = d_rendered
-        .par_iter_mut()
-        .zip(rendered.par_iter().zip(gt.par_iter()))
+    let partial: Vec<f64> = d_rendered
+        .par_chunks_mut(SUM_CHUNK)
+        .zip(rendered.par_chunks(SUM_CHUNK).zip(gt.par_chunks(SUM_CHUNK)))
         .map(|(g, (r, t))| {
             let mut s = 0.0;
-            for c in 0..3 {
-                let d = r[c] - t[c];
-                s += d.to_f64().abs();
-                if d > zero {
-                    g[c] += l1_step;
-                } else if d < zero {
-                    g[c] += -l1_step;
+            for (g, (r, t)) in g.iter_mut().zip(r.iter().zip(t)) {
+                for c in 0..3 {
+                    let d = r[c] - t[c];
+                    s += d.to_f64().abs();
+                    if d > zero {
+                        g[c] += l1_step;
+                    } else if d < zero {
+                        g[c] += -l1_step;
+                    }
                 }
             }
             s
         })
-        .sum();
+        .collect();
+    // Added in chunk order: the same bits for any thread count.
+    let l1_sum: f64 = partial.iter().sum();
     let l1 = l1_sum / n;
     let ssim = ssim_sum / n;
     Ok(PhotometricLoss {

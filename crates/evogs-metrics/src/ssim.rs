@@ -21,6 +21,10 @@ pub const SSIM_C1: f64 = 0.01 * 0.01;
 /// Stabiliser of the contrast-structure term, `0.03²`.
 pub const SSIM_C2: f64 = 0.03 * 0.03;
 
+/// Pixels per parallel partial sum. Partial sums over fixed ranges, added in order, give the
+/// same bits for any thread count (rayon's `sum` adds in a tree shaped by its splitting).
+pub(crate) const SUM_CHUNK: usize = 4096;
+
 /// Mean SSIM of two images over all pixels and the three channels (3DGS definition, zero
 /// padding at the borders).
 pub fn ssim<T: Real>(size: ImageSize, a: &[[T; 3]], b: &[[T; 3]]) -> Result<f64, MetricsError> {
@@ -86,17 +90,23 @@ fn channel<T: Real>(
     let one = T::from_f64(1.0);
 
     let Some(scale) = grad_scale else {
-        let sum = (0..w * h)
+        let n = w * h;
+        let partial: Vec<f64> = (0..n.div_ceil(SUM_CHUNK))
             .into_par_iter()
-            .map(|i| {
-                let (mx, my) = (mu_x[i], mu_y[i]);
-                let a1 = two * mx * my + c1;
-                let a2 = two * (e_xy[i] - mx * my) + c2;
-                let b1 = mx * mx + my * my + c1;
-                let b2 = (e_xx[i] - mx * mx) + (e_yy[i] - my * my) + c2;
-                (a1 * a2 / (b1 * b2)).to_f64()
+            .map(|c| {
+                (c * SUM_CHUNK..((c + 1) * SUM_CHUNK).min(n))
+                    .map(|i| {
+                        let (mx, my) = (mu_x[i], mu_y[i]);
+                        let a1 = two * mx * my + c1;
+                        let a2 = two * (e_xy[i] - mx * my) + c2;
+                        let b1 = mx * mx + my * my + c1;
+                        let b2 = (e_xx[i] - mx * mx) + (e_yy[i] - my * my) + c2;
+                        (a1 * a2 / (b1 * b2)).to_f64()
+                    })
+                    .sum::<f64>()
             })
-            .sum();
+            .collect();
+        let sum = partial.iter().sum();
         return (sum, None);
     };
 
@@ -104,25 +114,35 @@ fn channel<T: Real>(
     let mut d_mu = mu_x;
     let mut d_exx = e_xx;
     let mut d_exy = e_xy;
-    let sum: f64 = d_mu
-        .par_iter_mut()
-        .zip(d_exx.par_iter_mut())
-        .zip(d_exy.par_iter_mut())
-        .zip(mu_y.par_iter().zip(e_yy.par_iter()))
-        .map(|(((mx_slot, exx_slot), exy_slot), (&my, &eyy))| {
-            let mx = *mx_slot;
-            let a1 = two * mx * my + c1;
-            let a2 = two * (*exy_slot - mx * my) + c2;
-            let b1 = mx * mx + my * my + c1;
-            let b2 = (*exx_slot - mx * mx) + (eyy - my * my) + c2;
-            let inv = one / (b1 * b2);
-            let s = a1 * a2 * inv;
-            *mx_slot = scale * (two * my * (a2 - a1) * inv - two * mx * s * (one / b1 - one / b2));
-            *exx_slot = scale * (-s / b2);
-            *exy_slot = scale * (two * a1 * inv);
-            s.to_f64()
+    let partial: Vec<f64> = d_mu
+        .par_chunks_mut(SUM_CHUNK)
+        .zip(d_exx.par_chunks_mut(SUM_CHUNK))
+        .zip(d_exy.par_chunks_mut(SUM_CHUNK))
+        .zip(mu_y.par_chunks(SUM_CHUNK).zip(e_yy.par_chunks(SUM_CHUNK)))
+        .map(|(((d_mu, d_exx), d_exy), (mu_y, e_yy))| {
+            let mut sum = 0.0f64;
+            for ((mx_slot, exx_slot), (exy_slot, (&my, &eyy))) in d_mu
+                .iter_mut()
+                .zip(d_exx.iter_mut())
+                .zip(d_exy.iter_mut().zip(mu_y.iter().zip(e_yy)))
+            {
+                let mx = *mx_slot;
+                let a1 = two * mx * my + c1;
+                let a2 = two * (*exy_slot - mx * my) + c2;
+                let b1 = mx * mx + my * my + c1;
+                let b2 = (*exx_slot - mx * mx) + (eyy - my * my) + c2;
+                let inv = one / (b1 * b2);
+                let s = a1 * a2 * inv;
+                *mx_slot =
+                    scale * (two * my * (a2 - a1) * inv - two * mx * s * (one / b1 - one / b2));
+                *exx_slot = scale * (-s / b2);
+                *exy_slot = scale * (two * a1 * inv);
+                sum += s.to_f64();
+            }
+            sum
         })
-        .sum();
+        .collect();
+    let sum: f64 = partial.iter().sum();
     let g_mu = blur(&d_mu, w, h, &k);
     drop(d_mu);
     let g_xx = blur(&d_exx, w, h, &k);

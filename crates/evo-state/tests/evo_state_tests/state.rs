@@ -419,3 +419,27 @@ fn resumed_state_continues_identically() {
     assert_eq!(bits(a.psi_inputs().unwrap()), bits(b.psi_inputs().unwrap()));
     assert_eq!(resumed, st);
 }
+
+/// A fixed seed gives the same state for any thread count: 20 chunks of rows, so rayon splits
+/// the passes differently on 1, 2, 3 and 4 threads, and learned K reads Ψ's inputs normalised by
+/// their batch RMS (a sum over every row).
+#[test]
+fn thread_count_changes_nothing() {
+    let config = EvoConfig::default();
+    assert!(matches!(config.gain, Gain::Learned));
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| trained(config, 20 * 1024 + 7, 6))
+    };
+    let one = run(1);
+    assert!(
+        one.input_norm().weight() > 0.0,
+        "Ψ's inputs were never normalised"
+    );
+    for threads in [2, 3, 4] {
+        assert!(run(threads) == one, "{threads} threads differ from one");
+    }
+}

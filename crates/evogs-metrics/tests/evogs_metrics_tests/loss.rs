@@ -80,3 +80,36 @@ fn loss_combines_l1_and_ssim_with_the_spec_weights() {
     assert!((out.ssim - s).abs() < 1e-14);
     assert!((out.loss - (0.8 * l1 + 0.2 * (1.0 - s))).abs() < 1e-14);
 }
+
+/// The plain loss and SSIM (the evaluation's metric) give the same bits on any thread count:
+/// a 400×400 image is 40 partial sums, split differently by 1, 2, 3, 4 and 8 threads. In f64,
+/// where the sums round (sums of f32 values in f64 are mostly exact in any order).
+#[test]
+fn loss_and_ssim_are_bit_identical_for_any_thread_count() {
+    let size = ImageSize::new(400, 400);
+    let pixel = |i: usize, s: usize| {
+        [0, 1, 2].map(|c| (((i * 7 + c * 3 + s) * 2_654_435_761) % 1000) as f64 / 999.0)
+    };
+    let rendered: Vec<[f64; 3]> = (0..size.pixels()).map(|i| pixel(i, 0)).collect();
+    let gt: Vec<[f64; 3]> = (0..size.pixels()).map(|i| pixel(i, 11)).collect();
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let l = photometric_loss(size, &rendered, &gt).unwrap();
+            let s = ssim(size, &rendered, &gt).unwrap();
+            (
+                l.loss.to_bits(),
+                l.ssim.to_bits(),
+                s.to_bits(),
+                l.d_rendered,
+            )
+        })
+    };
+    let one = run(1);
+    for threads in [2, 3, 4, 8] {
+        assert!(run(threads) == one, "{threads} threads differ from one");
+    }
+}
