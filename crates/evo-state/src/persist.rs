@@ -11,7 +11,7 @@
 //! per-frame memory is zero (the old memory belongs to no frame) and their Ψ input normaliser is
 //! the fixed extent scaling they were trained with ([`crate::norm::InputNorm::legacy`]).
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::io::Write;
 use std::path::Path;
 
@@ -143,10 +143,17 @@ impl EvoState {
                 }
             }
         }
-        let bytes = safetensors::serialize(tensors, Some(meta)).map_err(|e| EvoError::Format {
+        let sorted = sorted_metadata_json(&meta);
+        let mut bytes =
+            safetensors::serialize(tensors, Some(meta)).map_err(|e| EvoError::Format {
+                path: path.to_path_buf(),
+                field: "safetensors".into(),
+                problem: e.to_string(),
+            })?;
+        sort_metadata(&mut bytes, &sorted).map_err(|problem| EvoError::Format {
             path: path.to_path_buf(),
-            field: "safetensors".into(),
-            problem: e.to_string(),
+            field: "safetensors header".into(),
+            problem,
         })?;
         let dir = path
             .parent()
@@ -371,4 +378,34 @@ impl EvoState {
             saturations,
         })
     }
+}
+
+/// The metadata object as safetensors writes it (compact JSON), with its keys sorted.
+fn sorted_metadata_json(meta: &HashMap<String, String>) -> String {
+    let sorted: BTreeMap<&str, &str> = meta.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect();
+    // A map of strings always serialises.
+    serde_json::to_string(&sorted).unwrap_or_default()
+}
+
+/// Rewrites the header's metadata object of a serialised file with its keys sorted.
+///
+/// safetensors writes the metadata map in `HashMap` order, which differs from one map to the
+/// next, so the same state gave different bytes (a resumed run's file differed from an
+/// uninterrupted run's). The object is the header's first entry; `sorted` is the same pairs in
+/// another order, so it has the same length and no tensor offset moves.
+fn sort_metadata(bytes: &mut [u8], sorted: &str) -> Result<(), String> {
+    const PREFIX: &[u8] = b"{\"__metadata__\":";
+    let start = 8 + PREFIX.len();
+    let end = start + sorted.len();
+    let found = bytes.get(8..start) == Some(PREFIX)
+        && bytes.get(end - 1) == Some(&b'}')
+        && bytes.get(start) == Some(&b'{')
+        && bytes
+            .get(start..end)
+            .is_some_and(|o| o.iter().filter(|&&b| b == b'}').count() == 1);
+    if !found {
+        return Err("metadata object not where safetensors writes it".into());
+    }
+    bytes[start..end].copy_from_slice(sorted.as_bytes());
+    Ok(())
 }
