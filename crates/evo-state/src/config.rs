@@ -1,8 +1,8 @@
 //! Configuration: which deformation components exist, how the buffer is stored, and the
 //! ablation switches of DESIGN §4.12.
 //!
-//! The switches a user picks ([`Gain`], [`HistoryMode`], [`Storage`], and splat-core's
-//! [`Layout`]) have one command-line spelling each ([`FromStr`] / [`fmt::Display`]) and, with the
+//! The switches a user picks ([`Gain`], [`HistoryMode`], [`Storage`] (tiny-nn's `Precision`),
+//! and splat-core's [`Layout`]) have one command-line spelling each ([`FromStr`] / [`fmt::Display`]) and, with the
 //! `serde` feature, one file spelling (lowercase names; a fixed gain is `{"fixed": k}`), as does
 //! the whole [`EvoConfig`]. The one-word enums derive theirs with `strum` (`EnumString`,
 //! `Display`, `IntoStaticStr`, `VariantNames`); [`Gain`], which carries a number, and [`Layout`],
@@ -16,31 +16,11 @@ use thiserror::Error;
 
 pub use splat_core::{Component, Layout};
 
-/// Element type of the buffer of corrected states (spelled `f32` / `f16`).
-#[derive(EnumString, Display, IntoStaticStr, VariantNames)]
-#[strum(serialize_all = "lowercase", parse_err_ty = ParseError, parse_err_fn = ParseError::one_of::<Self>)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(
-    feature = "serde",
-    derive(serde::Serialize, serde::Deserialize),
-    serde(rename_all = "lowercase")
-)]
-pub enum Storage {
-    /// 4·D bytes per Gaussian per frame.
-    F32,
-    /// 2·D bytes per Gaussian per frame; values beyond ±65504 saturate and are counted.
-    F16,
-}
-
-impl Storage {
-    /// Bytes of one stored value.
-    pub const fn bytes(self) -> usize {
-        match self {
-            Storage::F32 => 4,
-            Storage::F16 => 2,
-        }
-    }
-}
+/// Element type of the buffer of corrected states and of the residual memory: tiny-nn's
+/// [`tiny_nn::Precision`], the one f32/f16 storage type of the workspace (spelled `f32` / `f16`),
+/// named for its use here. `F32` takes 4·D bytes per Gaussian per frame, `F16` 2·D; in f16,
+/// values beyond ±65504 saturate and are counted.
+pub use tiny_nn::Precision as Storage;
 
 /// How the gain K is chosen once three history frames exist (h = 3); spelled `learned` or the
 /// fixed value (`0`, `0.5`, `1`).
@@ -76,7 +56,7 @@ pub enum HistoryMode {
     Requery,
 }
 
-/// A spelling of a [`Gain`], [`HistoryMode`] or [`Storage`] that names none.
+/// A spelling of a [`Gain`] or [`HistoryMode`] that names none.
 #[derive(Debug, Error, Clone, PartialEq, Eq)]
 #[error("`{value}`: expected {expected}")]
 pub struct ParseError {
@@ -384,7 +364,7 @@ mod tests {
         }
         assert_eq!(
             "bf16".parse::<Storage>().unwrap_err().to_string(),
-            "`bf16`: expected one of f32, f16"
+            "unknown value `bf16`; expected one of f32, f16"
         );
         assert!("memory".parse::<HistoryMode>().is_err());
     }

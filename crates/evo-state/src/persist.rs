@@ -213,7 +213,7 @@ impl EvoState {
             .ok_or_else(|| bad("layout_bits", format!("{bits} is not a layout")))?;
         let storage: Storage = get("storage")?
             .parse()
-            .map_err(|e: ParseError| bad("storage", e.to_string()))?;
+            .map_err(|e: tiny_nn::PrecisionParseError| bad("storage", e.to_string()))?;
         let gain = match get("gain")?.as_str() {
             "learned" => Gain::Learned,
             other => match other.strip_prefix("fixed:") {

@@ -26,8 +26,18 @@ pub const F16_MAX: f32 = 65504.0;
 pub enum Precision {
     /// IEEE binary32 storage.
     F32,
-    /// IEEE binary16 storage (`half::f16`), f32 arithmetic.
+    /// IEEE binary16 storage (`half::f16`), f32 arithmetic; values beyond ±[`F16_MAX`] saturate.
     F16,
+}
+
+impl Precision {
+    /// Bytes of one stored value.
+    pub const fn bytes(self) -> usize {
+        match self {
+            Precision::F32 => 4,
+            Precision::F16 => 2,
+        }
+    }
 }
 
 /// A precision spelling other than `f32` and `f16`.
