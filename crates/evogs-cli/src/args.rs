@@ -13,11 +13,16 @@ use splat_raster::BackendChoice;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TimeFromArg(pub TimeFrom);
 
-const TIME_FROM_ARGS: [TimeFromArg; 3] = [
-    TimeFromArg(TimeFrom::Order),
-    TimeFromArg(TimeFrom::Name),
-    TimeFromArg(TimeFrom::None),
-];
+/// Every rule, as [`TimeFrom::ALL`] lists them.
+const TIME_FROM_ARGS: [TimeFromArg; TimeFrom::ALL.len()] = {
+    let mut args = [TimeFromArg(TimeFrom::ALL[0]); TimeFrom::ALL.len()];
+    let mut i = 1;
+    while i < args.len() {
+        args[i] = TimeFromArg(TimeFrom::ALL[i]);
+        i += 1;
+    }
+    args
+};
 
 impl ValueEnum for TimeFromArg {
     fn value_variants<'a>() -> &'a [Self] {
