@@ -19,6 +19,25 @@ use super::{GpuState, WgpuRasterizer};
 /// Bytes of one WGSL `Splat` record.
 pub(crate) const SPLAT_BYTES: u64 = 64;
 
+/// Index of each outcome in the projection's cull counts: the `CULL_*` codes of common.wgsl (0:
+/// drawn). A test in `gpu/layout.rs` checks them against the WGSL constants.
+pub(crate) mod cull {
+    /// Drawn (no cull reason).
+    pub(crate) const DRAWN: usize = 0;
+    /// `CULL_NON_FINITE`.
+    pub(crate) const NON_FINITE: usize = 1;
+    /// `CULL_ZERO_QUATERNION`.
+    pub(crate) const ZERO_QUATERNION: usize = 2;
+    /// `CULL_LOW_OPACITY`.
+    pub(crate) const LOW_OPACITY: usize = 3;
+    /// `CULL_BEHIND_NEAR_PLANE`.
+    pub(crate) const BEHIND_NEAR_PLANE: usize = 4;
+    /// `CULL_DEGENERATE`.
+    pub(crate) const DEGENERATE: usize = 5;
+    /// `CULL_OFF_SCREEN`.
+    pub(crate) const OFF_SCREEN: usize = 6;
+}
+
 fn u32s(bytes: &[u8]) -> Vec<u32> {
     bytemuck::pod_collect_to_vec(bytes)
 }
@@ -112,13 +131,13 @@ impl WgpuRasterizer {
         let n_isect = if n > 0 { u32s(&head[1])[0] } else { 0 };
         let stats = CullStats {
             total: n,
-            drawn: counts[0] as usize,
-            non_finite: counts[1] as usize,
-            zero_quaternion: counts[2] as usize,
-            low_opacity: counts[3] as usize,
-            behind_near_plane: counts[4] as usize,
-            degenerate_covariance: counts[5] as usize,
-            off_screen: counts[6] as usize,
+            drawn: counts[cull::DRAWN] as usize,
+            non_finite: counts[cull::NON_FINITE] as usize,
+            zero_quaternion: counts[cull::ZERO_QUATERNION] as usize,
+            low_opacity: counts[cull::LOW_OPACITY] as usize,
+            behind_near_plane: counts[cull::BEHIND_NEAR_PLANE] as usize,
+            degenerate_covariance: counts[cull::DEGENERATE] as usize,
+            off_screen: counts[cull::OFF_SCREEN] as usize,
         };
 
         // Stage 2: emit the (tile, Gaussian) pairs in depth order, sort them stably by tile,

@@ -100,6 +100,36 @@ mod tests {
     }
 
     #[test]
+    fn dispatch_sizes_and_cull_codes_match_the_kernels() {
+        use super::super::forward::cull;
+        // The Rust side sizes the dispatches and buffers with these; the kernels index with theirs.
+        assert_eq!(
+            const_value(SCAN, "BLOCK"),
+            f64::from(super::super::scan::BLOCK)
+        );
+        assert_eq!(
+            const_value(SORT_COMMON, "BLOCK"),
+            f64::from(super::super::sort::BLOCK)
+        );
+        assert_eq!(
+            const_value(SORT_COMMON, "BINS"),
+            f64::from(super::super::sort::BINS)
+        );
+        // The projection counts each Gaussian at the index of its `CULL_*` code.
+        for (name, index) in [
+            ("CULL_NON_FINITE", cull::NON_FINITE),
+            ("CULL_ZERO_QUATERNION", cull::ZERO_QUATERNION),
+            ("CULL_LOW_OPACITY", cull::LOW_OPACITY),
+            ("CULL_BEHIND_NEAR_PLANE", cull::BEHIND_NEAR_PLANE),
+            ("CULL_DEGENERATE", cull::DEGENERATE),
+            ("CULL_OFF_SCREEN", cull::OFF_SCREEN),
+        ] {
+            assert_eq!(const_value(COMMON, name), index as f64, "{name}");
+        }
+        assert_eq!(cull::DRAWN, 0, "a Gaussian with reason 0 is drawn");
+    }
+
+    #[test]
     fn a_drifted_declaration_is_caught() {
         // Two fields swapped, a type changed, a field dropped: each must fail the check.
         let swapped = SCAN.replace(

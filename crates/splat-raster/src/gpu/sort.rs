@@ -34,12 +34,12 @@ use super::buffers::{dynamic_uniform_entry, storage_entry, words};
 use super::layout::wgsl_mirror;
 use super::scan::{self, PrefixSum, ScanPlan, dispatch_grid};
 
-/// Elements per workgroup (block) in every kernel.
-const BLOCK: u32 = 1024;
+/// Elements per workgroup (block) in every kernel (`BLOCK` of sort_common.wgsl).
+pub(crate) const BLOCK: u32 = 1024;
 /// Bits per radix digit.
 const DIGIT_BITS: u32 = 4;
-/// Histogram bins per block.
-const BINS: u32 = 1 << DIGIT_BITS;
+/// Histogram bins per block (`BINS` of sort_common.wgsl).
+pub(crate) const BINS: u32 = 1 << DIGIT_BITS;
 
 const COMMON_WGSL: &str = include_str!("shaders/sort_common.wgsl");
 const COUNT_WGSL: &str = include_str!("shaders/sort_count.wgsl");
