@@ -418,7 +418,7 @@ impl EvoState {
         Ok(())
     }
 
-    /// Commits a training step at frame k: writes d̃ to B[k], marks the frame valid, writes the
+    /// Commits a training step at frame k: writes d̃ to `B[k]`, marks the frame valid, writes the
     /// step's residual memory m to `M[k]` (zero when the step had no prior, h < 2) and folds the
     /// step's Ψ-input mean squares into the running RMS (h = 3). Never called for evaluation.
     pub fn commit(&mut self, step: &Step) -> Result<(), EvoError> {

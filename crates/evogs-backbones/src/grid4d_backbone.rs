@@ -5,7 +5,7 @@
 //! `scene/deform_model.py`, `train.py`; docs/DESIGN.md §5.2c cites each constant):
 //! - the field: [`tiny_nn::Grid4dConfig::dnerf`] over `[-bound, bound]³` with Grid4D's
 //!   `bound = 1.6` for its D-NeRF scenes, whose initial cube is 3DGS's ±1.3: here
-//!   `bound = 1.6 / 1.3 · h` for the run's initial cube `[-h, h]³` ([`grid4d_bound`]; 1.6 in every
+//!   `bound = 1.6 / 1.3 · h` for the run's initial cube `[-h, h]³` ([`Grid4dRun::bound`]; 1.6 in every
 //!   preset); deformation of position (Grid4D's rigid warp), rotation and scale;
 //! - the smoothness regulariser on 10 % of the Gaussians every training step, spatial and
 //!   temporal weights 0.5 (`lambda_spatial_tv`, `lambda_temporal_tv`; `reg_after_densify` is
