@@ -44,7 +44,7 @@ pub struct AblateArgs {
     pub seed: Option<u64>,
 
     /// Runs every row with N training seeds (S, S+1, …; the scene stays the same) and reports
-    /// mean ± sample standard deviation; run directories become OUT/<row>/seed<S>.
+    /// mean ± sample standard deviation; run directories become `OUT/<row>/seed<S>`.
     #[arg(long, value_name = "N", default_value_t = 1,
           value_parser = clap::value_parser!(u64).range(1..=100))]
     pub seeds: u64,

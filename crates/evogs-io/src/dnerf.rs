@@ -3,7 +3,7 @@
 //! converted to OpenCV axes by flipping the camera's y and z axes; `fx = fy = 0.5·W /
 //! tan(0.5·camera_angle_x)`, principal point at the image centre. Image sizes come from the
 //! top-level `w`/`h` keys when present, otherwise from each image file's header. The writer of the
-//! same layout is [`write_dnerf_split`] (module [`write`]).
+//! same layout is [`write_dnerf_split`] (module [`write`](mod@write)).
 
 use glam::{Mat3, Vec3};
 use splat_core::Camera;

@@ -4,7 +4,7 @@
 //! For a pair of RGB images in `[0, 1]` of the same size: each is mapped to `[-1, 1]`, shifted
 //! and scaled per channel by LPIPS's `ScalingLayer` (`(x − shift) / scale`, shift
 //! `[−0.030, −0.088, −0.188]`, scale `[0.458, 0.448, 0.450]`) and run through the backbone's
-//! features ([`network`]); at each of the five feature layers every pixel's channel vector is
+//! features (module `network`); at each of the five feature layers every pixel's channel vector is
 //! divided by its norm plus `1e−10` (as `lpips.normalize_tensor`), the two images' normalised
 //! features are subtracted and squared, weighted by the layer's linear head (a 1×1 convolution
 //! to one channel, no bias), and averaged over the pixels; the five layer values are summed.
