@@ -3,7 +3,7 @@
 //! (`plotters`, bitmap backend). Text is drawn with the system's sans-serif font; where none can be found the
 //! plot is drawn again without text (points and axes only).
 
-use crate::plotting::{draw_with_fallback, padded_range};
+use crate::plotting::{draw_with_fallback, padded_range, tick_label};
 use image::RgbImage;
 use plotters::prelude::*;
 
@@ -48,7 +48,10 @@ fn draw(results: &[AblationResult], buf: &mut [u8], text: bool) -> Result<(), St
         .map_err(|e| err(&e))?;
     let mut mesh = chart.configure_mesh();
     if text {
-        mesh.x_desc("training time (s)").y_desc("test PSNR (dB)");
+        mesh.x_desc("training time (s)")
+            .y_desc("test PSNR (dB)")
+            .x_label_formatter(&|v| tick_label(*v))
+            .y_label_formatter(&|v| tick_label(*v));
     } else {
         mesh.disable_x_mesh()
             .disable_y_mesh()

@@ -3,7 +3,7 @@
 //! (`plotters`, bitmap backend). Text is drawn with the system's sans-serif font; where none can
 //! be found the plot is drawn again without text.
 
-use crate::plotting::{draw_with_fallback, finite_bounds};
+use crate::plotting::{draw_with_fallback, finite_bounds, tick_label};
 use image::RgbImage;
 use plotters::prelude::*;
 
@@ -88,7 +88,10 @@ fn draw(
             .map_err(|e| err(&e))?;
         let mut mesh = chart.configure_mesh();
         if text {
-            mesh.x_desc("training time (min)").y_desc("PSNR (dB)");
+            mesh.x_desc("training time (min)")
+                .y_desc("PSNR (dB)")
+                .x_label_formatter(&|v| tick_label(*v))
+                .y_label_formatter(&|v| tick_label(*v));
         } else {
             mesh.x_labels(0).y_labels(0);
         }

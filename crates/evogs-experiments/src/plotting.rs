@@ -1,7 +1,8 @@
 //! What the plots of evogs share: the training plot ([`crate::train_plot`]) and the ablation and
 //! benchmark plots of `evogs-experiments`. Each draws with `plotters` into an RGB buffer; where the
 //! system has no sans-serif font the text-less drawing is tried next ([`draw_with_fallback`]).
-//! Axis ranges come from the finite values only ([`finite_bounds`], [`padded_range`]).
+//! Axis ranges come from the finite values only ([`finite_bounds`], [`padded_range`]); tick labels
+//! are written by [`tick_label`] (`1000`, not plotters' `1000.0`).
 //!
 //! What it is not: a plot. Each plot keeps its own layout, series and margins.
 
@@ -42,6 +43,39 @@ pub fn padded_range(values: impl Iterator<Item = f64>, fraction: f64, floor: f64
     (lo - margin, hi + margin)
 }
 
+/// An axis tick's label: a whole number without a decimal point (`1000`, `-5`, `0`), anything
+/// else with four significant digits and no trailing zeros (`0.025`, `27.5`, `0.0001234`);
+/// magnitudes below 10⁻⁴ in scientific notation (`2.5e-6`). Whole is judged with a tolerance
+/// relative to the value, so that ticks plotters computes as `999.9999999999` print as `1000`.
+pub fn tick_label(value: f64) -> String {
+    if !value.is_finite() {
+        return value.to_string();
+    }
+    let rounded = value.round();
+    if (value - rounded).abs() <= 1e-9 * value.abs().max(1.0) && rounded.abs() < 1e15 {
+        // `as i64` is exact below 2^53 and turns -0.0 into 0.
+        return (rounded as i64).to_string();
+    }
+    let magnitude = value.abs().log10().floor();
+    if magnitude < -4.0 {
+        let text = format!("{value:.3e}");
+        let (mantissa, exponent) = text.split_once('e').unwrap_or((&text, "0"));
+        return format!("{}e{exponent}", trim_zeros(mantissa));
+    }
+    // Four significant digits: 3 − ⌊log10 |v|⌋ decimals (0 from 1000 up).
+    let decimals = (3.0 - magnitude).clamp(0.0, 8.0) as usize;
+    trim_zeros(&format!("{value:.decimals$}")).to_string()
+}
+
+/// `text` without trailing zeros after a decimal point, nor a bare trailing point.
+fn trim_zeros(text: &str) -> &str {
+    if text.contains('.') {
+        text.trim_end_matches('0').trim_end_matches('.')
+    } else {
+        text
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -55,6 +89,28 @@ mod tests {
         assert_eq!(padded_range(std::iter::empty(), 0.1, 0.05), (0.0, 1.0));
         assert_eq!(finite_bounds([f64::NAN, f64::INFINITY].into_iter()), None);
         assert_eq!(finite_bounds([2.0, -1.0].into_iter()), Some((-1.0, 2.0)));
+    }
+
+    #[test]
+    fn tick_labels_print_whole_numbers_as_integers() {
+        for (value, label) in [
+            (1000.0, "1000"),
+            (0.0, "0"),
+            (-0.0, "0"),
+            (-5.0, "-5"),
+            (45_000.0, "45000"),
+            (999.999_999_999_9, "1000"),
+            (0.1 + 0.2, "0.3"),
+            (0.025, "0.025"),
+            (27.5, "27.5"),
+            (-12.25, "-12.25"),
+            (1234.6, "1235"),
+            (0.000_123_4, "0.0001234"),
+            (0.000_002_5, "2.5e-6"),
+            (f64::NAN, "NaN"),
+        ] {
+            assert_eq!(tick_label(value), label, "{value}");
+        }
     }
 
     #[test]

@@ -9,7 +9,7 @@ use image::RgbImage;
 use plotters::prelude::*;
 
 use crate::ExperimentError;
-use crate::plotting::{draw_with_fallback, padded_range};
+use crate::plotting::{draw_with_fallback, padded_range, tick_label};
 
 const WIDTH: u32 = 900;
 const HEIGHT: u32 = 900;
@@ -52,7 +52,10 @@ fn draw(lines: &[LogLine], buf: &mut [u8], text: bool) -> Result<(), String> {
             .map_err(|e| err(&e))?;
         let mut mesh = chart.configure_mesh();
         if text {
-            mesh.x_desc("iteration").y_desc(name);
+            mesh.x_desc("iteration")
+                .y_desc(name)
+                .x_label_formatter(&|v| tick_label(*v))
+                .y_label_formatter(&|v| tick_label(*v));
         } else {
             mesh.disable_x_mesh()
                 .disable_y_mesh()

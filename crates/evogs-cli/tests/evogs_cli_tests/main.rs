@@ -20,6 +20,7 @@ mod evogs_cli;
 mod evogs_switches;
 mod faults;
 mod help;
+mod plot_cli;
 mod prepare_cli;
 mod render_cli;
 mod synth_cli;
