@@ -1,15 +1,17 @@
 //! An estimate of a training run's peak memory, printed by `evogs train` at the start and
 //! checked against `--memory-limit` ([`MemoryEstimate::max_gaussians`]).
 //!
-//! What it is: the larger of two peaks, from the settings and the sizes known at the start.
-//! A training step holds the training images, the process's fixed cost, the per-pixel render
-//! and loss buffers, the network (parameters, gradients, Adam moments) and a cost per Gaussian
-//! (parameters, Adam moments, gradients, densification statistics, the rasterizer's records and
-//! tile lists, the deformation rows and the network's per-row activations, EvoGS's buffer and
-//! per-frame memory). Writing a checkpoint holds, instead of the step's buffers, the serialised
-//! copies of the state (EvoGS's buffer and memory, then the Gaussians with their Adam moments
-//! and statistics). The Gaussian count is the one unknown at the start: [`MemoryEstimate::at`]
-//! gives the estimate for any count, and a memory limit becomes a cap on the count.
+//! What it is: the peak of a checkpoint write, from the settings and the sizes known at the
+//! start. A training step holds the training images, the process's fixed cost, the per-pixel
+//! render and loss buffers, the network (parameters, gradients, Adam moments) and a cost per
+//! Gaussian (parameters, Adam moments, gradients, densification statistics, the rasterizer's
+//! records and tile lists, the deformation rows and the network's per-row activations, EvoGS's
+//! buffer and per-frame memory). The step's buffers stay allocated between steps (the training
+//! iteration allocates nothing once warmed up), so writing a checkpoint holds all of that and,
+//! on top, the serialised copies of the state (EvoGS's buffer and memory, or the Gaussians with
+//! their Adam moments and statistics, whichever is larger). The Gaussian count is the one
+//! unknown at the start: [`MemoryEstimate::at`] gives the estimate for any count, and a memory
+//! limit becomes a cap on the count.
 //!
 //! What it is not: a measurement. The per-row network activations are modelled as the layer
 //! widths (the exact buffers depend on the backbone), the tile lists as [`TILES_PER_GAUSSIAN`]
@@ -56,16 +58,15 @@ pub struct MemoryEstimate {
     pub fixed: u64,
     /// Of which the network.
     pub network: u64,
-    /// Of which the render and loss buffers of a step (not held while a checkpoint is written).
+    /// Of which the render and loss buffers of a step.
     pub render: u64,
     /// Bytes per Gaussian during a step.
     pub per_gaussian: u64,
     /// Of which EvoGS's buffer and per-frame memory (0 for other methods).
     pub evolution_per_gaussian: u64,
-    /// Bytes per Gaussian while a checkpoint is written: what stays between steps (parameters,
-    /// Adam moments, densification statistics, EvoGS's buffer and memory) and the larger of the
-    /// two serialised files (EvoGS's state in one copy; the checkpoint's tensors and the file
-    /// they are serialised into, two copies).
+    /// Bytes per Gaussian a checkpoint write holds on top of a step's: the larger of the two
+    /// serialised files (EvoGS's state in one copy; the checkpoint's tensors (parameters, Adam
+    /// moments, densification statistics) and the file they are serialised into, two copies).
     pub checkpoint_per_gaussian: u64,
 }
 
@@ -89,10 +90,9 @@ impl MemoryEstimate {
         // the tile lists' two entries per touched tile.
         let raster = 56 + 4 + 8 + 4 + 8 * TILES_PER_GAUSSIAN;
         let (network_rows, evolution) = per_row_network(config, inputs.frames);
-        // Between steps: the parameters with their two Adam moments, the statistics (stored as
-        // they are in memory) and EvoGS's buffer and memory.
+        // The checkpoint's tensors: the parameters with their two Adam moments and the
+        // statistics (stored as they are in memory).
         let kept = F32 * 3 * p + stats;
-        let serialised = evolution.max(2 * kept);
         Self {
             images,
             fixed,
@@ -100,34 +100,33 @@ impl MemoryEstimate {
             render,
             per_gaussian: gaussian + stats + raster + network_rows + evolution,
             evolution_per_gaussian: evolution,
-            checkpoint_per_gaussian: kept + evolution + serialised,
+            checkpoint_per_gaussian: evolution.max(2 * kept),
         }
     }
 
-    /// The estimated peak with `gaussians` Gaussians: the larger of a step's and a checkpoint
-    /// write's.
+    /// The estimated peak with `gaussians` Gaussians: a checkpoint write's, which holds a
+    /// step's buffers and the serialised copies.
     pub fn at(&self, gaussians: usize) -> u64 {
-        let n = gaussians as u64;
-        let step = self.fixed + self.per_gaussian * n;
-        let checkpoint = self.fixed - self.render + self.checkpoint_per_gaussian * n;
-        self.images + step.max(checkpoint)
+        self.images + self.fixed + self.peak_per_gaussian() * gaussians as u64
+    }
+
+    /// Bytes per Gaussian at the peak: a step's and a checkpoint write's copies.
+    pub fn peak_per_gaussian(&self) -> u64 {
+        self.per_gaussian + self.checkpoint_per_gaussian
     }
 
     /// The most Gaussians whose estimate stays within `limit` bytes; `None` when even the
     /// images and fixed part exceed it.
     pub fn max_gaussians(&self, limit: u64) -> Option<usize> {
         let room = limit.checked_sub(self.images + self.fixed)?;
-        let by_step = room / self.per_gaussian.max(1);
-        let by_checkpoint = (room + self.render) / self.checkpoint_per_gaussian.max(1);
-        Some(usize::try_from(by_step.min(by_checkpoint)).unwrap_or(usize::MAX))
+        Some(usize::try_from(room / self.peak_per_gaussian().max(1)).unwrap_or(usize::MAX))
     }
 
     /// One line: the total at `gaussians` and its parts.
     pub fn summary(&self, gaussians: usize) -> String {
         format!(
             "memory estimate: {} with {gaussians} Gaussians (images {}, network {}, other fixed {}, \
-             {} per Gaussian{}; writing a checkpoint: {} per Gaussian, without the {} of render \
-             buffers)",
+             {} per Gaussian{}; writing a checkpoint: {} more per Gaussian)",
             human_bytes(self.at(gaussians)),
             human_bytes(self.images),
             human_bytes(self.network),
@@ -142,7 +141,6 @@ impl MemoryEstimate {
                 String::new()
             },
             human_bytes(self.checkpoint_per_gaussian),
-            human_bytes(self.render),
         )
     }
 }
@@ -262,7 +260,7 @@ mod tests {
         assert_eq!(e.network, 10_000 * 16);
         assert_eq!(e.fixed, PROCESS_BYTES + 160_000 * BYTES_PER_PIXEL + 160_000);
         assert_eq!(e.at(0), e.images + e.fixed);
-        assert_eq!(e.at(1000) - e.at(0), 1000 * e.per_gaussian);
+        assert_eq!(e.at(1000) - e.at(0), 1000 * e.peak_per_gaussian());
     }
 
     #[test]
@@ -301,40 +299,36 @@ mod tests {
     }
 
     #[test]
-    fn writing_a_checkpoint_holds_the_state_and_its_serialised_copy() {
+    fn writing_a_checkpoint_holds_a_steps_buffers_and_the_serialised_copies() {
         let mut c = TrainConfig::preset(Preset::Cpu);
         let base = MemoryEstimate::new(&c, &inputs());
-        // Baseline: parameters, two Adam moments and 7 statistics kept; the checkpoint's
-        // tensors and its file are two more copies of them.
+        // Baseline: the checkpoint's tensors (parameters, two Adam moments and 7 statistics)
+        // and the file they are serialised into, two copies.
         let kept = 59 * 4 * 3 + 7 * 4;
-        assert_eq!(base.checkpoint_per_gaussian, 3 * kept);
+        assert_eq!(base.checkpoint_per_gaussian, 2 * kept);
         assert_eq!(base.render, 160_000 * BYTES_PER_PIXEL);
         c.method = Method::Evogs;
         let e = MemoryEstimate::new(&c, &inputs());
         let evolution = e.evolution_per_gaussian;
-        assert_eq!(
-            e.checkpoint_per_gaussian,
-            kept + evolution + evolution.max(2 * kept)
-        );
-        // The estimate is the larger peak: the step's with few Gaussians (its render buffers),
-        // the checkpoint's with many (EvoGS: the buffer and its serialised copy).
+        // EvoGS on lego's 50 frames: its state's one copy is the larger file.
+        assert!(evolution > 2 * kept);
+        assert_eq!(e.checkpoint_per_gaussian, evolution);
+        // The step's buffers stay allocated while the checkpoint is written: the peak is both.
         for n in [0, 1_000, 100_000, 1_000_000] {
-            let step = e.images + e.fixed + e.per_gaussian * n as u64;
-            let write = e.images + e.fixed - e.render + e.checkpoint_per_gaussian * n as u64;
-            assert_eq!(e.at(n), step.max(write), "{n}");
+            let step = e.fixed + e.per_gaussian * n as u64;
+            assert_eq!(e.at(n), e.images + step + evolution * n as u64, "{n}");
         }
-        assert!(e.at(0) > e.images + e.fixed - e.render);
-        assert!(e.checkpoint_per_gaussian > e.per_gaussian);
+        assert_eq!(e.peak_per_gaussian(), e.per_gaussian + evolution);
     }
 
     #[test]
-    fn a_limit_caps_the_count_below_both_peaks() {
+    fn a_limit_caps_the_count_below_the_peak() {
         let mut c = TrainConfig::preset(Preset::Cpu);
         for method in [Method::Baseline, Method::Evogs] {
             c.method = method;
             let e = MemoryEstimate::new(&c, &inputs());
             for target in [0usize, 1, 777, 12_345, 250_000, 3_000_000] {
-                for slack in [0, 1, e.per_gaussian / 2] {
+                for slack in [0, 1, e.peak_per_gaussian() / 2] {
                     let limit = e.at(target) + slack;
                     let n = e.max_gaussians(limit).unwrap();
                     assert!(e.at(n) <= limit, "{method:?} {target} {slack}");
@@ -347,7 +341,9 @@ mod tests {
     #[test]
     fn a_limit_becomes_the_largest_count_that_fits() {
         let e = MemoryEstimate::new(&TrainConfig::preset(Preset::Cpu), &inputs());
-        let n = e.max_gaussians(e.at(12_345) + e.per_gaussian - 1).unwrap();
+        let n = e
+            .max_gaussians(e.at(12_345) + e.peak_per_gaussian() - 1)
+            .unwrap();
         assert_eq!(n, 12_345);
         assert!(e.at(n) <= e.at(12_345));
         assert_eq!(e.max_gaussians(e.at(0) - 1), None);
