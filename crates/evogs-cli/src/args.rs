@@ -227,6 +227,13 @@ pub struct TrainArgs {
     #[arg(long, value_name = "BYTES", value_parser = parse_memory)]
     pub memory_limit: Option<u64>,
 
+    /// Let glibc's allocator keep freed memory for reuse (its own default) instead of returning
+    /// it after loading, densification and before each checkpoint: the peak resident memory was
+    /// up to a quarter above the printed estimate on lego, at the same CPU time
+    /// (results/memory.md). Not with a memory limit.
+    #[arg(long, conflicts_with = "memory_limit")]
+    pub keep_freed_memory: bool,
+
     /// Write the checkpoint (what --resume continues from) every N iterations [default: the
     /// preset's, scaled with --iterations].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
