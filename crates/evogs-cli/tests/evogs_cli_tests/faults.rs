@@ -18,7 +18,7 @@ use evogs_train::run::{RunFile, RunPaths};
 use evogs_train::state::SceneState;
 use evogs_train::trainer::make_backbone;
 use rand::{RngExt, SeedableRng};
-use support::{rigid_scene, s, stderr};
+use support::{one_line_error, rigid_scene, s, stderr};
 
 /// The files of a finished run that must match the uninterrupted run's byte for byte.
 const FINAL_FILES: [&str; 4] = [
@@ -337,4 +337,32 @@ fn a_memory_limit_refuses_to_start_below_the_estimate_and_caps_densification_abo
     assert!(start <= cap && cap < grown, "{out}");
     let most = number_after(&out, "at the most Gaussians (").unwrap();
     assert!(most <= cap, "{out}");
+
+    // Keeping freed memory (glibc's default) changes nothing the run writes, and cannot be
+    // combined with a limit, given or recorded in the run.
+    let mut args = train_args(&data, &dir.path().join("kept"), ITERATIONS, 10);
+    args.push("--keep-freed-memory".into());
+    let o = support::command().args(&args).output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let ply = |name: &str| std::fs::read(dir.path().join(name).join("canonical.ply")).unwrap();
+    assert!(
+        ply("kept") == ply("free"),
+        "the allocator changed the result"
+    );
+    args.extend(["--memory-limit".into(), "1G".into()]);
+    let e = one_line_error(&support::command().args(&args).output().unwrap());
+    assert!(
+        e.contains("--keep-freed-memory") && e.contains("--memory-limit"),
+        "{e}"
+    );
+    let capped = dir.path().join("capped");
+    let o = support::evogs(&[
+        "train",
+        "--out",
+        s(&capped),
+        "--resume",
+        "--keep-freed-memory",
+    ]);
+    let e = one_line_error(&o);
+    assert!(e.contains(s(&capped.join("config.json"))), "{e}");
 }
