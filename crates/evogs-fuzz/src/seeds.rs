@@ -38,6 +38,17 @@ pub fn tiny_state() -> (
     (state, backbone)
 }
 
+/// The network of the `weights` target and its seeds: an MLP 3 → 8 → 8 → 2 with a skip
+/// connection (five buffers of a few hundred values) stored in `precision`.
+pub fn weights_net(precision: tiny_nn::Precision) -> tiny_nn::Mlp {
+    tiny_nn::MlpConfig::new(3, 8, 2, 2)
+        .skip_after(1)
+        .precision(precision)
+        .seed(3)
+        .build()
+        .expect("the weights target's network")
+}
+
 /// Called by every target's `init`: when `EVOGS_FUZZ_SEEDS` names a folder, writes the seed
 /// corpora of every target into `<folder>/<target>/` (libFuzzer reads its corpus after `init`).
 pub fn seeds_from_env() {
@@ -263,6 +274,17 @@ pub fn write_all_seeds(dir: &Path) {
             .join(format!("{storage:?}.safetensors"));
         std::fs::create_dir_all(path.parent().unwrap()).unwrap();
         state.save(&path).unwrap();
+    }
+
+    // Network weights, f32 and f16 (the target's first byte picks the storage).
+    for (byte, precision) in [(0u8, tiny_nn::Precision::F32), (1, tiny_nn::Precision::F16)] {
+        let path = dir
+            .join("weights")
+            .join(format!("{precision:?}.safetensors"));
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        tiny_nn::weights::save(&path, &weights_net(precision)).unwrap();
+        let file = std::fs::read(&path).unwrap();
+        std::fs::write(&path, [[byte].as_slice(), &file].concat()).unwrap();
     }
 
     #[cfg(feature = "checkpoint")]

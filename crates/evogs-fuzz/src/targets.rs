@@ -45,6 +45,7 @@ pub const TARGETS: &[Target] = &[
     Target::new("point_cloud", point_cloud),
     Target::new("splat", splat),
     Target::new("compressed_ply", compressed_ply),
+    Target::new("weights", weights),
     #[cfg(feature = "checkpoint")]
     Target::new("checkpoint", checkpoint),
 ];
@@ -214,6 +215,31 @@ pub fn compressed_ply(data: &[u8]) -> bool {
     };
     consistent(&g);
     assert!(g.means.len() <= data.len());
+    true
+}
+
+/// Network weights (safetensors, one 1-D tensor per parameter buffer): `tiny_nn::weights::load`
+/// into a small network ([`crate::seeds::weights_net`], which its seeds were written with); the
+/// first byte picks its storage (f32 or f16), the rest is the file.
+pub fn weights(data: &[u8]) -> bool {
+    let Some((&which, file)) = data.split_first() else {
+        return false;
+    };
+    let precision = [tiny_nn::Precision::F32, tiny_nn::Precision::F16][usize::from(which % 2)];
+    let path = put("weights.safetensors", file);
+    let mut net = crate::seeds::weights_net(precision);
+    if tiny_nn::weights::load(&path, &mut net).is_err() {
+        return false;
+    }
+    // Saved and loaded again, the network is the same, bit for bit (every value came from the
+    // file, and the writer and reader agree on every buffer).
+    let first = put("weights-saved.safetensors", &[]);
+    tiny_nn::weights::save(&first, &net).unwrap();
+    let mut other = crate::seeds::weights_net(precision);
+    tiny_nn::weights::load(&first, &mut other).unwrap();
+    let second = put("weights-resaved.safetensors", &[]);
+    tiny_nn::weights::save(&second, &other).unwrap();
+    assert!(std::fs::read(&first).unwrap() == std::fs::read(&second).unwrap());
     true
 }
 

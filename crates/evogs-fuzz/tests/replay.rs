@@ -272,6 +272,7 @@ replay_tests!(
     point_cloud,
     splat,
     compressed_ply,
+    weights,
     checkpoint,
 );
 
