@@ -8,6 +8,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use evogs_experiments::gain_table::gain_table;
 use evogs_experiments::motion_report::MotionReport;
+use evogs_train::run::checkpoint_follows;
 use evogs_train::{TrainConfig, TrainRequest, TrainSummary, train};
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -199,13 +200,8 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
     // The Gaussian count at the last `allocator::trim` (none before the first iteration).
     let mut trimmed_at: Option<usize> = None;
     let summary = train(&request, &mut |report, trainer| {
-        // A checkpoint is written after this call on these iterations (`evogs_train::run`).
-        let iterations = trainer.config().iterations;
-        let end = args.stop_after.map_or(iterations, |s| s.min(iterations));
-        let checkpoint = report
-            .iteration
-            .is_multiple_of(trainer.config().checkpoint_every)
-            || report.iteration == end;
+        let end = request.end(trainer.config());
+        let checkpoint = checkpoint_follows(trainer.config(), report.iteration, end);
         if release && (checkpoint || trimmed_at != Some(report.gaussians)) {
             if trimmed_at.is_none() {
                 allocator::mmap_threshold(allocator::TRAINING_MMAP_THRESHOLD);

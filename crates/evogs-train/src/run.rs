@@ -183,6 +183,21 @@ pub struct TrainRequest {
     pub resume_backend: Option<splat_raster::BackendChoice>,
 }
 
+impl TrainRequest {
+    /// The iteration the run stops at: the last one `config` plans, or [`TrainRequest::stop_after`]
+    /// if earlier. `config` is the run's own (on resume, the one its `config.json` records).
+    pub fn end(&self, config: &TrainConfig) -> u64 {
+        self.stop_after
+            .map_or(config.iterations, |s| s.min(config.iterations))
+    }
+}
+
+/// Whether [`train`] writes the resumable checkpoint right after `iteration` (after its progress
+/// callback): every `checkpoint_every` iterations, and at `end` ([`TrainRequest::end`]).
+pub fn checkpoint_follows(config: &TrainConfig, iteration: u64, end: u64) -> bool {
+    iteration.is_multiple_of(config.checkpoint_every) || iteration == end
+}
+
 /// File-name prefix of [`RunPaths::pending_evo_state`].
 const PENDING_EVO_STATE_PREFIX: &str = "evo_state.";
 
@@ -331,9 +346,7 @@ pub fn train(
             None => Trainer::new(c.clone(), train)?,
         }
     };
-    let end = request.stop_after.map_or(trainer.config().iterations, |s| {
-        s.min(trainer.config().iterations)
-    });
+    let end = request.end(trainer.config());
     let mut log = TrainLog::open(
         &paths.train_log(),
         trainer.config().log_every,
@@ -371,11 +384,8 @@ pub fn train(
                 index,
             });
         }
-        if report
-            .iteration
-            .is_multiple_of(trainer.config().checkpoint_every)
-            && report.iteration < end
-        {
+        // The one at `end` is written after the loop, with the final outputs.
+        if report.iteration < end && checkpoint_follows(trainer.config(), report.iteration, end) {
             save_resumable(&paths, &trainer)?;
         }
         last = Some(report);
