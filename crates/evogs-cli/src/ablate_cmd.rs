@@ -34,6 +34,10 @@ pub struct AblateArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub iterations: Option<u64>,
 
+    /// Every run's time budget.
+    #[command(flatten)]
+    pub budget: crate::args::BudgetArgs,
+
     /// Deformation backbone of every row: the baseline rows train it, the EvoGS rows use Φ built
     /// from its field (4dgs, grid4d; d3dgs: the tri-plane Φ).
     #[arg(long, default_value = "d3dgs", value_name = "d3dgs|4dgs|grid4d")]
@@ -67,6 +71,7 @@ pub fn run_ablate(args: &AblateArgs) -> Result<Vec<AblationResult>> {
     if let Some(n) = args.iterations {
         config = config.with_iterations(n);
     }
+    config.budget = args.budget.budget();
     if let Some(s) = args.seed {
         config.seed = s;
     }

@@ -91,6 +91,40 @@ pub struct PlotArgs {
     pub out: Option<PathBuf>,
 }
 
+/// A time budget on the command line (`evogs train`, `bench`, `ablate`).
+#[derive(Debug, Args)]
+pub struct BudgetArgs {
+    /// Train for this much time instead of a number of iterations (180s, 3m, 2m30s, 1h): the
+    /// schedule (warm-up, SH steps, lr decays, densification, opacity resets) is the preset's,
+    /// or --iterations', mapped onto the share of the budget spent, so it ends when the budget
+    /// is spent. Counts the training loop, not the loading or evaluations; recorded in
+    /// config.json and train_metrics.json with the iterations reached [default: no budget].
+    #[arg(long, value_name = "DURATION", value_parser = parse_time_budget, allow_hyphen_values = true)]
+    pub time_budget: Option<f64>,
+
+    /// The clock --time-budget is measured on: cpu (the process's CPU time, all threads summed:
+    /// fair on a machine shared with other jobs; with T threads a budget lasts about 1/T of it
+    /// in wall time) or wall (wall-clock time) [default: cpu].
+    #[arg(long, value_name = "cpu|wall", requires = "time_budget")]
+    pub budget_clock: Option<evogs_train::budget::BudgetClock>,
+}
+
+impl BudgetArgs {
+    /// The budget the flags ask for.
+    pub fn budget(&self) -> Option<evogs_train::budget::TimeBudget> {
+        self.time_budget
+            .map(|seconds| evogs_train::budget::TimeBudget {
+                seconds,
+                clock: self.budget_clock.unwrap_or_default(),
+            })
+    }
+}
+
+/// `--time-budget`: a duration ([`evogs_train::budget::parse_duration`]).
+fn parse_time_budget(text: &str) -> Result<f64, String> {
+    evogs_train::budget::parse_duration(text)
+}
+
 /// Arguments of `evogs train`.
 #[derive(Debug, Args)]
 pub struct TrainArgs {
@@ -181,9 +215,14 @@ pub struct TrainArgs {
     #[arg(long, default_value = "cpu")]
     pub preset: evogs_train::Preset,
 
-    /// Iterations; the preset's schedule is scaled to this count.
+    /// Iterations; the preset's schedule is scaled to this count (with --time-budget: the
+    /// schedule's length, which the budget is mapped onto).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub iterations: Option<u64>,
+
+    /// The time budget.
+    #[command(flatten)]
+    pub budget: BudgetArgs,
 
     /// Image resize factor, e.g. 2 trains lego at 400×400 [preset: cpu and dnerf 2, paper 1].
     #[arg(long, value_name = "F")]
@@ -196,7 +235,7 @@ pub struct TrainArgs {
     /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
     #[arg(
         long,
-        conflicts_with_all = ["data", "time_from", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "max_gaussians", "max_screen_radius", "memory_limit", "checkpoint_every"]
+        conflicts_with_all = ["data", "time_from", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "max_gaussians", "max_screen_radius", "memory_limit", "checkpoint_every", "time_budget", "budget_clock"]
     )]
     pub resume: bool,
 

@@ -41,6 +41,10 @@ pub struct BenchArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub iterations: Option<u64>,
 
+    /// Every run's time budget.
+    #[command(flatten)]
+    pub budget: crate::args::BudgetArgs,
+
     /// Curve points (PSNR on the headline split) every this many iterations.
     #[arg(long, default_value_t = 1000, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub eval_every: u64,
@@ -71,6 +75,7 @@ pub fn run_bench_cmd(args: &BenchArgs) -> Result<Vec<BenchRun>> {
     if let Some(n) = args.iterations {
         config = config.with_iterations(n);
     }
+    config.budget = args.budget.budget();
     if let Some(s) = args.seed {
         config.seed = s;
     }

@@ -63,6 +63,15 @@ fn main() -> ExitCode {
                 s.gaussians,
                 args.out.display()
             );
+            if let Some(b) = &s.budget {
+                println!(
+                    "budget: spent {:.1} of {}; schedule iteration {} of {}",
+                    b.spent_seconds,
+                    b.budget.describe(),
+                    b.schedule_iteration,
+                    s.iterations
+                );
+            }
             println!("time per phase:\n{}", s.phases);
         }),
         Command::Eval(args) => run_eval(args).map(|r| {

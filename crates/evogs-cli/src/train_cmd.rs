@@ -20,6 +20,7 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     if let Some(n) = args.iterations {
         config = config.with_iterations(n);
     }
+    config.budget = args.budget.budget();
     if let Some(f) = args.downscale {
         anyhow::ensure!(
             f.is_finite() && f >= 1.0,
@@ -200,8 +201,7 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
     // The Gaussian count at the last `allocator::trim` (none before the first iteration).
     let mut trimmed_at: Option<usize> = None;
     let summary = train(&request, &mut |report, trainer| {
-        let end = request.end(trainer.config());
-        let checkpoint = checkpoint_follows(trainer.config(), report.iteration, end);
+        let checkpoint = checkpoint_follows(trainer.config(), report);
         if release && (checkpoint || trimmed_at != Some(report.gaussians)) {
             if trimmed_at.is_none() {
                 allocator::mmap_threshold(allocator::TRAINING_MMAP_THRESHOLD);
@@ -232,24 +232,28 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
                 .get_or_insert_with(|| MotionReport::for_run(trainer))
                 .add(stats);
         }
+        // The bar and the ETA follow the schedule (a budget run's steps are not its length).
         let total = trainer.config().iterations;
-        let start = *first.get_or_insert(report.iteration - 1);
+        let at = report.schedule_iteration;
+        let (start, start_at) = *first.get_or_insert((report.iteration - 1, at.saturating_sub(1)));
         bar.set_length(total);
-        bar.set_position(report.iteration);
+        bar.set_position(at);
         let msg = format!(
             "loss {:.4} PSNR {:.2} dB, {} Gaussians",
             report.loss, report.psnr, report.gaussians
         );
         bar.set_message(msg.clone());
         let every = (total / 20).clamp(1, 500);
-        if !terminal && (report.iteration.is_multiple_of(every) || report.iteration == total) {
-            let done = report.iteration - start;
-            let rate = done as f64 / started.elapsed().as_secs_f64().max(1e-9);
-            let eta = (total - report.iteration) as f64 / rate.max(1e-9);
-            eprintln!(
-                "iteration {}/{total}: {msg}, {rate:.2} it/s, ETA {eta:.0} s",
-                report.iteration
-            );
+        if !terminal && (report.iteration.is_multiple_of(every) || at == total) {
+            let elapsed = started.elapsed().as_secs_f64().max(1e-9);
+            let rate = report.iteration.saturating_sub(start) as f64 / elapsed;
+            let eta = (total - at) as f64 / ((at - start_at) as f64 / elapsed).max(1e-9);
+            let position = if trainer.config().budget.is_some() {
+                format!("{} (schedule {at}/{total})", report.iteration)
+            } else {
+                format!("{}/{total}", report.iteration)
+            };
+            eprintln!("iteration {position}: {msg}, {rate:.2} it/s, ETA {eta:.0} s");
         }
         if let Some(m) = motion.as_mut()
             && report.iteration.is_multiple_of(every)

@@ -80,6 +80,13 @@ impl LoadedRun {
             net_width: run.train.net.width,
             phases: PhaseTimes::default(),
             gain: None,
+            budget: run.train.budget.zip(meta.budget).map(|(budget, p)| {
+                evogs_train::budget::BudgetSummary {
+                    budget,
+                    spent_seconds: p.spent_seconds,
+                    schedule_iteration: p.schedule_iteration,
+                }
+            }),
         };
         Ok(Self {
             paths,
@@ -100,7 +107,7 @@ impl LoadedRun {
 
     /// Whether the run got past its warm-up (the network is used only then).
     pub fn deforms(&self) -> bool {
-        self.summary.iteration >= self.run.train.warm_up
+        self.summary.schedule_iteration() >= self.run.train.warm_up
     }
 
     /// The deformed Gaussians at any finite `time` (a non-finite one is an error naming the

@@ -591,11 +591,11 @@ pub fn table(config: &TrainConfig, results: &[AblationResult]) -> String {
     let with_val = results.iter().any(|r| r.scores.val_psnr.is_some());
     let multi = results.iter().any(|r| r.seeds.len() > 1);
     let mut s = format!(
-        "# evogs ablate: backbone `{}`, {} iterations per row, {}\n\n\
+        "# evogs ablate: backbone `{}`, {} per row, {}\n\n\
          | row | switches |{} PSNR (dB) | SSIM | lpips_alex |{} flicker | jitter | training (s) | Gaussians | state (KiB) | K mean | K std (in run) | K moving / still |\n\
          | --- | --- |{} ---: | ---: | ---: |{} ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
         config.backbone,
-        config.iterations,
+        config.length(),
         seeds_heading(config, results),
         if multi { " seeds |" } else { "" },
         if with_val {
@@ -667,15 +667,16 @@ pub fn write_outputs(
     results: &[AblationResult],
 ) -> Result<(), ExperimentError> {
     write_bytes(&out.join("ablation.md"), table(config, results).as_bytes())?;
-    write_json(
-        &out.join("ablation.json"),
-        &serde_json::json!({
-            "backbone": config.backbone,
-            "iterations": config.iterations,
-            "seeds": results.first().map(|r| r.seeds.iter().map(|s| s.seed).collect::<Vec<_>>()),
-            "rows": results,
-        }),
-    )?;
+    let mut json = serde_json::json!({
+        "backbone": config.backbone,
+        "iterations": config.iterations,
+        "seeds": results.first().map(|r| r.seeds.iter().map(|s| s.seed).collect::<Vec<_>>()),
+        "rows": results,
+    });
+    if let Some(budget) = &config.budget {
+        json["budget"] = serde_json::json!(budget);
+    }
+    write_json(&out.join("ablation.json"), &json)?;
     let png = out.join("ablation.png");
     let image = crate::ablate_plot::plot(results)
         .map_err(|problem| ExperimentError::output(&png, format!("plotting: {problem}")))?;

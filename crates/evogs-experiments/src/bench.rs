@@ -380,7 +380,6 @@ fn bench_one(
     let mut eval_seconds = 0.0;
     let mut curve = Vec::new();
     let mut failure = None;
-    let iterations = config.iterations;
     let summary = train(
         &TrainRequest {
             data: scene.data.clone(),
@@ -391,9 +390,7 @@ fn bench_one(
             resume_backend: None,
         },
         &mut |report, trainer| {
-            if failure.is_some()
-                || !(report.iteration.is_multiple_of(eval_every) || report.iteration == iterations)
-            {
+            if failure.is_some() || !(report.iteration.is_multiple_of(eval_every) || report.last) {
                 return;
             }
             let t = Instant::now();
@@ -508,7 +505,7 @@ fn fmt_opt(v: Option<f64>, digits: usize) -> String {
 /// published figure for each scene beside ours.
 pub fn table(config: &TrainConfig, runs: &[BenchRun]) -> String {
     let mut s = format!(
-        "# evogs bench: backbone `{}`, preset `{}`, {} iterations, seed {}\n\n\
+        "# evogs bench: backbone `{}`, preset `{}`, {}, seed {}\n\n\
          Headline split: lego val, the other scenes test (as D-3DGS reports them). Times are \
          wall clock on the machine as it was (see the README for what else ran); curve \
          evaluations are excluded. LPIPS: AlexNet and VGG16 backbones (– where not computed); \
@@ -516,7 +513,10 @@ pub fn table(config: &TrainConfig, runs: &[BenchRun]) -> String {
          or deformed at an evaluated time.\n\n\
          | scene | method | split | PSNR (dB) | SSIM | LPIPS (Alex) | LPIPS (VGG) | other split PSNR | Gaussians | peak memory (MiB) | training (min) | non-finite | published (D-3DGS) |\n\
          | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |\n",
-        config.backbone, config.preset, config.iterations, config.seed
+        config.backbone,
+        config.preset,
+        config.length(),
+        config.seed
     );
     for r in runs {
         let head = r.score(&r.headline);

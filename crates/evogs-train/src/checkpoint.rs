@@ -14,6 +14,7 @@ use tiny_nn::{StoreMut, StoreRef};
 
 use evogs_backbones::Backbone;
 
+use crate::budget::BudgetProgress;
 use crate::error::TrainError;
 use crate::state::SceneState;
 
@@ -35,6 +36,9 @@ pub struct CheckpointMeta {
     pub seed: u64,
     /// Adam step count of every group, by group name.
     pub adam_steps: Vec<(String, u64)>,
+    /// Where a budget run stands ([`crate::budget`]); absent in runs without a budget.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub budget: Option<BudgetProgress>,
 }
 
 fn f32_bytes(v: &[f32]) -> Vec<u8> {
@@ -45,13 +49,15 @@ fn u32_bytes(v: &[u32]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
 }
 
-/// Writes a checkpoint of `state` and `backbone` after `iteration` iterations.
+/// Writes a checkpoint of `state` and `backbone` after `iteration` iterations (with the
+/// progress of a budget run where there is one).
 pub fn save_checkpoint(
     path: &Path,
     state: &SceneState,
     backbone: &dyn Backbone,
     iteration: u64,
     seed: u64,
+    budget: Option<BudgetProgress>,
 ) -> Result<(), TrainError> {
     let g = state.gaussians();
     let mut tensors: Vec<(String, Dtype, Vec<u8>)> = vec![
@@ -138,6 +144,7 @@ pub fn save_checkpoint(
             .iter()
             .map(|gr| (gr.name.clone(), gr.step))
             .collect(),
+        budget,
     };
     let meta_json = serde_json::to_string(&meta)
         .map_err(|e| TrainError::file(path, format!("cannot encode metadata: {e}")))?;

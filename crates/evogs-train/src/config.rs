@@ -292,6 +292,11 @@ pub struct TrainConfig {
     /// as none.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub memory_limit: Option<u64>,
+    /// A time budget (`--time-budget`): the run trains until it is spent, its schedule of
+    /// `iterations` iterations following the budget ([`crate::budget`]). None: the run trains
+    /// `iterations` iterations (runs written before it existed read as none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub budget: Option<crate::budget::TimeBudget>,
 }
 
 /// `time_from` of a `config.json` written before the field existed: COLMAP frames had time 0.
@@ -332,6 +337,7 @@ impl TrainConfig {
             backend: splat_raster::BackendChoice::Cpu,
             time_from: evogs_io::TimeFrom::Order,
             memory_limit: None,
+            budget: None,
         };
         match preset {
             Preset::Paper => paper,
@@ -434,6 +440,19 @@ impl TrainConfig {
         self
     }
 
+    /// How long the run trains, in words: "3000 iterations", or with a budget "a budget of 180
+    /// CPU-seconds (schedule of 12000 iterations)".
+    pub fn length(&self) -> String {
+        match &self.budget {
+            None => format!("{} iterations", self.iterations),
+            Some(b) => format!(
+                "a budget of {} (schedule of {} iterations)",
+                b.describe(),
+                self.iterations
+            ),
+        }
+    }
+
     /// Checks every setting's range.
     pub fn validate(&self) -> Result<(), TrainError> {
         let bad = |field: &str, problem: &str| Err(TrainError::config(field, problem));
@@ -467,6 +486,9 @@ impl TrainConfig {
         }
         if self.method == Method::Evogs {
             self.evogs.validate()?;
+        }
+        if let Some(b) = &self.budget {
+            b.validate()?;
         }
         let d = &self.densify;
         for (field, set_by, is_set) in [

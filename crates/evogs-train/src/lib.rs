@@ -14,6 +14,7 @@
 //!   for); [`run`]: run directories (their layout, atomic JSON files, the config and checkpoint
 //!   read back), `train` and resume;
 //! - [`checkpoint`]: exact checkpoints;
+//! - [`budget`]: time budgets (`--time-budget`): the schedule's position from the budget spent;
 //! - [`gain_report`]: K's distribution (overall, moving vs still, per frame), accumulated by the
 //!   run and saved in `train_metrics.json` (its table and the motion report, a diagnostic of
 //!   EvoGS's motion statistics, are in `evogs-experiments`);
@@ -30,6 +31,7 @@
 //! `evogs-io`, `evogs-metrics`, `evogs-eval`, `evogs-synth`, `evogs-experiments`, `evogs-video`
 //! and `evogs-cli`.
 
+pub mod budget;
 pub mod checkpoint;
 pub mod config;
 pub mod data;

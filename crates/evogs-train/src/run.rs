@@ -28,6 +28,7 @@ use serde::{Deserialize, Serialize};
 
 use evogs_backbones::Backbone;
 
+use crate::budget::{BudgetProgress, BudgetSummary, Clock, Pacer, clock_of};
 use crate::checkpoint::{CheckpointMeta, load_checkpoint, save_checkpoint};
 use crate::config::TrainConfig;
 use crate::data::{load_dataset_split, load_split, open_dataset};
@@ -131,10 +132,23 @@ pub struct TrainSummary {
     /// Seconds per phase in the last process.
     pub phases: PhaseTimes,
     /// K's distribution over the gain-stage training steps of the last quarter of the run's
-    /// iterations run by the last process (EvoGS with evolution on; `null` otherwise and in
+    /// schedule run by the last process (EvoGS with evolution on; `null` otherwise and in
     /// files written before it was recorded). DESIGN §4.9.
     #[serde(default)]
     pub gain: Option<crate::gain_report::GainSummary>,
+    /// A budget run's budget, clock, budget spent and schedule iteration reached (absent
+    /// without a budget).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub budget: Option<BudgetSummary>,
+}
+
+impl TrainSummary {
+    /// The schedule iteration reached: [`TrainSummary::iteration`] without a budget.
+    pub fn schedule_iteration(&self) -> u64 {
+        self.budget
+            .as_ref()
+            .map_or(self.iteration, |b| b.schedule_iteration)
+    }
 }
 
 /// Writes `value` as pretty JSON to `path`, atomically (a run directory's JSON files).
@@ -184,18 +198,24 @@ pub struct TrainRequest {
 }
 
 impl TrainRequest {
-    /// The iteration the run stops at: the last one `config` plans, or [`TrainRequest::stop_after`]
-    /// if earlier. `config` is the run's own (on resume, the one its `config.json` records).
+    /// The iteration the run stops at at the latest: the last one `config` plans, or
+    /// [`TrainRequest::stop_after`] if earlier; with a time budget, `stop_after` or none
+    /// (`u64::MAX`: the budget decides). `config` is the run's own (on resume, the one its
+    /// `config.json` records).
     pub fn end(&self, config: &TrainConfig) -> u64 {
-        self.stop_after
-            .map_or(config.iterations, |s| s.min(config.iterations))
+        let planned = if config.budget.is_some() {
+            u64::MAX
+        } else {
+            config.iterations
+        };
+        self.stop_after.map_or(planned, |s| s.min(planned))
     }
 }
 
-/// Whether [`train`] writes the resumable checkpoint right after `iteration` (after its progress
-/// callback): every `checkpoint_every` iterations, and at `end` ([`TrainRequest::end`]).
-pub fn checkpoint_follows(config: &TrainConfig, iteration: u64, end: u64) -> bool {
-    iteration.is_multiple_of(config.checkpoint_every) || iteration == end
+/// Whether [`train`] writes the resumable checkpoint right after the step `report` (after its
+/// progress callback): every `checkpoint_every` iterations, and after the run's last step.
+pub fn checkpoint_follows(config: &TrainConfig, report: &StepReport) -> bool {
+    report.iteration.is_multiple_of(config.checkpoint_every) || report.last
 }
 
 /// File-name prefix of [`RunPaths::pending_evo_state`].
@@ -207,7 +227,11 @@ const PENDING_EVO_STATE_PREFIX: &str = "evo_state.";
 /// rename leaves the previous pair (and a pending file [`settle_evo_state`] removes); a kill
 /// after it leaves the new checkpoint with its state still pending (which
 /// [`settle_evo_state`] renames). Either way the resumed run continues bit for bit.
-fn save_resumable(paths: &RunPaths, trainer: &Trainer) -> Result<(), TrainError> {
+fn save_resumable(
+    paths: &RunPaths,
+    trainer: &Trainer,
+    budget: Option<BudgetProgress>,
+) -> Result<(), TrainError> {
     let pending = paths.pending_evo_state(trainer.iteration());
     let has_state = trainer.backbone().save_state(&pending)?;
     save_checkpoint(
@@ -216,6 +240,7 @@ fn save_resumable(paths: &RunPaths, trainer: &Trainer) -> Result<(), TrainError>
         trainer.backbone(),
         trainer.iteration(),
         trainer.config().seed,
+        budget,
     )?;
     if has_state {
         std::fs::rename(&pending, paths.evo_state()).map_err(|e| TrainError::io(&pending, e))?;
@@ -282,7 +307,18 @@ pub fn train(
     request: &TrainRequest,
     progress: &mut dyn FnMut(&StepReport, &mut Trainer),
 ) -> Result<TrainSummary, TrainError> {
+    train_with_clock(request, None, progress)
+}
+
+/// [`train`] with the budget read from `clock` instead of the clock the run's budget names
+/// (tests give a clock of made-up readings; without a budget it is not read).
+pub fn train_with_clock(
+    request: &TrainRequest,
+    clock: Option<&mut dyn Clock>,
+    progress: &mut dyn FnMut(&StepReport, &mut Trainer),
+) -> Result<TrainSummary, TrainError> {
     let paths = RunPaths::new(&request.out);
+    let mut resumed_budget = None;
     let mut trainer = if request.resume {
         let mut run: RunFile = read_json(&paths.config())?;
         let recorded_backend = run.train.backend;
@@ -306,8 +342,15 @@ pub fn train(
         let (state, mut backbone, meta) = read_checkpoint(&ckpt, &run.train)?;
         settle_evo_state(&paths, meta.iteration)?;
         backbone.load_state(&paths.evo_state())?;
-        let trainer =
+        let mut trainer =
             Trainer::from_parts(run.train.clone(), train, state, backbone, meta.iteration)?;
+        if run.train.budget.is_some() {
+            let progress = meta.budget.ok_or_else(|| {
+                TrainError::field(&ckpt, "budget", "missing: the run has a time budget")
+            })?;
+            trainer.resume_schedule_at(progress.schedule_iteration);
+            resumed_budget = Some(progress);
+        }
         if run.train.backend != recorded_backend {
             // Recorded only once the new backend is up, so that a failed switch changes nothing.
             write_json(&paths.config(), &run)?;
@@ -357,14 +400,60 @@ pub fn train(
     let mut last = None;
     let mut gain = trainer.new_gain_report();
     let last_quarter_from = trainer.config().iterations - trainer.config().iterations / 4;
-    while trainer.iteration() < end {
-        let report = trainer.step()?;
-        if report.iteration > last_quarter_from
+    // A budget run: its pacer, the clock, the budget spent before this process and the clock's
+    // reading when this process's loop started, less the time its callbacks took.
+    let budget = trainer.config().budget;
+    let mut own_clock = None;
+    let mut paced = match budget {
+        Some(b) => {
+            let clock: &mut dyn Clock = match clock {
+                Some(c) => c,
+                None => own_clock.insert(clock_of(b.clock)).as_mut(),
+            };
+            let from = resumed_budget.unwrap_or(BudgetProgress::START);
+            let pacer = Pacer::new(b.seconds, trainer.config().iterations, from);
+            let origin = clock.seconds()? - from.spent_seconds;
+            Some((pacer, clock, origin))
+        }
+        None => None,
+    };
+    // The run's last step was already taken (a finished budget run resumed).
+    let finished = paced
+        .as_ref()
+        .is_some_and(|(pacer, _, _)| pacer.progress().finished);
+    while trainer.iteration() < end && !finished {
+        let report = match paced.as_mut() {
+            None => {
+                let mut report = trainer.step()?;
+                report.last = report.iteration == end;
+                report
+            }
+            Some((pacer, clock, origin)) => {
+                let spent = clock.seconds()? - *origin;
+                let Some(pace) = pacer.next(spent) else {
+                    break;
+                };
+                let mut report = trainer.step_to(pace.schedule_iteration)?;
+                report.last = pace.last || report.iteration == end;
+                report
+            }
+        };
+        if report.schedule_iteration > last_quarter_from
             && let Some(step) = trainer.evolution_step()
         {
             gain.add(step);
         }
-        progress(&report, &mut trainer);
+        match paced.as_mut() {
+            None => progress(&report, &mut trainer),
+            Some((pacer, clock, origin)) => {
+                // The callback's time is not the run's: the origin moves past it.
+                let before = clock.seconds()?;
+                progress(&report, &mut trainer);
+                let after = clock.seconds()?;
+                *origin += after - before;
+                pacer.record(after - *origin);
+            }
+        }
         log.record(
             &paths.train_log(),
             report.iteration,
@@ -372,9 +461,9 @@ pub fn train(
             report.psnr,
             report.gaussians,
             trainer.backbone().gain_stats(),
-            report.iteration == end,
+            report.last,
         )?;
-        if (report.iteration.is_multiple_of(trainer.config().log_every) || report.iteration == end)
+        if (report.iteration.is_multiple_of(trainer.config().log_every) || report.last)
             && let Some((group, index)) = trainer.state().first_non_finite(trainer.backbone())
         {
             // Before the checkpoint: the last one written stays the last finite state.
@@ -384,14 +473,23 @@ pub fn train(
                 index,
             });
         }
-        // The one at `end` is written after the loop, with the final outputs.
-        if report.iteration < end && checkpoint_follows(trainer.config(), report.iteration, end) {
-            save_resumable(&paths, &trainer)?;
+        // The last one is written after the loop, with the final outputs.
+        let budget_progress = paced.as_ref().map(|(pacer, _, _)| pacer.progress());
+        if !report.last && checkpoint_follows(trainer.config(), &report) {
+            save_resumable(&paths, &trainer, budget_progress)?;
         }
+        let is_last = report.last;
         last = Some(report);
+        if is_last {
+            break;
+        }
     }
     let seconds = started.elapsed().as_secs_f64();
-    save_resumable(&paths, &trainer)?;
+    let budget_progress = paced
+        .as_ref()
+        .map(|(pacer, _, _)| pacer.progress())
+        .or(resumed_budget);
+    save_resumable(&paths, &trainer, budget_progress)?;
     evogs_io::write_ply(&paths.canonical(), trainer.state().gaussians().view())?;
     trainer.backbone().save(&paths.weights())?;
     let done = trainer.iteration() - start_iteration;
@@ -407,6 +505,13 @@ pub fn train(
         net_width: trainer.config().net.width,
         phases: *trainer.times(),
         gain: (gain.samples() > 0).then(|| gain.summary()),
+        budget: budget
+            .zip(budget_progress)
+            .map(|(budget, p)| BudgetSummary {
+                budget,
+                spent_seconds: p.spent_seconds,
+                schedule_iteration: p.schedule_iteration,
+            }),
     };
     write_json(&paths.train_metrics(), &summary)?;
     Ok(summary)

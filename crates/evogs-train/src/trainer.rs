@@ -14,6 +14,12 @@
 //!    each step). As in 3DGS, the Gaussians are not stepped on an iteration that densified (the
 //!    replaced tensors carry no gradient), and the opacities not on one that reset them.
 //!
+//! A run with a time budget ([`crate::budget`]) places each step at a **schedule iteration**
+//! instead ([`Trainer::step_to`]): the SH steps, warm-up, densification and opacity resets, the
+//! lr and the end of the optimiser's steps follow it, every event between the previous step's
+//! schedule iteration and this one happening once; the views and everything seeded follow the
+//! steps themselves. Without a budget the two counts are one ([`Trainer::step`]).
+//!
 //! The rasterizer is the backend `config.backend` names (`cpu`, `wgpu`, `auto`; see
 //! [`splat_raster::select_rasterizer`] and [`Trainer::backend`]); the CPU one is the default.
 //!
@@ -50,8 +56,12 @@ use evogs_metrics::{ImageSize, LossWorkspace, psnr_from_mse};
 /// What one iteration did.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StepReport {
-    /// The iteration (from 1).
+    /// The iteration (from 1): steps taken.
     pub iteration: u64,
+    /// Where in the schedule the step was ([`Trainer::step_to`]); `iteration` without a budget.
+    pub schedule_iteration: u64,
+    /// Whether it is the run's last step (set by [`crate::train`]; false from the trainer).
+    pub last: bool,
     /// Photometric loss plus the backbone's own terms (EvoGS: λ1 L_sup + λ2 L_prior).
     pub loss: f64,
     /// PSNR of the training view.
@@ -183,6 +193,8 @@ pub struct Trainer {
     backbone: Box<dyn Backbone>,
     /// Iterations completed.
     iteration: u64,
+    /// The schedule iteration of the last step ([`Trainer::step_to`]).
+    schedule_iteration: u64,
     /// Time spent per phase (this process only).
     times: PhaseTimes,
     raster: DynRasterizer,
@@ -278,6 +290,7 @@ impl Trainer {
             state,
             backbone,
             iteration,
+            schedule_iteration: iteration,
             times: PhaseTimes::default(),
             raster,
             backend,
@@ -320,6 +333,18 @@ impl Trainer {
     /// Iterations completed.
     pub fn iteration(&self) -> u64 {
         self.iteration
+    }
+
+    /// The schedule iteration of the last step (equal to [`Trainer::iteration`] without a
+    /// budget).
+    pub fn schedule_iteration(&self) -> u64 {
+        self.schedule_iteration
+    }
+
+    /// Continues the schedule from `schedule_iteration` (a budget run resumed from its
+    /// checkpoint; [`Trainer::from_parts`] starts it at the iteration).
+    pub fn resume_schedule_at(&mut self, schedule_iteration: u64) {
+        self.schedule_iteration = schedule_iteration;
     }
 
     /// Time spent per phase (this process only).
@@ -382,15 +407,36 @@ impl Trainer {
         self.loss = LossWorkspace::new();
     }
 
-    /// Runs one iteration.
+    /// Runs one iteration, one schedule iteration on from the last.
     pub fn step(&mut self) -> Result<StepReport, TrainError> {
+        self.step_to(self.schedule_iteration + 1)
+    }
+
+    /// Runs one iteration at the schedule iteration `at` (at least 1, and not below the last
+    /// step's): the schedule's events of every schedule iteration after the last step's up to
+    /// `at` happen in this step, in order (SH steps, densification, opacity resets), none when
+    /// `at` is the last step's; the warm-up, the statistics' window, the lr and the end of the
+    /// optimiser's steps are those of `at`.
+    pub fn step_to(&mut self, at: u64) -> Result<StepReport, TrainError> {
+        if at == 0 || at < self.schedule_iteration {
+            return Err(TrainError::config(
+                "schedule_iteration",
+                format!(
+                    "{at}: a step cannot go back in the schedule (last step at {})",
+                    self.schedule_iteration
+                ),
+            ));
+        }
         let i = self.iteration + 1;
+        let crossed = self.schedule_iteration + 1..=at;
         let mut t = Instant::now();
-        if i.is_multiple_of(self.config.sh_interval) {
-            self.state.raise_active_sh(self.config.sh_degree);
+        for j in crossed.clone() {
+            if j.is_multiple_of(self.config.sh_interval) {
+                self.state.raise_active_sh(self.config.sh_degree);
+            }
         }
         let vi = self.view_at(i);
-        let deforms = self.deforms_at(i);
+        let deforms = self.deforms_at(at);
         t = self.times.lap(Phase::Data, t);
         if deforms {
             let view = &self.train.views[vi];
@@ -441,7 +487,7 @@ impl Trainer {
         t = self.times.lap(Phase::NetBackward, t);
         let (w, h) = (view.camera.width, view.camera.height);
         let schedule = self.densify.schedule;
-        if schedule.accumulates(i) {
+        if schedule.accumulates(at) {
             self.state
                 .add_view_stats(&grads.means2d, fwd.radii(), w, h)?;
             if deforms {
@@ -451,14 +497,14 @@ impl Trainer {
             }
         }
         let mut densified = false;
-        if schedule.acts(i) {
+        for j in crossed.clone().filter(|&j| schedule.acts(j)) {
             let plan = make_plan(
                 &self.densify,
                 &densify::PlanInput {
                     gaussians: self.state.gaussians().view(),
                     stats: self.state.stats(),
                     extent: self.extent,
-                    iteration: i,
+                    iteration: j,
                     deformation: if deforms {
                         self.backbone.latest_deformation()
                     } else {
@@ -466,15 +512,16 @@ impl Trainer {
                     },
                 },
             )?;
-            densified = plan.summary.after != plan.summary.before || plan.new_len() != plan.old_len;
+            densified |=
+                plan.summary.after != plan.summary.before || plan.new_len() != plan.old_len;
             self.state.apply_plan(&plan, self.backbone.as_mut())?;
         }
         t = self.times.lap(Phase::Densify, t);
-        if i < self.config.iterations {
-            let lr_step = i as i64 - 1;
-            if !schedule.densifies(i) {
-                self.state
-                    .step_gaussians(grads, lr_step, schedule.resets_opacity(i))?;
+        if at < self.config.iterations {
+            let lr_step = at as i64 - 1;
+            if !crossed.clone().any(|j| schedule.densifies(j)) {
+                let reset = crossed.clone().any(|j| schedule.resets_opacity(j));
+                self.state.step_gaussians(grads, lr_step, reset)?;
             }
             if let Some(g) = net_grads {
                 self.state
@@ -483,8 +530,11 @@ impl Trainer {
         }
         self.times.lap(Phase::Optimizer, t);
         self.iteration = i;
+        self.schedule_iteration = at;
         Ok(StepReport {
             iteration: i,
+            schedule_iteration: at,
+            last: false,
             loss: loss.loss
                 + if deforms {
                     self.backbone.loss_terms()
@@ -530,7 +580,7 @@ impl Trainer {
     /// The deformed Gaussians at `time` (canonical ones when the run has not reached the end of
     /// its warm-up: the network is not used then).
     pub fn deformed_at(&mut self, time: f32) -> Result<Gaussians, TrainError> {
-        let deforms = self.deforms_at(self.iteration.max(1));
+        let deforms = self.deforms_at(self.schedule_iteration.max(1));
         deformed_gaussians(
             self.state.gaussians(),
             self.backbone.as_mut(),
@@ -630,6 +680,45 @@ mod tests {
         let mut other = trainer(7, 2).unwrap();
         let o: Vec<usize> = (1..=7).map(|k| other.view_at(k)).collect();
         assert_ne!(o, epochs[0]);
+    }
+
+    /// Adam steps taken by the positions group.
+    fn position_steps(t: &Trainer) -> u64 {
+        t.state().adam().groups()[0].step
+    }
+
+    #[test]
+    fn steps_placed_in_the_schedule_run_each_event_once() {
+        // Tiny at 300: SH up every 100 (degree 3 at 300), no densification before 50.
+        let mut t = trainer(5, 0).unwrap();
+        let r = t.step_to(1).unwrap();
+        assert_eq!((r.iteration, r.schedule_iteration), (1, 1));
+        t.step_to(99).unwrap();
+        assert_eq!(t.state().active_sh(), 0);
+        // One step across two SH steps (100, 200) takes both.
+        t.step_to(250).unwrap();
+        assert_eq!(t.state().active_sh(), 2);
+        // Several steps may share a schedule iteration: the views go on, no event repeats, and
+        // each steps the optimiser.
+        let before = position_steps(&t);
+        t.step_to(250).unwrap();
+        assert_eq!(t.state().active_sh(), 2);
+        assert_eq!(position_steps(&t), before + 1);
+        assert_eq!((t.iteration(), t.schedule_iteration()), (4, 250));
+        let e = t.step_to(249).unwrap_err().to_string();
+        assert!(e.contains("schedule_iteration") && e.contains("249"), "{e}");
+        // The schedule's last iteration does no optimiser step, as without a budget.
+        let before = position_steps(&t);
+        t.step_to(300).unwrap();
+        assert_eq!(t.state().active_sh(), 3);
+        assert_eq!(position_steps(&t), before);
+        // Without a budget the two counts are one.
+        let mut u = trainer(5, 0).unwrap();
+        for _ in 0..3 {
+            u.step().unwrap();
+        }
+        assert_eq!((u.iteration(), u.schedule_iteration()), (3, 3));
+        assert!(u.step_to(0).is_err());
     }
 
     #[test]

@@ -5,7 +5,7 @@ use crate::common;
 use crate::support;
 
 use std::path::Path;
-use support::{evogs, json, one_line_error, rigid_scene, s, stderr, train_tiny};
+use support::{evogs, json, ok, one_line_error, rigid_scene, s, stderr, train_tiny};
 
 #[test]
 fn trains_evaluates_renders_and_exports_a_tiny_scene() {
@@ -225,4 +225,83 @@ fn copy_dir(from: &Path, to: &Path) {
             std::fs::copy(entry.path(), target).unwrap();
         }
     }
+}
+
+#[test]
+fn a_time_budget_ends_the_schedule_and_is_recorded() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("scene");
+    common::write_scene(&data);
+    let run = dir.path().join("run");
+    // Wall clock: the test's process shares the machine with the others the harness runs.
+    let o = train_tiny(
+        &data,
+        &run,
+        &[
+            "--iterations",
+            "60",
+            "--time-budget",
+            "1.5s",
+            "--budget-clock",
+            "wall",
+        ],
+    );
+    let out = ok(&o);
+    assert!(out.contains("budget: spent"), "{out}");
+    assert!(out.contains("schedule iteration 60 of 60"), "{out}");
+    let cfg = json(&run.join("config.json"));
+    assert_eq!(cfg["train"]["budget"]["seconds"], 1.5);
+    assert_eq!(cfg["train"]["budget"]["clock"], "wall");
+    let m = json(&run.join("train_metrics.json"));
+    assert_eq!(m["budget"]["schedule_iteration"], 60);
+    let spent = m["budget"]["spent_seconds"].as_f64().unwrap();
+    // Not a timing assertion: the run stops on its own, at the schedule's end, near its budget
+    // (the pacer's own bounds are tested on made-up readings in evogs-train).
+    assert!(spent > 0.0 && spent < 15.0, "{spent}");
+    assert!(m["iteration"].as_u64().unwrap() >= 1);
+    // A resumed finished run stays finished; the budget cannot be changed on resume.
+    let o = evogs(&["train", "--out", s(&run), "--resume"]);
+    assert!(ok(&o).contains("schedule iteration 60 of 60"));
+    let e = one_line_error(&evogs(&[
+        "train",
+        "--out",
+        s(&run),
+        "--resume",
+        "--time-budget",
+        "9s",
+    ]));
+    assert!(e.contains("--time-budget"), "{e}");
+}
+
+#[test]
+fn bad_time_budgets_are_one_line_errors_naming_the_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("scene");
+    let out = dir.path().join("run");
+    for (args, flag) in [
+        (&["--time-budget", "0s"][..], "--time-budget"),
+        (&["--time-budget", "-5s"], "--time-budget"),
+        (&["--time-budget", "3x"], "--time-budget"),
+        (
+            &["--time-budget", "10s", "--budget-clock", "moon"],
+            "--budget-clock",
+        ),
+        (&["--budget-clock", "wall"], "--time-budget"),
+    ] {
+        let e = one_line_error(&train_tiny(&data, &out, args));
+        assert!(e.contains(flag), "{args:?}: {e}");
+    }
+    for command in ["bench", "ablate"] {
+        let e = one_line_error(&evogs(&[
+            command,
+            "--data",
+            s(&data),
+            "--out",
+            s(&out),
+            "--time-budget",
+            "nope",
+        ]));
+        assert!(e.contains("--time-budget"), "{command}: {e}");
+    }
+    assert!(!out.exists());
 }
