@@ -71,6 +71,14 @@ fn main() -> ExitCode {
                     b.schedule_iteration,
                     s.iterations
                 );
+                if b.lagged > 0 {
+                    eprintln!(
+                        "warning: the schedule lagged behind the budget: the last step took {} \
+                         schedule iterations more than a step may; a lower --iterations (near \
+                         the {} steps taken) fits the budget",
+                        b.lagged, s.iteration
+                    );
+                }
             }
             println!("time per phase:\n{}", s.phases);
         }),

@@ -80,13 +80,11 @@ impl LoadedRun {
             net_width: run.train.net.width,
             phases: PhaseTimes::default(),
             gain: None,
-            budget: run.train.budget.zip(meta.budget).map(|(budget, p)| {
-                evogs_train::budget::BudgetSummary {
-                    budget,
-                    spent_seconds: p.spent_seconds,
-                    schedule_iteration: p.schedule_iteration,
-                }
-            }),
+            budget: run
+                .train
+                .budget
+                .zip(meta.budget)
+                .map(|(budget, p)| evogs_train::budget::BudgetSummary::new(budget, &p)),
         };
         Ok(Self {
             paths,

@@ -9,6 +9,13 @@
 //! estimated cost of a step). The trainer runs every schedule event between the previous step's
 //! schedule iteration and this one ([`crate::Trainer::step_to`]), so nothing is skipped when a
 //! step spans several schedule iterations and nothing repeats when several steps share one.
+//! A step advances the schedule by at most [`MAX_PACE`] schedule iterations: a run's first
+//! steps can cost ~9× its later ones (the `dnerf` preset's 10 000 initial Gaussians at their
+//! initial size), and mapped by time alone they passed the warm-up in 37 steps of a 180 CPU-s
+//! jumpingjacks run (against 160 in a run of the same length by iterations), after which the
+//! baseline never densified (DESIGN §7.7). `N` is therefore best near the number of steps the
+//! budget allows (at least half of it); where the schedule still lags when the budget ends,
+//! the last step takes the rest (all its events happen; recorded as `lagged`).
 //! The last step is the one after which another would not fit in the budget; it is placed at
 //! `N`, so the schedule ends (lr fully decayed, densification window closed) when the budget is
 //! spent, whatever the machine's speed. Steps before it stay below `N` (the last iteration does
@@ -131,6 +138,10 @@ pub struct BudgetProgress {
     pub step_seconds: f64,
     /// Whether the last step was the run's last.
     pub finished: bool,
+    /// Schedule iterations the run's last step took beyond [`MAX_PACE`] (0 unless the schedule
+    /// lagged behind the budget: more than `MAX_PACE` schedule iterations per step were needed).
+    #[serde(default)]
+    pub lagged: u64,
 }
 
 impl BudgetProgress {
@@ -141,6 +152,7 @@ impl BudgetProgress {
         step_started: None,
         step_seconds: 0.0,
         finished: false,
+        lagged: 0,
     };
 }
 
@@ -152,6 +164,9 @@ pub struct Pace {
     /// Whether it is the run's last (then its schedule iteration is N).
     pub last: bool,
 }
+
+/// The most schedule iterations one step advances the schedule by.
+pub const MAX_PACE: u64 = 2;
 
 /// Weight of the latest step in the estimated cost of a step.
 const STEP_COST_WEIGHT: f64 = 0.2;
@@ -197,11 +212,14 @@ impl Pacer {
         // Last when a step after this one would end beyond the budget (or it is spent).
         let last = spent >= self.budget || spent + 2.0 * p.step_seconds > self.budget || n == 1;
         let schedule_iteration = if last {
+            p.lagged = n.saturating_sub(p.schedule_iteration + MAX_PACE);
             n
         } else {
             let at_end = (n as f64 * (spent + p.step_seconds) / self.budget).ceil();
             // Saturating float-to-int: negative or NaN readings give 0.
-            (at_end as u64).clamp(p.schedule_iteration.max(1), n - 1)
+            (at_end as u64)
+                .min(p.schedule_iteration + MAX_PACE)
+                .clamp(p.schedule_iteration.max(1), n - 1)
         };
         p.schedule_iteration = schedule_iteration;
         p.finished = last;
@@ -304,6 +322,21 @@ pub struct BudgetSummary {
     pub spent_seconds: f64,
     /// The schedule iteration reached (N when the run finished its budget).
     pub schedule_iteration: u64,
+    /// Schedule iterations the last step took beyond [`MAX_PACE`] ([`BudgetProgress::lagged`]).
+    #[serde(default)]
+    pub lagged: u64,
+}
+
+impl BudgetSummary {
+    /// The summary of a run with `budget` at `progress`.
+    pub fn new(budget: TimeBudget, progress: &BudgetProgress) -> Self {
+        Self {
+            budget,
+            spent_seconds: progress.spent_seconds,
+            schedule_iteration: progress.schedule_iteration,
+            lagged: progress.lagged,
+        }
+    }
 }
 
 #[cfg(test)]
@@ -323,26 +356,27 @@ mod tests {
 
     #[test]
     fn steps_of_equal_cost_fill_the_budget_and_end_the_schedule() {
-        // 1 s steps, 100 s budget, schedule of 1 000: 100 steps ending at 100 s.
-        let mut pacer = Pacer::new(100.0, 1_000, BudgetProgress::START);
+        // 1 s steps, 100 s budget, schedule of 150: 100 steps ending at 100 s.
+        let mut pacer = Pacer::new(100.0, 150, BudgetProgress::START);
         let paces = run(&mut pacer, 0.0, |_| 1.0);
         assert_eq!(paces.len(), 100, "the 100th step ends at 100 s");
         let last = paces.last().unwrap();
         assert_eq!(
             *last,
             Pace {
-                schedule_iteration: 1_000,
+                schedule_iteration: 150,
                 last: true
             }
         );
         assert!(
             paces[..99]
                 .iter()
-                .all(|p| !p.last && p.schedule_iteration < 1_000)
+                .all(|p| !p.last && p.schedule_iteration < 150)
         );
-        // Positions rise at 10 per step: step k (from 0) ends at k + 1 s of 100.
+        // Positions rise at 1.5 per step: step k (from 0) ends at k + 1 s of 100.
         for (k, p) in paces[1..99].iter().enumerate() {
-            assert_eq!(p.schedule_iteration, 10 * (k as u64 + 2), "step {}", k + 1);
+            let want = (1.5 * (k as f64 + 2.0)).ceil() as u64;
+            assert_eq!(p.schedule_iteration, want, "step {}", k + 1);
         }
         assert!(
             paces
@@ -351,10 +385,11 @@ mod tests {
         );
         assert_eq!(pacer.next(1e9), None);
         assert!(pacer.progress().finished);
+        assert_eq!(pacer.progress().lagged, 0);
     }
 
     #[test]
-    fn fast_steps_share_schedule_iterations_and_slow_ones_span_several() {
+    fn fast_steps_share_schedule_iterations_and_slow_ones_advance_at_most_max_pace() {
         // 1 000 steps of 0.01 s in a 10 s budget over a schedule of 100: positions repeat.
         let mut fast = Pacer::new(10.0, 100, BudgetProgress::START);
         let paces = run(&mut fast, 0.0, |_| 0.01);
@@ -363,19 +398,37 @@ mod tests {
         let distinct: std::collections::BTreeSet<u64> =
             paces.iter().map(|p| p.schedule_iteration).collect();
         assert_eq!(distinct, (1..=100).collect());
-        // 10 steps of 1 s in a 10 s budget over a schedule of 12 000: each spans ~1 200.
+        // 10 steps of 1 s in a 10 s budget over a schedule of 12 000: time alone would place
+        // step 2 at 2 400; a step advances at most MAX_PACE, and the last takes the rest.
         let mut slow = Pacer::new(10.0, 12_000, BudgetProgress::START);
         let paces = run(&mut slow, 0.0, |_| 1.0);
-        assert_eq!(paces.len(), 10);
-        assert_eq!(paces[1].schedule_iteration, 2_400);
-        assert_eq!(paces.last().unwrap().schedule_iteration, 12_000);
+        let at: Vec<u64> = paces.iter().map(|p| p.schedule_iteration).collect();
+        assert_eq!(at, [1, 3, 5, 7, 9, 11, 13, 15, 17, 12_000]);
+        assert_eq!(slow.progress().lagged, 12_000 - 17 - MAX_PACE);
+        // An expensive start (10 steps of 1 s, then 0.1 s) is held to MAX_PACE, then the
+        // schedule follows the budget again and ends with it, without lag.
+        let mut start = Pacer::new(100.0, 1_000, BudgetProgress::START);
+        let cost = |k: usize| if k < 10 { 1.0 } else { 0.1 };
+        let paces = run(&mut start, 0.0, cost);
+        assert_eq!(paces[9].schedule_iteration, 19);
+        let advances = paces
+            .windows(2)
+            .map(|w| w[1].schedule_iteration - w[0].schedule_iteration);
+        assert!(
+            advances
+                .clone()
+                .take(paces.len() - 2)
+                .all(|a| a <= MAX_PACE)
+        );
+        assert_eq!(paces.last().unwrap().schedule_iteration, 1_000);
+        assert_eq!(start.progress().lagged, 0);
     }
 
     #[test]
     fn a_run_ends_within_the_budget_when_step_costs_vary() {
         for seed in 0..20u64 {
             let budget = 50.0;
-            let mut pacer = Pacer::new(budget, 12_000, BudgetProgress::START);
+            let mut pacer = Pacer::new(budget, 600, BudgetProgress::START);
             // Costs between 0.05 and 0.15 s, a fixed pseudo-random sequence.
             let cost = |k: usize| {
                 let x = (k as u64 + 1)
@@ -387,7 +440,8 @@ mod tests {
             let spent: f64 = (0..paces.len()).map(cost).sum();
             // Within two of the largest steps of the budget, either way.
             assert!((spent - budget).abs() <= 0.3, "seed {seed}: {spent}");
-            assert_eq!(paces.last().unwrap().schedule_iteration, 12_000);
+            assert_eq!(paces.last().unwrap().schedule_iteration, 600);
+            assert_eq!(pacer.progress().lagged, 0);
         }
     }
 
@@ -415,9 +469,9 @@ mod tests {
     #[test]
     fn a_pacer_continued_from_its_progress_hands_out_the_same_steps() {
         let cost = |k: usize| 0.1 + 0.01 * (k % 7) as f64;
-        let mut whole = Pacer::new(20.0, 4_000, BudgetProgress::START);
+        let mut whole = Pacer::new(20.0, 200, BudgetProgress::START);
         let all = run(&mut whole, 0.0, cost);
-        let mut first = Pacer::new(20.0, 4_000, BudgetProgress::START);
+        let mut first = Pacer::new(20.0, 200, BudgetProgress::START);
         let mut spent = 0.0;
         let mut head = Vec::new();
         for k in 0..40 {
@@ -425,7 +479,7 @@ mod tests {
             spent += cost(k);
         }
         let saved = first.progress();
-        let mut second = Pacer::new(20.0, 4_000, saved);
+        let mut second = Pacer::new(20.0, 200, saved);
         let mut tail = Vec::new();
         while let Some(p) = second.next(spent) {
             spent += cost(40 + tail.len());

@@ -507,11 +507,7 @@ pub fn train_with_clock(
         gain: (gain.samples() > 0).then(|| gain.summary()),
         budget: budget
             .zip(budget_progress)
-            .map(|(budget, p)| BudgetSummary {
-                budget,
-                spent_seconds: p.spent_seconds,
-                schedule_iteration: p.schedule_iteration,
-            }),
+            .map(|(budget, p)| BudgetSummary::new(budget, &p)),
     };
     write_json(&paths.train_metrics(), &summary)?;
     Ok(summary)

@@ -31,7 +31,7 @@ fn ticks() -> Ticks {
 const BUDGET: f64 = 30.0;
 
 fn config() -> TrainConfig {
-    let mut c = TrainConfig::preset(Preset::Tiny).with_iterations(120);
+    let mut c = TrainConfig::preset(Preset::Tiny).with_iterations(40);
     c.init_points = 400;
     c.checkpoint_every = 7;
     c.budget = Some(TimeBudget {
@@ -69,7 +69,7 @@ fn a_budget_run_ends_its_schedule_when_the_budget_is_spent() {
     let (summary, reports) = run(dir.path(), "run", false, None);
     let c = config();
     // Each step costs 1 s on this clock (two readings; the callback's one is not counted), so
-    // about 30 steps for a schedule of 120: each step spans ~4 schedule iterations.
+    // about 30 steps for a schedule of 40: each step spans ~1.3 schedule iterations.
     let budget = summary.budget.unwrap();
     assert_eq!(budget.budget, c.budget.unwrap());
     assert!(budget.spent_seconds <= BUDGET, "{}", budget.spent_seconds);
@@ -119,7 +119,8 @@ fn a_budget_run_ends_its_schedule_when_the_budget_is_spent() {
     assert_eq!(cfg["train"]["budget"]["clock"], "cpu");
     let metrics: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(paths.train_metrics()).unwrap()).unwrap();
-    assert_eq!(metrics["budget"]["schedule_iteration"], 120);
+    assert_eq!(metrics["budget"]["schedule_iteration"], 40);
+    assert_eq!(metrics["budget"]["lagged"], 0);
     assert_eq!(metrics["budget"]["clock"], "cpu");
     assert_eq!(metrics["iteration"], reports.len());
 }
