@@ -60,6 +60,21 @@ pub enum TrainError {
         /// Index of the first non-finite value in the group.
         index: usize,
     },
+    /// Densification pruned every Gaussian: nothing is left to train or render, and clone and
+    /// split cannot bring any back, so the run stops instead of spending its schedule (or its
+    /// budget) on an empty scene.
+    #[error(
+        "iteration {iteration} (schedule iteration {schedule_iteration}): densification pruned \
+         every Gaussian, nothing is left to train; the run stopped (the last checkpoint holds the \
+         state before). The schedule may be compressed too far: a larger --iterations leaves \
+         more steps between densifications"
+    )]
+    NoGaussians {
+        /// The iteration after which none were left.
+        iteration: u64,
+        /// Its schedule iteration (the iteration, without a time budget).
+        schedule_iteration: u64,
+    },
     /// A setting is out of range or unsupported.
     #[error("invalid setting `{field}`: {problem}")]
     Config {

@@ -473,6 +473,13 @@ pub fn train_with_clock(
                 index,
             });
         }
+        if report.gaussians == 0 {
+            // Before the checkpoint too: the last one written still holds Gaussians.
+            return Err(TrainError::NoGaussians {
+                iteration: report.iteration,
+                schedule_iteration: report.schedule_iteration,
+            });
+        }
         // The last one is written after the loop, with the final outputs.
         let budget_progress = paced.as_ref().map(|(pacer, _, _)| pacer.progress());
         if !report.last && checkpoint_follows(trainer.config(), &report) {

@@ -14,5 +14,6 @@ mod deformation_learns;
 mod evogs_gradients;
 mod evogs_train;
 mod motion_floor;
+mod no_gaussians;
 mod resume;
 mod train_log;
