@@ -526,34 +526,68 @@ pub(crate) const EXP_MIN: f32 = -80.0;
 #[inline(always)]
 pub(crate) fn exp<S: Simd>(s: S, x: S::F) -> S::F {
     // max(NaN, EXP_MIN) = EXP_MIN by the x86 rule.
-    exp_in_range(s, s.min(s.max(x, s.splat(EXP_MIN)), s.splat(0.0)))
+    let x = s.min(s.max(x, s.splat(EXP_MIN)), s.splat(0.0));
+    exp_in_range(s, &ExpConsts::new(s), x)
+}
+
+/// The constants of [`exp_in_range`] as vectors.
+///
+/// A kernel makes them once with [`ExpConsts::opaque`], outside its loops: the compiler then
+/// cannot rematerialise them, so under register pressure it reloads them as memory operands of
+/// the arithmetic (one instruction each) instead of broadcasting each constant again before its
+/// use (two). The values, and so the results, are the same either way.
+#[derive(Clone, Copy)]
+pub(crate) struct ExpConsts<S: Simd> {
+    log2e: S::F,
+    magic: S::F,
+    ln2_hi: S::F,
+    ln2_lo: S::F,
+    p: [S::F; 6],
+    one: S::F,
+}
+
+impl<S: Simd> ExpConsts<S> {
+    /// The constants, hidden from the optimiser by [`std::hint::black_box`] (which returns its
+    /// argument unchanged).
+    #[inline(always)]
+    pub fn opaque(s: S) -> Self {
+        std::hint::black_box(Self::new(s))
+    }
+
+    #[inline(always)]
+    fn new(s: S) -> Self {
+        Self {
+            log2e: s.splat(std::f32::consts::LOG2_E),
+            magic: s.splat(12_582_912.0), // 1.5 · 2^23
+            ln2_hi: s.splat(0.693_359_4), // 355 / 512, exact with few bits
+            ln2_lo: s.splat(-2.121_944_4e-4),
+            p: [
+                1.987_569_1e-4,
+                1.398_199_9e-3,
+                8.333_452e-3,
+                4.166_579_6e-2,
+                1.666_666_5e-1,
+                0.5,
+            ]
+            .map(|c| s.splat(c)),
+            one: s.splat(1.0),
+        }
+    }
 }
 
 /// [`exp`] without its clamp: bit for bit the same for `x` in `[EXP_MIN, 0]`, meaningless
 /// elsewhere (for the kernels, whose lanes outside that range are masked off by a select).
 #[inline(always)]
-pub(crate) fn exp_in_range<S: Simd>(s: S, x: S::F) -> S::F {
-    const LOG2E: f32 = std::f32::consts::LOG2_E;
-    const MAGIC: f32 = 12_582_912.0; // 1.5 · 2^23
-    const LN2_HI: f32 = 0.693_359_4; // 355 / 512, exact with few bits
-    const LN2_LO: f32 = -2.121_944_4e-4;
-    const P: [f32; 6] = [
-        1.987_569_1e-4,
-        1.398_199_9e-3,
-        8.333_452e-3,
-        4.166_579_6e-2,
-        1.666_666_5e-1,
-        0.5,
-    ];
+pub(crate) fn exp_in_range<S: Simd>(s: S, k: &ExpConsts<S>, x: S::F) -> S::F {
     // t = round(x / ln2) + 1.5·2^23 exactly: its low mantissa bits hold the integer n.
-    let t = x * s.splat(LOG2E) + s.splat(MAGIC);
-    let n = t - s.splat(MAGIC);
-    let r = (x - n * s.splat(LN2_HI)) - n * s.splat(LN2_LO);
-    let mut p = s.splat(P[0]);
-    for &c in &P[1..] {
-        p = p * r + s.splat(c);
+    let t = x * k.log2e + k.magic;
+    let n = t - k.magic;
+    let r = (x - n * k.ln2_hi) - n * k.ln2_lo;
+    let mut p = k.p[0];
+    for &c in &k.p[1..] {
+        p = p * r + c;
     }
-    let e_r = (p * (r * r) + r) + s.splat(1.0);
+    let e_r = (p * (r * r) + r) + k.one;
     // (bits(t) << 23) = n << 23 modulo 2^32, since the low 9 bits of bits(1.5·2^23) are zero.
     e_r * s.exp2_bits(t)
 }

@@ -16,7 +16,7 @@
 //! reference's by rounding only, and never depend on the thread count.
 
 use super::super::project::{Splat, SplatGrads};
-use super::super::simd::{Kernel, Simd, W, exp_in_range};
+use super::super::simd::{ExpConsts, Kernel, Simd, W, exp_in_range};
 use super::{LANES, TileOut, TileRect};
 use crate::constants::{ALPHA_MAX, ALPHA_MIN, T_MIN, TILE};
 use crate::frame::Frame;
@@ -147,7 +147,9 @@ fn forward_tile_into<V: Simd>(
     let mut active = rect.pixels();
     let mut counters = Counters::default();
     let px = pixel_columns(v, &rect);
-    let (alpha_max, alpha_min, t_min) = (v.splat(ALPHA_MAX), v.splat(ALPHA_MIN), v.splat(T_MIN));
+    let ek = ExpConsts::opaque(v);
+    let (alpha_max, alpha_min, t_min) =
+        std::hint::black_box((v.splat(ALPHA_MAX), v.splat(ALPHA_MIN), v.splat(T_MIN)));
     for (j, &id) in ids.iter().enumerate() {
         if active == 0 {
             break;
@@ -162,19 +164,21 @@ fn forward_tile_into<V: Simd>(
         let (cut, opacity) = (v.splat(s.sigma_cut), v.splat(s.opacity));
         let rgb = s.rgb.map(|c| v.splat(c));
         let z = v.splat(s.z);
-        for y in y0..=y1 {
-            let dy = (y as f32 + 0.5) - s.v;
+        // Rows and columns of the tile, bounded so that `b` is seen to be in range.
+        let (ry0, ry1) = (y0 - rect.y0, (y1 - rect.y0).min(TILE - 1));
+        let h1 = h1.min(HALVES - 1);
+        for ry in ry0..ry1 + 1 {
+            let dy = ((rect.y0 + ry) as f32 + 0.5) - s.v;
             let cdy2 = s.c * dy * dy;
-            let row = (y - rect.y0) as usize * HALVES;
-            for (h, col) in cols.iter().enumerate().take(h1 + 1).skip(h0) {
-                let b = row + h;
+            for (h, col) in (h0..).zip(&cols[h0..h1 + 1]) {
+                let b = ry as usize * HALVES + h;
                 let sig = sigma(v, col, cdy2, dy);
                 let near = col.inside & !done[b] & v.le(sig, cut);
                 if !v.any(near) {
                     continue;
                 }
                 // Lanes outside [0, sigma_cut] are masked off below, so the clamp is not needed.
-                let g = exp_in_range(v, -sig);
+                let g = exp_in_range(v, &ek, -sig);
                 let alpha = v.min(opacity * g, alpha_max);
                 let ok = near & v.ge(sig, zero) & v.ge(alpha, alpha_min);
                 let next = t[b] * (one - alpha);
@@ -270,7 +274,8 @@ fn backward_tile_into<V: Simd, const EXTRA: bool>(v: V, k: Backward<'_>) {
     let rect = TileRect::new(k.frame, k.tile);
     let width = k.frame.width as usize;
     let (zero, one) = (v.splat(0.0), v.splat(1.0));
-    let (alpha_max, alpha_min) = (v.splat(ALPHA_MAX), v.splat(ALPHA_MIN));
+    let ek = ExpConsts::opaque(v);
+    let (alpha_max, alpha_min) = std::hint::black_box((v.splat(ALPHA_MAX), v.splat(ALPHA_MIN)));
     // Per lane: dL/d(r, g, b, alpha, depth).
     let mut dl = [[[0.0f32; W]; BLOCKS]; 5];
     let mut max_last = 0u32;
@@ -317,20 +322,22 @@ fn backward_tile_into<V: Simd, const EXTRA: bool>(v: V, k: Backward<'_>) {
         // Per lane sums: r, g, b, Σ e, Σ e dx, Σ e dy, Σ e dx², Σ e dx dy, then Σ e dy², z.
         let mut acc = [zero; W];
         let (mut syy, mut acc_z) = (zero, zero);
-        for y in y0..=y1 {
-            let dy = (y as f32 + 0.5) - s.v;
+        // Rows and columns of the tile, bounded so that `b` is seen to be in range.
+        let (ry0, ry1) = (y0 - rect.y0, (y1 - rect.y0).min(TILE - 1));
+        let h1 = h1.min(HALVES - 1);
+        for ry in ry0..ry1 + 1 {
+            let dy = ((rect.y0 + ry) as f32 + 0.5) - s.v;
             let cdy2 = s.c * dy * dy;
             let dyv = v.splat(dy);
-            let row = (y - rect.y0) as usize * HALVES;
-            for (h, col) in cols.iter().enumerate().take(h1 + 1).skip(h0) {
-                let b = row + h;
+            for (h, col) in (h0..).zip(&cols[h0..h1 + 1]) {
+                let b = ry as usize * HALVES + h;
                 let sig = sigma(v, col, cdy2, dy);
                 let near = col.inside & v.gt_i(last[b], jv) & v.le(sig, cut);
                 if !v.any(near) {
                     continue;
                 }
                 // Lanes outside [0, sigma_cut] are masked off below, so the clamp is not needed.
-                let g = exp_in_range(v, -sig);
+                let g = exp_in_range(v, &ek, -sig);
                 let og = opacity * g;
                 let alpha = v.min(og, alpha_max);
                 let ok = near & v.ge(sig, zero) & v.ge(alpha, alpha_min);
