@@ -66,7 +66,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // the view's time, on the CPU kernels), for per-evaluation figures; before `measured`, so
     // outside the collected part.
     let (camera, time) = (
-        t.train_views().views[0].camera.clone(),
+        t.train_views().views[0].camera,
         t.train_views().views[0].time,
     );
     let g = t.deformed_at(time)?;
