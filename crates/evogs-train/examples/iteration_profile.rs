@@ -18,6 +18,7 @@ use std::path::Path;
 use evogs_io::Split;
 use evogs_train::data::load_split;
 use evogs_train::{Method, Preset, TrainConfig, Trainer};
+use splat_raster::Rasterizer;
 
 /// The iterations callgrind collects.
 #[inline(never)]
@@ -61,6 +62,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     while t.iteration() < 25 {
         t.step()?;
     }
+    // Gaussian-pixel evaluations of one forward pass of this state (the deformed Gaussians at
+    // the view's time, on the CPU kernels), for per-evaluation figures; before `measured`, so
+    // outside the collected part.
+    let (camera, time) = (
+        t.train_views().views[0].camera,
+        t.train_views().views[0].time,
+    );
+    let g = t.deformed_at(time)?;
+    let opts = splat_raster::RenderOptions {
+        background: t.config().background.rgb(),
+        sh_degree: None,
+    };
+    let fwd = splat_raster::CpuRasterizer::new().forward(g.view(), &camera, &opts)?;
+    eprintln!(
+        "{} Gaussian-pixel evaluations, {} tile pairs, {:.2} contributors per pixel per forward pass",
+        fwd.pair_evaluations(),
+        fwd.tile_pairs(),
+        fwd.mean_contributors()
+    );
     t.reset_times();
     measured(&mut t, steps);
     eprintln!(

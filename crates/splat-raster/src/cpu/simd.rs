@@ -56,6 +56,7 @@ pub(crate) trait Simd: Copy {
     /// `a < b ? a : b` per lane (so `b` where either is NaN).
     fn min(self, a: Self::F, b: Self::F) -> Self::F;
     /// `a > b ? a : b` per lane (so `b` where either is NaN).
+    #[cfg_attr(not(test), allow(dead_code))] // by `exp` only
     fn max(self, a: Self::F, b: Self::F) -> Self::F;
     /// `a` where `m`, else `b`.
     fn select(self, m: Self::M, a: Self::F, b: Self::F) -> Self::F;
@@ -71,6 +72,10 @@ pub(crate) trait Simd: Copy {
     fn count(self, m: Self::M) -> u32;
     /// Sum of the lanes in the order `((0+4)+(2+6)) + ((1+5)+(3+7))`.
     fn sum(self, v: Self::F) -> f32;
+    /// Eight sums at once: lane `i` is `sum(v[i])`, bit for bit.
+    fn sum8(self, v: [Self::F; W]) -> Self::F;
+    /// `acc + 1` in the lanes of `m`, `acc` in the others (wrapping).
+    fn count_lanes(self, acc: Self::I, m: Self::M) -> Self::I;
     /// Per lane, the f32 with bits `(bits(t) << 23) + (127 << 23)` (wrapping).
     fn exp2_bits(self, t: Self::F) -> Self::F;
 }
@@ -243,6 +248,14 @@ impl Simd for Portable {
         let v = v.0;
         let s = [v[0] + v[4], v[1] + v[5], v[2] + v[6], v[3] + v[7]];
         (s[0] + s[2]) + (s[1] + s[3])
+    }
+    #[inline(always)]
+    fn sum8(self, v: [F8; W]) -> F8 {
+        F8(v.map(|v| self.sum(v)))
+    }
+    #[inline(always)]
+    fn count_lanes(self, acc: I8, m: M8) -> I8 {
+        I8(map2(acc.0, m.0, |a, m| a.wrapping_add((m & 1) as i32)))
     }
     #[inline(always)]
     fn exp2_bits(self, t: F8) -> F8 {
@@ -451,6 +464,42 @@ pub(crate) mod avx2 {
             }
         }
         #[inline(always)]
+        fn sum8(self, v: [Fa; W]) -> Fa {
+            // The additions of `sum` for eight vectors at once, in the same pairs (IEEE addition
+            // is commutative, so the order of the two operands does not matter).
+            // SAFETY: see the module's note above.
+            unsafe {
+                // Vector k in the low half, k + 4 in the high half: [0+4, 1+5, 2+6, 3+7].
+                let h: [__m256; 4] = std::array::from_fn(|k| {
+                    let (a, b) = (v[k].0, v[k + 4].0);
+                    _mm256_add_ps(
+                        _mm256_permute2f128_ps::<0x20>(a, b),
+                        _mm256_permute2f128_ps::<0x31>(a, b),
+                    )
+                });
+                // Per half, [(0+4)+(2+6) of k, of k+1, (1+5)+(3+7) of k, of k+1], k = 0 and 2.
+                let q01 = _mm256_add_ps(
+                    _mm256_unpacklo_ps(h[0], h[1]),
+                    _mm256_unpackhi_ps(h[0], h[1]),
+                );
+                let q23 = _mm256_add_ps(
+                    _mm256_unpacklo_ps(h[2], h[3]),
+                    _mm256_unpackhi_ps(h[2], h[3]),
+                );
+                // ((0+4)+(2+6)) + ((1+5)+(3+7)) of vectors 0..4 (low half) and 4..8 (high half).
+                Fa(_mm256_add_ps(
+                    _mm256_shuffle_ps::<0b01_00_01_00>(q01, q23),
+                    _mm256_shuffle_ps::<0b11_10_11_10>(q01, q23),
+                ))
+            }
+        }
+        #[inline(always)]
+        fn count_lanes(self, acc: Ia, m: Ma) -> Ia {
+            // A true lane is -1 as an i32.
+            // SAFETY: see the module's note above.
+            Ia(unsafe { _mm256_sub_epi32(acc.0, _mm256_castps_si256(m.0)) })
+        }
+        #[inline(always)]
         fn exp2_bits(self, t: Fa) -> Fa {
             // SAFETY: see the module's note above.
             Fa(unsafe {
@@ -461,7 +510,9 @@ pub(crate) mod avx2 {
     }
 }
 
+// `exp` and its range are what the tests check; the kernels call `exp_in_range` (see there).
 /// Inputs below this are clamped to it (`e^EXP_MIN ≈ 1.8e-35` is still a normal f32).
+#[cfg_attr(not(test), allow(dead_code))]
 pub(crate) const EXP_MIN: f32 = -80.0;
 
 /// `e^x` per lane for `x` in `[EXP_MIN, 0]`, within 1.2e-7 relative error (the test
@@ -471,31 +522,72 @@ pub(crate) const EXP_MIN: f32 = -80.0;
 /// Cody–Waite reduction `x = n ln2 + r`, `|r| <= ln2 / 2`, with `n` rounded to nearest by the
 /// 1.5·2²³ trick (no rounding instruction needed on the baseline target), the degree-5 Cephes
 /// `expf` polynomial for `e^r`, and `2^n` built in the exponent bits.
+#[cfg_attr(not(test), allow(dead_code))]
 #[inline(always)]
 pub(crate) fn exp<S: Simd>(s: S, x: S::F) -> S::F {
-    const LOG2E: f32 = std::f32::consts::LOG2_E;
-    const MAGIC: f32 = 12_582_912.0; // 1.5 · 2^23
-    const LN2_HI: f32 = 0.693_359_4; // 355 / 512, exact with few bits
-    const LN2_LO: f32 = -2.121_944_4e-4;
-    const P: [f32; 6] = [
-        1.987_569_1e-4,
-        1.398_199_9e-3,
-        8.333_452e-3,
-        4.166_579_6e-2,
-        1.666_666_5e-1,
-        0.5,
-    ];
     // max(NaN, EXP_MIN) = EXP_MIN by the x86 rule.
     let x = s.min(s.max(x, s.splat(EXP_MIN)), s.splat(0.0));
-    // t = round(x / ln2) + 1.5·2^23 exactly: its low mantissa bits hold the integer n.
-    let t = x * s.splat(LOG2E) + s.splat(MAGIC);
-    let n = t - s.splat(MAGIC);
-    let r = (x - n * s.splat(LN2_HI)) - n * s.splat(LN2_LO);
-    let mut p = s.splat(P[0]);
-    for &c in &P[1..] {
-        p = p * r + s.splat(c);
+    exp_in_range(s, &ExpConsts::new(s), x)
+}
+
+/// The constants of [`exp_in_range`] as vectors.
+///
+/// A kernel makes them once with [`ExpConsts::opaque`], outside its loops: the compiler then
+/// cannot rematerialise them, so under register pressure it reloads them as memory operands of
+/// the arithmetic (one instruction each) instead of broadcasting each constant again before its
+/// use (two). The values, and so the results, are the same either way.
+#[derive(Clone, Copy)]
+pub(crate) struct ExpConsts<S: Simd> {
+    log2e: S::F,
+    magic: S::F,
+    ln2_hi: S::F,
+    ln2_lo: S::F,
+    p: [S::F; 6],
+    one: S::F,
+}
+
+impl<S: Simd> ExpConsts<S> {
+    /// The constants, hidden from the optimiser by [`std::hint::black_box`] (which returns its
+    /// argument unchanged).
+    #[inline(always)]
+    pub fn opaque(s: S) -> Self {
+        std::hint::black_box(Self::new(s))
     }
-    let e_r = (p * (r * r) + r) + s.splat(1.0);
+
+    #[inline(always)]
+    fn new(s: S) -> Self {
+        Self {
+            log2e: s.splat(std::f32::consts::LOG2_E),
+            magic: s.splat(12_582_912.0), // 1.5 · 2^23
+            ln2_hi: s.splat(0.693_359_4), // 355 / 512, exact with few bits
+            ln2_lo: s.splat(-2.121_944_4e-4),
+            p: [
+                1.987_569_1e-4,
+                1.398_199_9e-3,
+                8.333_452e-3,
+                4.166_579_6e-2,
+                1.666_666_5e-1,
+                0.5,
+            ]
+            .map(|c| s.splat(c)),
+            one: s.splat(1.0),
+        }
+    }
+}
+
+/// [`exp`] without its clamp: bit for bit the same for `x` in `[EXP_MIN, 0]`, meaningless
+/// elsewhere (for the kernels, whose lanes outside that range are masked off by a select).
+#[inline(always)]
+pub(crate) fn exp_in_range<S: Simd>(s: S, k: &ExpConsts<S>, x: S::F) -> S::F {
+    // t = round(x / ln2) + 1.5·2^23 exactly: its low mantissa bits hold the integer n.
+    let t = x * k.log2e + k.magic;
+    let n = t - k.magic;
+    let r = (x - n * k.ln2_hi) - n * k.ln2_lo;
+    let mut p = k.p[0];
+    for &c in &k.p[1..] {
+        p = p * r + c;
+    }
+    let e_r = (p * (r * r) + r) + k.one;
     // (bits(t) << 23) = n << 23 modulo 2^32, since the low 9 bits of bits(1.5·2^23) are zero.
     e_r * s.exp2_bits(t)
 }
@@ -614,6 +706,9 @@ mod tests {
                 mk(s.range(2, 5)),
                 mk(s.none()),
                 s.to_array_i(s.select_i(m, ia, ib)).map(|v| v as u32),
+                s.to_array_i(s.count_lanes(s.count_lanes(ia, m), s.gt_i(ia, ib)))
+                    .map(|v| v as u32),
+                f(s.sum8([a, b, c, a + c, b * c, a - b, c - b, c * c])),
                 [
                     s.any(m) as u32,
                     s.any(s.none()) as u32,
@@ -710,12 +805,22 @@ mod tests {
             want[15].map(f32::from_bits),
             [0.0, 0.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0]
         );
-        assert_eq!(want[18][..3], [1, 0, 4]);
+        assert_eq!(want[20][..3], [1, 0, 4]);
         assert_eq!(
-            f32::from_bits(want[18][3]),
+            f32::from_bits(want[20][3]),
             10.0,
             "((0+4)+(2+6)) + ((1+5)+(3+7))"
         );
+        assert_eq!(want[18], [1, 1, 3, 3, 5, 6, 8, 9], "count_lanes");
+        // sum8 is `sum` of each vector.
+        let vs = [
+            [0.0, 1.0, -2.0, f32::NAN, 4.0, -0.0, 6.0, f32::INFINITY],
+            [0.5, 1.0, 2.0, 3.0, f32::NAN, 0.0, -6.5, 1e30],
+            [1e30, 1.0, -1e30, 2.0, 0.5, 3.0, 0.25, 4.0],
+        ];
+        for (k, v) in vs.iter().enumerate() {
+            assert_eq!(want[19][k], Portable.sum(F8(*v)).to_bits(), "sum8 lane {k}");
+        }
         for isa in isas() {
             assert_eq!(dispatch(isa, Ops), want, "{isa:?}");
         }

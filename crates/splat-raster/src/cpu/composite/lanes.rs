@@ -1,5 +1,6 @@
 //! The fast compositing kernels: the same per-pixel arithmetic as [`super::scalar`], eight pixels
-//! of a tile row at a time (the lanes of a [`Simd`] build), with the vectorised [`exp`].
+//! of a tile row at a time (the lanes of a [`Simd`] build), with the vectorised
+//! [`exp`](super::super::simd::exp).
 //!
 //! A tile is 32 blocks of 8 pixels (row `y`, half `h`), stored in lane order, so block `2y + h`
 //! holds lanes `16y + 8h .. 16y + 8h + 8`. For each list entry, the blocks that meet its bounding
@@ -9,12 +10,13 @@
 //! updated by selects, so a lane that is masked off keeps its state bit for bit.
 //!
 //! With the same `exp`, the forward kernel gives the reference kernel's outputs bit for bit (the
-//! same operations in the same order per pixel). The backward kernel sums each entry's gradient
-//! over the pixels per lane and then across the lanes in a fixed order, so its sums differ from
-//! the reference's pixel-by-pixel order by rounding only, and never depend on the thread count.
+//! same operations in the same order per pixel). The backward kernel computes the reference's
+//! gradients with its terms regrouped (see [`backward_tile_into`]) and sums each entry's gradient
+//! over the pixels per lane, then across the lanes in a fixed order, so its sums differ from the
+//! reference's by rounding only, and never depend on the thread count.
 
 use super::super::project::{Splat, SplatGrads};
-use super::super::simd::{Kernel, Simd, W, exp};
+use super::super::simd::{ExpConsts, Kernel, Simd, W, exp_in_range};
 use super::{LANES, TileOut, TileRect};
 use crate::constants::{ALPHA_MAX, ALPHA_MIN, T_MIN, TILE};
 use crate::frame::Frame;
@@ -39,11 +41,23 @@ struct Column<V: Simd> {
     bdx: V::F,
 }
 
-/// The columns of tile `rect` met by the clipped bounding box `[x0, x1]` of splat `s`.
+/// The pixel centres `x + 0.5` of each block column of tile `rect`.
+#[inline(always)]
+fn pixel_columns<V: Simd>(v: V, rect: &TileRect) -> [V::F; HALVES] {
+    std::array::from_fn(|h| {
+        v.lanes(std::array::from_fn(|l| {
+            (rect.x0 + (h * W) as u32 + l as u32) as f32 + 0.5
+        }))
+    })
+}
+
+/// The columns of tile `rect` (pixel centres `px`, from [`pixel_columns`]) met by the clipped
+/// bounding box `[x0, x1]` of splat `s`.
 #[inline(always)]
 fn columns<V: Simd>(
     v: V,
     rect: &TileRect,
+    px: &[V::F; HALVES],
     s: &Splat,
     x0: u32,
     x1: u32,
@@ -57,19 +71,17 @@ fn columns<V: Simd>(
         adx2: zero,
         bdx: zero,
     }; HALVES];
+    let (u, a, b) = (v.splat(s.u), v.splat(s.a), v.splat(s.b));
     for (h, col) in cols.iter_mut().enumerate().take(h1 + 1).skip(h0) {
         let first = (h * W) as u32;
         let lo = lx0.saturating_sub(first);
         let hi = (lx1 - first).min(W as u32 - 1);
-        let px = v.lanes(std::array::from_fn(|l| {
-            (rect.x0 + first + l as u32) as f32 + 0.5
-        }));
-        let dx = px - v.splat(s.u);
+        let dx = px[h] - u;
         *col = Column {
             inside: v.range(lo, hi),
             dx,
-            adx2: v.splat(s.a) * dx * dx,
-            bdx: v.splat(s.b) * dx,
+            adx2: a * dx * dx,
+            bdx: b * dx,
         };
     }
     (h0, h1, cols)
@@ -109,7 +121,8 @@ impl Kernel for Forward<'_> {
     }
 }
 
-/// Composites one tile front to back, as [`super::scalar::forward_tile_into`] with [`exp`].
+/// Composites one tile front to back, as [`super::scalar::forward_tile_into`] with
+/// [`exp`](super::super::simd::exp).
 #[inline(always)]
 fn forward_tile_into<V: Simd>(
     v: V,
@@ -129,8 +142,14 @@ fn forward_tile_into<V: Simd>(
     let mut blue = [zero; BLOCKS];
     let mut depth = [zero; BLOCKS];
     let mut last = [v.splat_i(0); BLOCKS];
+    // Per lane, the number of entries blended.
+    let mut blended = [v.splat_i(0); BLOCKS];
     let mut active = rect.pixels();
     let mut counters = Counters::default();
+    let px = pixel_columns(v, &rect);
+    let ek = ExpConsts::opaque(v);
+    let (alpha_max, alpha_min, t_min) =
+        std::hint::black_box((v.splat(ALPHA_MAX), v.splat(ALPHA_MIN), v.splat(T_MIN)));
     for (j, &id) in ids.iter().enumerate() {
         if active == 0 {
             break;
@@ -141,26 +160,29 @@ fn forward_tile_into<V: Simd>(
         };
         counters.evaluations += u64::from((x1 - x0 + 1) * (y1 - y0 + 1));
         let pos = v.splat_i(j as i32 + 1);
-        let (h0, h1, cols) = columns(v, &rect, s, x0, x1);
+        let (h0, h1, cols) = columns(v, &rect, &px, s, x0, x1);
         let (cut, opacity) = (v.splat(s.sigma_cut), v.splat(s.opacity));
         let rgb = s.rgb.map(|c| v.splat(c));
         let z = v.splat(s.z);
-        for y in y0..=y1 {
-            let dy = (y as f32 + 0.5) - s.v;
+        // Rows and columns of the tile, bounded so that `b` is seen to be in range.
+        let (ry0, ry1) = (y0 - rect.y0, (y1 - rect.y0).min(TILE - 1));
+        let h1 = h1.min(HALVES - 1);
+        for ry in ry0..ry1 + 1 {
+            let dy = ((rect.y0 + ry) as f32 + 0.5) - s.v;
             let cdy2 = s.c * dy * dy;
-            let row = (y - rect.y0) as usize * HALVES;
-            for (h, col) in cols.iter().enumerate().take(h1 + 1).skip(h0) {
-                let b = row + h;
+            for (h, col) in (h0..).zip(&cols[h0..h1 + 1]) {
+                let b = ry as usize * HALVES + h;
                 let sig = sigma(v, col, cdy2, dy);
                 let near = col.inside & !done[b] & v.le(sig, cut);
                 if !v.any(near) {
                     continue;
                 }
-                let g = exp(v, -sig);
-                let alpha = v.min(opacity * g, v.splat(ALPHA_MAX));
-                let ok = near & v.ge(sig, zero) & v.ge(alpha, v.splat(ALPHA_MIN));
+                // Lanes outside [0, sigma_cut] are masked off below, so the clamp is not needed.
+                let g = exp_in_range(v, &ek, -sig);
+                let alpha = v.min(opacity * g, alpha_max);
+                let ok = near & v.ge(sig, zero) & v.ge(alpha, alpha_min);
                 let next = t[b] * (one - alpha);
-                let stop = ok & v.lt(next, v.splat(T_MIN));
+                let stop = ok & v.lt(next, t_min);
                 if v.any(stop) {
                     done[b] = done[b] | stop;
                     active -= v.count(stop) as usize;
@@ -173,11 +195,16 @@ fn forward_tile_into<V: Simd>(
                 depth[b] = v.select(blend, depth[b] + z * w, depth[b]);
                 t[b] = v.select(blend, next, t[b]);
                 last[b] = v.select_i(blend, pos, last[b]);
-                counters.blended += u64::from(v.count(blend));
+                blended[b] = v.count_lanes(blended[b], blend);
             }
         }
     }
     for b in 0..BLOCKS {
+        counters.blended += v
+            .to_array_i(blended[b])
+            .iter()
+            .map(|&n| u64::from(n as u32))
+            .sum::<u64>();
         let (tb, lb) = (v.to_array(t[b]), v.to_array_i(last[b]));
         let (r, g, bl, d) = (
             v.to_array(red[b]),
@@ -218,44 +245,58 @@ impl Kernel for Backward<'_> {
 
     #[inline(always)]
     fn run<V: Simd>(self, v: V) {
-        backward_tile_into(v, self);
+        if self.grads.alpha.is_some() || self.grads.depth.is_some() {
+            backward_tile_into::<V, true>(v, self);
+        } else {
+            backward_tile_into::<V, false>(v, self);
+        }
     }
 }
 
-/// Backward of [`forward_tile_into`], as [`super::scalar::backward_tile_into`] with [`exp`]: writes the
-/// gradient of each list entry's record into `out` (entries past the tile's last contributor
-/// are left as they are).
+/// Backward of [`forward_tile_into`], as [`super::scalar::backward_tile_into`] with
+/// [`exp`](super::super::simd::exp): writes
+/// the gradient of each list entry's record into `out` (entries past the tile's last contributor
+/// are left as they are). `EXTRA`: whether the alpha or depth image has a gradient (without, their
+/// terms are zero and skipped).
+///
+/// The same quantities as the reference, regrouped so that a block costs fewer operations (the
+/// sums differ from the reference's by rounding only):
+/// - per lane, `B = Σ_k behind_k · dL/dout_k` is carried instead of the five outputs behind the
+///   entry (`B ← α F + (1 - α) B = B + α (F - B)` with `F = Σ_k f_k dL/dout_k`), so that
+///   `dL/dα = T (F - B)`;
+/// - the conic and mean gradients are taken from per-lane moments of `e = -dL/dσ`:
+///   `Σ e`, `Σ e dx`, `Σ e dy`, `Σ e dx²`, `Σ e dx dy`, `Σ e dy²`, combined with the entry's
+///   constants once after the sums (`dL/du = a Σ e dx + b Σ e dy`, `dL/da = -½ Σ e dx²`, …,
+///   `dL/do = Σ e / o`, since `e = dL/dα · α` and `α = o exp(-σ)` where the cap is inactive);
+/// - the entry's sums across lanes are taken eight at a time ([`Simd::sum8`]).
 #[inline(always)]
-fn backward_tile_into<V: Simd>(v: V, k: Backward<'_>) {
+fn backward_tile_into<V: Simd, const EXTRA: bool>(v: V, k: Backward<'_>) {
     let rect = TileRect::new(k.frame, k.tile);
     let width = k.frame.width as usize;
     let (zero, one) = (v.splat(0.0), v.splat(1.0));
-    // Per lane: dL/d(r, g, b, alpha, depth) and the normalised outputs behind the current entry.
+    let ek = ExpConsts::opaque(v);
+    let (alpha_max, alpha_min) = std::hint::black_box((v.splat(ALPHA_MAX), v.splat(ALPHA_MIN)));
+    // Per lane: dL/d(r, g, b, alpha, depth).
     let mut dl = [[[0.0f32; W]; BLOCKS]; 5];
-    let mut bh = [[[0.0f32; W]; BLOCKS]; 5];
     let mut max_last = 0u32;
-    for b in 0..BLOCKS {
-        for l in 0..W {
-            let lane = b * W + l;
-            max_last = max_last.max(k.last[lane]);
-            let (x, y) = (rect.x0 + (lane as u32 % TILE), rect.y0 + lane as u32 / TILE);
-            if x >= rect.x_end || y >= rect.y_end {
-                continue;
-            }
-            let p = y as usize * width + x as usize;
-            let c = k.grads.color[p];
-            let d = [
-                c[0],
-                c[1],
-                c[2],
-                k.grads.alpha.map_or(0.0, |a| a[p]),
-                k.grads.depth.map_or(0.0, |d| d[p]),
-            ];
-            let bg = [k.background[0], k.background[1], k.background[2], 0.0, 0.0];
-            for q in 0..5 {
-                dl[q][b][l] = d[q];
-                bh[q][b][l] = bg[q];
-            }
+    for lane in 0..LANES {
+        let (b, l) = (lane / W, lane % W);
+        max_last = max_last.max(k.last[lane]);
+        let (x, y) = (rect.x0 + (lane as u32 % TILE), rect.y0 + lane as u32 / TILE);
+        if x >= rect.x_end || y >= rect.y_end {
+            continue;
+        }
+        let p = y as usize * width + x as usize;
+        let c = k.grads.color[p];
+        let d = [
+            c[0],
+            c[1],
+            c[2],
+            k.grads.alpha.map_or(0.0, |a| a[p]),
+            k.grads.depth.map_or(0.0, |d| d[p]),
+        ];
+        for (q, d) in d.into_iter().enumerate() {
+            dl[q][b][l] = d;
         }
     }
     let lanes = |i: usize| -> [f32; W] { k.final_t[i * W..(i + 1) * W].try_into().unwrap() };
@@ -263,88 +304,90 @@ fn backward_tile_into<V: Simd>(v: V, k: Backward<'_>) {
     let last: [V::I; BLOCKS] =
         std::array::from_fn(|b| v.lanes_i(std::array::from_fn(|l| k.last[b * W + l] as i32)));
     let dl: [[V::F; BLOCKS]; 5] = dl.map(|q| q.map(|x| v.lanes(x)));
-    let mut behind: [[V::F; BLOCKS]; 5] = bh.map(|q| q.map(|x| v.lanes(x)));
+    // Behind the last entry: the background (alpha and depth 0).
+    let bg = k.background.map(|c| v.splat(c));
+    let mut behind: [V::F; BLOCKS] =
+        std::array::from_fn(|b| (bg[0] * dl[0][b] + bg[1] * dl[1][b]) + bg[2] * dl[2][b]);
+    let px = pixel_columns(v, &rect);
     for j in (0..max_last as usize).rev() {
         let s = &k.splats[k.ids[j] as usize];
         let Some([x0, y0, x1, y1]) = rect.clip(s.bbox) else {
             continue;
         };
         let jv = v.splat_i(j as i32);
-        let (h0, h1, cols) = columns(v, &rect, s, x0, x1);
+        let (h0, h1, cols) = columns(v, &rect, &px, s, x0, x1);
         let (cut, opacity) = (v.splat(s.sigma_cut), v.splat(s.opacity));
-        let feat = [s.rgb[0], s.rgb[1], s.rgb[2], 1.0, s.z].map(|f| v.splat(f));
-        let (sa, sb, sc) = (v.splat(s.a), v.splat(s.b), v.splat(s.c));
-        let half = v.splat(0.5);
-        // Per lane sums: r, g, b, z, opacity, a, b, c, u, v.
-        let mut acc = [zero; 10];
-        for y in y0..=y1 {
-            let dy = (y as f32 + 0.5) - s.v;
+        let [fr, fg, fb] = s.rgb.map(|f| v.splat(f));
+        let fz = v.splat(s.z);
+        // Per lane sums: r, g, b, Σ e, Σ e dx, Σ e dy, Σ e dx², Σ e dx dy, then Σ e dy², z.
+        let mut acc = [zero; W];
+        let (mut syy, mut acc_z) = (zero, zero);
+        // Rows and columns of the tile, bounded so that `b` is seen to be in range.
+        let (ry0, ry1) = (y0 - rect.y0, (y1 - rect.y0).min(TILE - 1));
+        let h1 = h1.min(HALVES - 1);
+        for ry in ry0..ry1 + 1 {
+            let dy = ((rect.y0 + ry) as f32 + 0.5) - s.v;
             let cdy2 = s.c * dy * dy;
             let dyv = v.splat(dy);
-            let row = (y - rect.y0) as usize * HALVES;
-            for (h, col) in cols.iter().enumerate().take(h1 + 1).skip(h0) {
-                let b = row + h;
+            for (h, col) in (h0..).zip(&cols[h0..h1 + 1]) {
+                let b = ry as usize * HALVES + h;
                 let sig = sigma(v, col, cdy2, dy);
                 let near = col.inside & v.gt_i(last[b], jv) & v.le(sig, cut);
                 if !v.any(near) {
                     continue;
                 }
-                let g = exp(v, -sig);
+                // Lanes outside [0, sigma_cut] are masked off below, so the clamp is not needed.
+                let g = exp_in_range(v, &ek, -sig);
                 let og = opacity * g;
-                let alpha = v.min(og, v.splat(ALPHA_MAX));
-                let ok = near & v.ge(sig, zero) & v.ge(alpha, v.splat(ALPHA_MIN));
+                let alpha = v.min(og, alpha_max);
+                let ok = near & v.ge(sig, zero) & v.ge(alpha, alpha_min);
                 if !v.any(ok) {
                     continue;
                 }
-                // Lanes that do not blend get α = 0, which leaves T and the colour behind
-                // unchanged exactly (x / 1 = x, 0·f + 1·x = x) and contributes nothing.
+                // Lanes that do not blend get α = 0, which leaves T and B unchanged exactly
+                // (x / 1 = x, x + 0·d = x for finite d) and contributes nothing.
                 let alpha = v.select(ok, alpha, zero);
-                let keep = one - alpha;
-                let tj = t[b] / keep;
+                let tj = t[b] / (one - alpha);
                 t[b] = tj;
                 let w = alpha * tj;
-                let mut d_alpha = zero;
-                for q in 0..5 {
-                    let bh = behind[q][b];
-                    d_alpha = d_alpha + (feat[q] - bh) * dl[q][b];
-                    behind[q][b] = alpha * feat[q] + keep * bh;
+                let mut f = (fr * dl[0][b] + fg * dl[1][b]) + fb * dl[2][b];
+                if EXTRA {
+                    f = (f + dl[3][b]) + fz * dl[4][b];
                 }
+                let diff = f - behind[b];
+                behind[b] = behind[b] + alpha * diff;
                 acc[0] = acc[0] + w * dl[0][b];
                 acc[1] = acc[1] + w * dl[1][b];
                 acc[2] = acc[2] + w * dl[2][b];
-                acc[3] = acc[3] + w * dl[4][b];
-                // α = o·exp(-σ): dα/do = exp(-σ), dα/dσ = -α; zero where the cap is active.
-                let live = ok & !v.gt(og, v.splat(ALPHA_MAX));
-                let d_alpha = v.select(live, d_alpha * tj, zero);
-                acc[4] = acc[4] + v.select(live, d_alpha * g, zero);
-                let d_sig = -(d_alpha * alpha);
-                let dx = col.dx;
-                let inc = [
-                    d_sig * half * dx * dx,
-                    d_sig * dx * dyv,
-                    d_sig * half * dyv * dyv,
-                    d_sig * (sa * dx + sb * dyv),
-                    d_sig * (sb * dx + sc * dyv),
-                ];
-                // Masked lanes hold d_sig = 0, but their products may overflow far outside the
-                // ellipse: select, never multiply by the mask.
-                acc[5] = acc[5] + v.select(live, inc[0], zero);
-                acc[6] = acc[6] + v.select(live, inc[1], zero);
-                acc[7] = acc[7] + v.select(live, inc[2], zero);
-                acc[8] = acc[8] - v.select(live, inc[3], zero);
-                acc[9] = acc[9] - v.select(live, inc[4], zero);
+                if EXTRA {
+                    acc_z = acc_z + w * dl[4][b];
+                }
+                // e = dL/dα · α = -dL/dσ, zero where the cap is active (and where not blended).
+                // The moments multiply it by dx and dy only, which are finite, so masked lanes
+                // add exact zeros.
+                let live = ok & !v.gt(og, alpha_max);
+                let e = v.select(live, diff * tj * alpha, zero);
+                let (ex, ey) = (e * col.dx, e * dyv);
+                acc[3] = acc[3] + e;
+                acc[4] = acc[4] + ex;
+                acc[5] = acc[5] + ey;
+                acc[6] = acc[6] + ex * col.dx;
+                acc[7] = acc[7] + ex * dyv;
+                syy = syy + ey * dyv;
             }
         }
-        let sums = acc.map(|a| v.sum(a));
+        let [r, g, b, se, sx, sy, sxx, sxy] = v.to_array(v.sum8(acc));
+        let syy = v.sum(syy);
         k.out[j] = SplatGrads {
-            u: sums[8],
-            v: sums[9],
-            a: sums[5],
-            b: sums[6],
-            c: sums[7],
-            opacity: sums[4],
-            rgb: [sums[0], sums[1], sums[2]],
-            z: sums[3],
+            u: s.a * sx + s.b * sy,
+            v: s.b * sx + s.c * sy,
+            a: 0.0 - 0.5 * sxx,
+            b: 0.0 - sxy,
+            c: 0.0 - 0.5 * syy,
+            // Σ e = Σ dL/dα · o exp(-σ) (a lane that blends has σ <= sigma_cut, so o > 0).
+            opacity: if se == 0.0 { 0.0 } else { se / s.opacity },
+            rgb: [r, g, b],
+            z: if EXTRA { v.sum(acc_z) } else { 0.0 },
         };
     }
 }
