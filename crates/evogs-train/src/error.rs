@@ -65,8 +65,8 @@ pub enum TrainError {
     /// budget) on an empty scene.
     #[error(
         "iteration {iteration} (schedule iteration {schedule_iteration}): densification pruned \
-         every Gaussian, nothing is left to train; the run stopped (the last checkpoint holds the \
-         state before). The schedule may be compressed too far: a larger --iterations leaves \
+         every Gaussian, nothing is left to train; the run stopped (its last checkpoint, if one \
+         was written, holds an earlier state). The schedule may be compressed too far: a larger --iterations leaves \
          more steps between densifications"
     )]
     NoGaussians {
