@@ -27,7 +27,7 @@ fn a_run_stops_when_densification_prunes_every_gaussian() {
     };
     let mut counts = Vec::new();
     let err = train(&request, &mut |r, _| {
-        counts.push((r.iteration, r.gaussians))
+        counts.push((r.iteration, r.gaussians));
     })
     .unwrap_err();
     let first = (1..=60).find(|&i| schedule.densifies(i)).unwrap();
