@@ -239,8 +239,10 @@ pub struct TrainArgs {
     )]
     pub resume: bool,
 
-    /// Background behind the Gaussians and the images' alpha [D-3DGS default for D-NeRF: black].
-    #[arg(long, value_name = "white|black")]
+    /// Background behind the Gaussians and the images' alpha [D-3DGS default for D-NeRF: black];
+    /// random: a new uniform colour each training iteration behind both (so transparency cannot
+    /// pass for the background's colour), black for evaluation and renders.
+    #[arg(long, value_name = "white|black|random")]
     pub background: Option<evogs_train::Background>,
 
     /// Rasterizer backend: cpu, wgpu (the GPU through wgpu, any adapter; an error without

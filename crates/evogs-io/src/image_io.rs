@@ -40,17 +40,48 @@ impl ImageRgb {
 /// divided by the format's maximum (255 or 65535). An alpha channel is composited over
 /// `background`: `c·α + background·(1 − α)`.
 pub fn load_image(path: &Path, background: [f32; 3]) -> Result<ImageRgb, IoError> {
-    let image_error = |cause| IoError::Image {
-        path: path.to_path_buf(),
-        cause,
+    Ok(to_rgb(&decode(path)?, background))
+}
+
+/// Loads an image's transmittance `1 − α` per pixel (0 everywhere without an alpha channel),
+/// row-major, resized by `factor` as [`load_view`] resizes the image. The image composited over a
+/// colour `b` is the one over black plus `b` times this, up to rounding (compositing and the
+/// resize filters are linear): a trainer draws a new background from these two.
+pub fn load_transmittance(path: &Path, factor: f32) -> Result<Vec<f32>, IoError> {
+    let decoded = decode(path)?;
+    let (width, height) = (decoded.width(), decoded.height());
+    let pixels = if decoded.color().has_alpha() {
+        decoded
+            .to_rgba32f()
+            .pixels()
+            .map(|p| [1.0 - p.0[3]; 3])
+            .collect()
+    } else {
+        vec![[0.0; 3]; width as usize * height as usize]
     };
-    let decoded = ImageReader::open(path)
+    let image = ImageRgb {
+        width,
+        height,
+        pixels,
+    };
+    let resized = resize_image(&image, factor).ok_or_else(|| IoError::InvalidData {
+        path: path.to_path_buf(),
+        problem: format!("resize factor {factor} is not a positive number"),
+    })?;
+    Ok(resized.pixels.iter().map(|p| p[0]).collect())
+}
+
+/// Decodes a PNG or JPEG, the format guessed from the content.
+fn decode(path: &Path) -> Result<DynamicImage, IoError> {
+    ImageReader::open(path)
         .map_err(|e| IoError::io(path, e))?
         .with_guessed_format()
         .map_err(|e| IoError::io(path, e))?
         .decode()
-        .map_err(image_error)?;
-    Ok(to_rgb(&decoded, background))
+        .map_err(|cause| IoError::Image {
+            path: path.to_path_buf(),
+            cause,
+        })
 }
 
 fn to_rgb(decoded: &DynamicImage, background: [f32; 3]) -> ImageRgb {

@@ -50,7 +50,7 @@ pub use dnerf::{
 };
 pub use error::IoError;
 pub use frame_time::TimeFrom;
-pub use image_io::{ImageRgb, load_image, load_view, resize_image, save_png};
+pub use image_io::{ImageRgb, load_image, load_transmittance, load_view, resize_image, save_png};
 pub use json_fields::{ROTATION_TOLERANCE, rotation_error};
 pub use ply::{LoadedPly, read_ply, read_ply_bytes, write_ply, write_ply_to};
 pub use splat::{read_splat, write_splat};

@@ -96,6 +96,13 @@ pub enum BackboneKind {
 }
 
 /// Background colour composited behind the Gaussians and behind the images' alpha.
+///
+/// `Random` is a training setting (one of nerfstudio splatfacto's backgrounds): each
+/// iteration draws one uniform colour, composites the view's image over it (from the image and its
+/// transmittance 1 − α, [`crate::data::load_transmittance`]) and renders the Gaussians over it, so
+/// that transparency cannot stand in for the background's colour (a dark, half-transparent floater
+/// is invisible over black in every training view, and not from a new one). Evaluation, renders
+/// and the views' stored images use black ([`Background::rgb`]).
 #[derive(EnumString, Display, IntoStaticStr, VariantNames)]
 #[strum(serialize_all = "lowercase", parse_err_ty = TrainError, parse_err_fn = unknown::<Self>)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -105,14 +112,33 @@ pub enum Background {
     White,
     /// (0, 0, 0): D-3DGS's default for D-NeRF.
     Black,
+    /// A new uniform colour in [0, 1]³ each training iteration (drawn from the seed and the
+    /// iteration, so a resumed run draws the same); black everywhere else.
+    Random,
 }
 
 impl Background {
-    /// The colour.
+    /// The colour of evaluation and renders, and of the views' stored images: black for
+    /// `Random`.
     pub fn rgb(self) -> [f32; 3] {
         match self {
-            Self::Black => [0.0; 3],
+            Self::Black | Self::Random => [0.0; 3],
             Self::White => [1.0; 3],
+        }
+    }
+
+    /// The colour of training iteration `iteration` of a run seeded `seed`: [`Background::rgb`],
+    /// or for `Random` a colour drawn from both.
+    pub fn at_iteration(self, seed: u64, iteration: u64) -> [f32; 3] {
+        match self {
+            Self::Random => {
+                use rand::{RngExt, SeedableRng};
+                // Its own stream family (the seed's bits flipped), apart from the view order's.
+                let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(!seed);
+                rng.set_stream(iteration);
+                [(); 3].map(|()| rng.random::<f32>())
+            }
+            _ => self.rgb(),
         }
     }
 }
@@ -594,7 +620,10 @@ mod tests {
             ],
             "d3dgs, 4dgs or grid4d",
         );
-        check_one_word(&[Background::White, Background::Black], "white or black");
+        check_one_word(
+            &[Background::White, Background::Black, Background::Random],
+            "white, black or random",
+        );
         check_one_word(&Preset::ALL, "paper, cpu, tiny or dnerf");
         check_one_word(
             &[
@@ -664,6 +693,25 @@ mod tests {
         assert!("cpu".parse::<Preset>().is_ok());
         assert!("huge".parse::<Preset>().is_err());
         assert_eq!("white".parse::<Background>().unwrap().rgb(), [1.0; 3]);
+    }
+
+    #[test]
+    fn random_background_draws_a_colour_per_iteration_from_the_seed() {
+        let random = Background::Random;
+        assert_eq!(random.rgb(), [0.0; 3]);
+        let a = random.at_iteration(0, 7);
+        assert!(a.iter().all(|v| (0.0..1.0).contains(v)), "{a:?}");
+        assert_eq!(random.at_iteration(0, 7), a);
+        assert_ne!(random.at_iteration(0, 8), a);
+        assert_ne!(random.at_iteration(1, 7), a);
+        // Over many iterations the draws cover the cube, each channel with mean ~0.5.
+        let mean: f32 = (1..=1000)
+            .map(|i| random.at_iteration(3, i)[1])
+            .sum::<f32>()
+            / 1000.0;
+        assert!((mean - 0.5).abs() < 0.05, "{mean}");
+        assert_eq!(Background::White.at_iteration(0, 7), [1.0; 3]);
+        assert_eq!(Background::Black.at_iteration(0, 7), [0.0; 3]);
     }
 
     #[test]

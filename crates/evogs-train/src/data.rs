@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use evogs_io::{Dataset, Format, ImageRgb, LoadOptions, Split, TimeFrom, load_view};
+use rayon::prelude::*;
 use splat_raster::Camera;
 
 use crate::error::TrainError;
@@ -97,7 +98,6 @@ pub fn load_dataset_split(
         ));
     }
     let loaded: Vec<Result<View, TrainError>> = {
-        use rayon::prelude::*;
         frames
             .par_iter()
             .map(|f| {
@@ -129,4 +129,30 @@ pub fn load_dataset_split(
         ));
     }
     Ok(SplitViews { split, views })
+}
+
+/// Per view, its image's transmittance 1 − α per pixel, read again from its file and resized by
+/// `factor` as the view was ([`evogs_io::load_transmittance`]): the view's image over black plus
+/// a colour times this is the image over that colour (a random background,
+/// [`crate::Background::Random`]). Errors name the file; a view whose image is not the size of
+/// its file's resized is refused.
+pub fn load_transmittance(views: &SplitViews, factor: f32) -> Result<Vec<Vec<f32>>, TrainError> {
+    views
+        .views
+        .par_iter()
+        .map(|v| {
+            let t = evogs_io::load_transmittance(&v.path, factor)?;
+            if t.len() != v.image.pixels.len() {
+                return Err(TrainError::file(
+                    &v.path,
+                    format!(
+                        "its alpha has {} pixels after resizing, the view's image {}",
+                        t.len(),
+                        v.image.pixels.len()
+                    ),
+                ));
+            }
+            Ok(t)
+        })
+        .collect()
 }

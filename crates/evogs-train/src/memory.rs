@@ -18,7 +18,7 @@
 //! tiles per Gaussian, and the fixed cost ([`PROCESS_BYTES`]) was measured once; the figures it
 //! was checked against are in `results/memory.md`.
 
-use crate::config::{BackboneKind, Method, TrainConfig};
+use crate::config::{BackboneKind, Background, Method, TrainConfig};
 
 /// Bytes of a process that holds no data yet: the binary, its libraries, the thread pool and
 /// the allocator's own (peak RSS of `evogs train` under a memory limit, less the rest of the
@@ -51,7 +51,7 @@ pub struct MemoryInputs {
 /// The estimate, by part (bytes).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct MemoryEstimate {
-    /// The training images (f32 RGB).
+    /// The training images (f32 RGB, and 1 − α under a random background).
     pub images: u64,
     /// Everything that does not grow with the Gaussians: the process, the render buffers and
     /// the network (parameters, gradients and two Adam moments).
@@ -74,9 +74,11 @@ impl MemoryEstimate {
     /// The estimate for `config` on a dataset of `inputs`.
     pub fn new(config: &TrainConfig, inputs: &MemoryInputs) -> Self {
         const F32: u64 = 4;
-        let images = (inputs.views * inputs.pixels) as u64 * 3 * F32;
+        // A random background keeps each image's transmittance beside it, and a step's target.
+        let random = u64::from(config.background == Background::Random);
+        let images = (inputs.views * inputs.pixels) as u64 * (3 + random) * F32;
         let network = inputs.network_params as u64 * 4 * F32;
-        let render = inputs.pixels as u64 * BYTES_PER_PIXEL;
+        let render = inputs.pixels as u64 * (BYTES_PER_PIXEL + random * 3 * F32);
         let fixed = PROCESS_BYTES + render + network;
         // Per Gaussian: P floats of parameters, two Adam moments, the gradients (P plus the 2-D
         // means and the radius), the deformed copy of the geometry (10) and the deformation rows
@@ -261,6 +263,13 @@ mod tests {
         assert_eq!(e.fixed, PROCESS_BYTES + 160_000 * BYTES_PER_PIXEL + 160_000);
         assert_eq!(e.at(0), e.images + e.fixed);
         assert_eq!(e.at(1000) - e.at(0), 1000 * e.peak_per_gaussian());
+        // A random background: 1 − α per pixel beside each image, and a step's target image.
+        let mut random = TrainConfig::preset(Preset::Cpu);
+        random.background = Background::Random;
+        let r = MemoryEstimate::new(&random, &inputs());
+        assert_eq!(r.images, 50 * 400 * 400 * 16);
+        assert_eq!(r.fixed - e.fixed, 160_000 * 12);
+        assert_eq!(r.per_gaussian, e.per_gaussian);
     }
 
     #[test]

@@ -38,7 +38,7 @@ use splat_raster::{
     RenderOptions, select_rasterizer,
 };
 
-use crate::config::{BackboneKind, Method, Preset, TrainConfig};
+use crate::config::{BackboneKind, Background, Method, Preset, TrainConfig};
 use crate::data::SplitViews;
 use crate::deformed::{DeformedGeometry, deformation_gradient_into};
 use crate::error::TrainError;
@@ -146,7 +146,7 @@ pub fn densify_config(config: &TrainConfig) -> DensifyConfig {
     };
     DensifyConfig {
         schedule: Schedule {
-            white_background: config.background == crate::config::Background::White,
+            white_background: config.background == Background::White,
             ..config.densify.schedule
         },
         seed: config.seed,
@@ -215,6 +215,11 @@ pub struct Trainer {
     fwd: ForwardOutput,
     /// The rasterizer's gradients, reused every iteration.
     bwd: BackwardOutput,
+    /// Per training view, its transmittance 1 − α per pixel under a random background (empty
+    /// otherwise).
+    transmittance: Vec<Vec<f32>>,
+    /// The iteration's target image under a random background, reused every iteration.
+    target: Vec<[f32; 3]>,
 }
 
 impl Trainer {
@@ -282,6 +287,11 @@ impl Trainer {
             }
         }
         let (raster, backend) = select_rasterizer(config.backend)?;
+        let transmittance = if config.background == Background::Random {
+            crate::data::load_transmittance(&train, config.downscale)?
+        } else {
+            Vec::new()
+        };
         Ok(Self {
             densify,
             config,
@@ -302,6 +312,8 @@ impl Trainer {
             net_grads: Vec::new(),
             fwd: ForwardOutput::default(),
             bwd: BackwardOutput::default(),
+            transmittance,
+            target: Vec::new(),
         })
     }
 
@@ -396,7 +408,7 @@ impl Trainer {
 
     /// Frees the buffers reused across iterations (the deformed Gaussians, the deformation rows
     /// and their gradient, the network's gradients, the rasterizer's outputs, the loss's
-    /// workspace); the next [`Trainer::step`] allocates them again and computes the same values.
+    /// workspace, the random background's target image); the next [`Trainer::step`] allocates them again and computes the same values.
     pub fn release_buffers(&mut self) {
         self.geometry = DeformedGeometry::default();
         self.deformation_grad = Vec::new();
@@ -405,6 +417,7 @@ impl Trainer {
         self.fwd = ForwardOutput::default();
         self.bwd = BackwardOutput::default();
         self.loss = LossWorkspace::new();
+        self.target = Vec::new();
     }
 
     /// Runs one iteration, one schedule iteration on from the last.
@@ -455,16 +468,33 @@ impl Trainer {
         );
         let gview = self.geometry.view(self.state.gaussians());
         let view = &self.train.views[vi];
+        let background = self.config.background.at_iteration(self.config.seed, i);
         let opts = RenderOptions {
-            background: self.config.background.rgb(),
+            background,
             sh_degree: Some(self.state.active_sh()),
+        };
+        // Under a random background the target is the view's image (over black) with the
+        // background showing through its transmittance.
+        let target = match self.transmittance.get(vi) {
+            Some(transmittance) => {
+                self.target.clear();
+                self.target.extend(
+                    view.image
+                        .pixels
+                        .iter()
+                        .zip(transmittance)
+                        .map(|(p, &t)| [0, 1, 2].map(|c| p[c] + t * background[c])),
+                );
+                &self.target
+            }
+            None => &view.image.pixels,
         };
         t = self.times.lap(Phase::Data, t);
         let fwd = &mut self.fwd;
         self.raster.forward_into(gview, &view.camera, &opts, fwd)?;
         t = self.times.lap(Phase::RasterForward, t);
         let size = ImageSize::new(view.image.width as usize, view.image.height as usize);
-        let loss = self.loss.compute(size, &fwd.color, &view.image.pixels)?;
+        let loss = self.loss.compute(size, &fwd.color, target)?;
         let train_psnr = psnr_from_mse(loss.mse);
         t = self.times.lap(Phase::Loss, t);
         self.raster.backward_into(

@@ -4,7 +4,9 @@
 use std::path::Path;
 
 use evogs_io::image_io::to_u8;
-use evogs_io::{ImageRgb, IoError, load_image, load_view, resize_image, save_png};
+use evogs_io::{
+    ImageRgb, IoError, load_image, load_transmittance, load_view, resize_image, save_png,
+};
 use glam::Vec3;
 use proptest::prelude::*;
 use splat_core::Camera;
@@ -139,6 +141,55 @@ fn load_view_resizes_image_and_camera_together() {
     assert!((img.get(1, 0)[0] - (60.0 + 90.0) / 2.0 / 255.0).abs() < 1e-6);
     let err = load_view(&path, &cam, [0.0; 3], -1.0).unwrap_err();
     assert!(err.to_string().contains("v.png"), "{err}");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+    /// Over any colour, the image a view loads is the one over black plus the colour times the
+    /// transmittance, after an exact box or a filtered resize alike.
+    #[test]
+    fn transmittance_recomposites_the_view_over_any_colour(
+        rgba in proptest::collection::vec(any::<[u8; 4]>(), 36),
+        bg in any::<[u8; 3]>(),
+        filtered in any::<bool>(),
+    ) {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("rgba.png");
+        save_rgba(&path, 6, 6, |x, y| rgba[(y * 6 + x) as usize]);
+        let cam = Camera::look_at(6, 6, 1.0, Vec3::new(0.0, -3.0, 0.0), Vec3::ZERO, Vec3::Z);
+        let factor = if filtered { 0.75 } else { 0.5 };
+        let bg = bg.map(|v| f32::from(v) / 255.0);
+        let (over_black, _) = load_view(&path, &cam, [0.0; 3], factor).unwrap();
+        let (over_bg, _) = load_view(&path, &cam, bg, factor).unwrap();
+        let t = load_transmittance(&path, factor).unwrap();
+        prop_assert_eq!(t.len(), over_black.pixels.len());
+        for ((black, want), t) in over_black.pixels.iter().zip(&over_bg.pixels).zip(&t) {
+            prop_assert!((-1e-6..=1.0 + 1e-6).contains(t), "{}", t);
+            for c in 0..3 {
+                prop_assert!((black[c] + t * bg[c] - want[c]).abs() < 1e-5, "{:?} {:?} {}", black, want, t);
+            }
+        }
+    }
+}
+
+#[test]
+fn transmittance_is_zero_without_alpha_and_errors_name_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("opaque.png");
+    image::RgbImage::from_pixel(4, 2, image::Rgb([9, 99, 199]))
+        .save(&path)
+        .unwrap();
+    assert_eq!(load_transmittance(&path, 0.5).unwrap(), vec![0.0; 2]);
+    let half = dir.path().join("half.png");
+    save_rgba(&half, 2, 2, |x, _| [0, 0, 0, [0, 255][x as usize]]);
+    assert_eq!(
+        load_transmittance(&half, 1.0).unwrap(),
+        vec![1.0, 0.0, 1.0, 0.0]
+    );
+    let err = load_transmittance(&dir.path().join("absent.png"), 1.0).unwrap_err();
+    assert!(err.to_string().contains("absent.png"), "{err}");
+    let err = load_transmittance(&path, 0.0).unwrap_err();
+    assert!(err.to_string().contains("opaque.png"), "{err}");
 }
 
 #[test]

@@ -5,6 +5,7 @@
 
 mod allocations;
 mod appearance_gradients;
+mod background;
 mod budget;
 // Shared with evogs-cli's tests (they include it by path), so it stays at tests/common.
 #[path = "../common/mod.rs"]
