@@ -167,7 +167,7 @@ fn bad_switch_values_name_the_setting() {
         ),
         (&["--preset", "huge"][..], "paper, cpu, tiny or dnerf"),
         (&["--method", "evo"][..], "baseline or evogs"),
-        (&["--background", "grey"][..], "white or black"),
+        (&["--background", "grey"][..], "white, black or random"),
     ] {
         let e = config(flags).unwrap_err();
         let e = e
