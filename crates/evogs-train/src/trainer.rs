@@ -408,7 +408,8 @@ impl Trainer {
 
     /// Frees the buffers reused across iterations (the deformed Gaussians, the deformation rows
     /// and their gradient, the network's gradients, the rasterizer's outputs, the loss's
-    /// workspace, the random background's target image); the next [`Trainer::step`] allocates them again and computes the same values.
+    /// workspace, the random background's target image); the next [`Trainer::step`] allocates
+    /// them again and computes the same values.
     pub fn release_buffers(&mut self) {
         self.geometry = DeformedGeometry::default();
         self.deformation_grad = Vec::new();
