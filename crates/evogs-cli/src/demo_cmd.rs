@@ -107,7 +107,7 @@ pub fn run_demo(args: &DemoArgs) -> Result<(u64, Vec<DemoRow>)> {
     let mut rows = Vec::new();
     for method in [Method::Baseline, Method::Evogs] {
         let mut config = TrainConfig::preset(Preset::Tiny).with_iterations(iterations);
-        config.method = method;
+        config = config.with_method(method);
         config.backend = args.backend;
         let out = args.out.join(method.to_string());
         let scores = train_and_evaluate(&data, &out, config, false, &EvalLpips::default())?;

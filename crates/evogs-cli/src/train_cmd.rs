@@ -31,7 +31,7 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     if let Some(b) = args.background {
         config.background = b;
     }
-    config.method = args.method;
+    config = config.with_method(args.method);
     config.backbone = args.backbone;
     let e = &mut config.evogs;
     if let Some(v) = args.gain {

@@ -524,7 +524,7 @@ pub fn run_ablation(
                 seed,
             });
             let mut config = request.config.clone();
-            config.method = row.method;
+            config = config.with_method(row.method);
             config.evogs = row.evo.clone();
             config.seed = seed;
             let run = request.run_dir(row, seed);

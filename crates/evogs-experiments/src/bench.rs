@@ -484,7 +484,7 @@ pub fn run_bench(
                 method,
             });
             let mut config = request.config.clone();
-            config.method = method;
+            config = config.with_method(method);
             let out = request.out.join(&scene.name).join(method.to_string());
             let run = bench_one(scene, config, request.eval_every, &out, lpips, progress)?;
             progress(BenchProgress::Finished { run: &run });

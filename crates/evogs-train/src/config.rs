@@ -24,9 +24,11 @@
 //! and `tiny` presets decay the network lr over the run; the `dnerf` preset (the D-NeRF
 //! benchmark, issue Q) keeps D-3DGS's phases at the same fractions of a 12 000-iteration run but
 //! decays the network lr over 40 000·N/12 000 steps. Why: decayed over a run 13× shorter than
-//! D-3DGS's, the network lr falls 500× within a few thousand steps. It caps the Gaussians at
-//! [`DNERF_MAX_GAUSSIANS`]: uncapped, lego's Gaussians multiplied before the width-64 network
-//! had learned any motion and the baseline's shovel stayed a static blur. It initialises the network
+//! D-3DGS's, the network lr falls 500× within a few thousand steps. It caps the Gaussians per
+//! method ([`Preset::max_gaussians`]): at [`DNERF_MAX_GAUSSIANS_BASELINE`] for the baseline
+//! (uncapped, lego's Gaussians multiplied before the width-64 network had learned any motion and
+//! its shovel stayed a static blur) and at [`DNERF_MAX_GAUSSIANS_EVOGS`] for EvoGS (more
+//! Gaussians fit lego's training views better). It initialises the network
 //! as D-3DGS does ([`NetInit::Torch`]): He initialisation with zero heads moves the deformation
 //! by ~0.024 world units in its first Adam step and, with a short warm-up, diverged (lego,
 //! `results/dnerf/`). What these choices do on lego is measured in `results/dnerf/`.
@@ -39,9 +41,17 @@ use evogs_backbones::{NetInit, NetSettings, OneWord, unknown_message};
 
 use crate::error::TrainError;
 
-/// The `dnerf` preset's cap on the Gaussian count (densify's `max_gaussians`): the initial
-/// point count, which densification may refill after pruning but not exceed.
-pub const DNERF_MAX_GAUSSIANS: usize = 10_000;
+/// The `dnerf` preset's cap on the Gaussian count (densify's `max_gaussians`) for the baseline:
+/// the initial point count, which densification may refill after pruning but not exceed.
+/// Uncapped, lego's Gaussians multiplied before the width-64 network had learned any motion;
+/// with 40 000 the baseline lost 1.3–1.6 dB on lego (issue Q, `results/dnerf/` §0, A.6).
+pub const DNERF_MAX_GAUSSIANS_BASELINE: usize = 10_000;
+
+/// The `dnerf` preset's cap on the Gaussian count for EvoGS, chosen on lego's training views:
+/// at 50 CPU-minutes, 40 000 gave 34.92 dB against 33.52 / 33.66 at 10 000 with seeds 0 and 1
+/// (issue Q, `results/dnerf/` A.10). Φ learns the motion with more Gaussians; the baseline's
+/// MLP does not, hence a cap per method.
+pub const DNERF_MAX_GAUSSIANS_EVOGS: usize = 40_000;
 
 /// [`unknown_message`] as the error of the setting [`OneWord::FIELD`].
 pub(crate) fn unknown<T: OneWord>(value: &str) -> TrainError {
@@ -165,14 +175,26 @@ pub enum Preset {
     /// opacity reset every 3 000), width 64, D-3DGS's initialisation ([`NetInit::Torch`]), and two
     /// deliberate differences: a network lr that decays over 40 000·N/12 000 steps instead of the
     /// run's N (it ends at 8e-4·500^-0.3 ≈ 1.2e-4 rather than 1.6e-6), as D-3DGS's 40 000-step
-    /// decay does over the first 12 000 of its steps; and at most [`DNERF_MAX_GAUSSIANS`]
-    /// Gaussians (uncapped, the baseline did not learn lego's motion; issue Q).
+    /// decay does over the first 12 000 of its steps; and a cap on the Gaussians per method
+    /// ([`Preset::max_gaussians`]: 10 000 for the baseline, which uncapped did not learn lego's
+    /// motion, 40 000 for EvoGS; issue Q).
     Dnerf,
 }
 
 impl Preset {
     /// All presets.
     pub const ALL: [Preset; 4] = [Preset::Paper, Preset::Cpu, Preset::Tiny, Preset::Dnerf];
+
+    /// The preset's cap on the Gaussian count (densify's `max_gaussians`) for `method`: the
+    /// `dnerf` preset's [`DNERF_MAX_GAUSSIANS_BASELINE`] and [`DNERF_MAX_GAUSSIANS_EVOGS`], none
+    /// for the others.
+    pub fn max_gaussians(self, method: Method) -> Option<usize> {
+        match (self, method) {
+            (Preset::Dnerf, Method::Baseline) => Some(DNERF_MAX_GAUSSIANS_BASELINE),
+            (Preset::Dnerf, Method::Evogs) => Some(DNERF_MAX_GAUSSIANS_EVOGS),
+            (Preset::Paper | Preset::Cpu | Preset::Tiny, _) => None,
+        }
+    }
 }
 
 fn one() -> f32 {
@@ -430,18 +452,28 @@ impl TrainConfig {
                     deform_max_steps: 40_000,
                     ..LrSettings::default()
                 },
-                // D-3DGS's 500..15 000 of 40 000; interval and reset per step as D-3DGS. At most
-                // DNERF_MAX_GAUSSIANS: uncapped, lego grew to ~40 000 Gaussians before the
-                // network had learned any motion, and the baseline's shovel stayed a static blur;
-                // capped, it learns the shovel's motion (issue Q, `results/dnerf/`).
+                // D-3DGS's 500..15 000 of 40 000; interval and reset per step as D-3DGS. The cap
+                // is the baseline's (the preset's method); `with_method` sets EvoGS's.
                 densify: DensifyConfig {
-                    max_gaussians: Some(DNERF_MAX_GAUSSIANS),
+                    max_gaussians: preset.max_gaussians(Method::Baseline),
                     ..densify_window(150, 4_500, 100, 3_000)
                 },
                 checkpoint_every: 1_000,
                 ..paper
             },
         }
+    }
+
+    /// The same settings for `method`. A cap on the Gaussians still at the preset's value for
+    /// the current method becomes the preset's value for `method` ([`Preset::max_gaussians`]);
+    /// a cap set otherwise (`--max-gaussians`) is kept.
+    #[must_use]
+    pub fn with_method(mut self, method: Method) -> Self {
+        if self.densify.max_gaussians == self.preset.max_gaussians(self.method) {
+            self.densify.max_gaussians = self.preset.max_gaussians(method);
+        }
+        self.method = method;
+        self
     }
 
     /// The same recipe over `iterations`: every iteration count of the schedule (warm-up, SH
@@ -636,15 +668,48 @@ mod tests {
     }
 
     #[test]
-    fn dnerf_preset_caps_the_gaussians_at_any_length() {
+    fn dnerf_preset_caps_the_gaussians_per_method_at_any_length() {
         for n in [12_000, 3_000, 300] {
             let c = TrainConfig::preset(Preset::Dnerf).with_iterations(n);
-            assert_eq!(c.densify.max_gaussians, Some(DNERF_MAX_GAUSSIANS));
-            let back: TrainConfig =
-                serde_json::from_str(&serde_json::to_string(&c).unwrap()).unwrap();
-            assert_eq!(back, c);
+            assert_eq!(c.method, Method::Baseline);
+            assert_eq!(c.densify.max_gaussians, Some(DNERF_MAX_GAUSSIANS_BASELINE));
+            let evogs = c.clone().with_method(Method::Evogs);
+            assert_eq!(evogs.method, Method::Evogs);
+            assert_eq!(evogs.densify.max_gaussians, Some(DNERF_MAX_GAUSSIANS_EVOGS));
+            // Back again, and set before the length: the same settings.
+            assert_eq!(evogs.clone().with_method(Method::Baseline), c);
+            let first = TrainConfig::preset(Preset::Dnerf)
+                .with_method(Method::Evogs)
+                .with_iterations(n);
+            assert_eq!(first, evogs);
+            for c in [c, evogs] {
+                let back: TrainConfig =
+                    serde_json::from_str(&serde_json::to_string(&c).unwrap()).unwrap();
+                assert_eq!(back, c);
+            }
         }
-        assert_eq!(TrainConfig::preset(Preset::Cpu).densify.max_gaussians, None);
+        for p in [Preset::Cpu, Preset::Tiny, Preset::Paper] {
+            for m in [Method::Baseline, Method::Evogs] {
+                let c = TrainConfig::preset(p).with_method(m);
+                assert_eq!(c.densify.max_gaussians, None, "{p} {m}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_cap_set_by_hand_survives_the_method() {
+        let mut c = TrainConfig::preset(Preset::Dnerf);
+        c.densify.max_gaussians = Some(20_000);
+        let c = c.with_method(Method::Evogs);
+        assert_eq!(c.densify.max_gaussians, Some(20_000));
+        assert_eq!(
+            c.with_method(Method::Baseline).densify.max_gaussians,
+            Some(20_000)
+        );
+        let mut cpu = TrainConfig::preset(Preset::Cpu);
+        cpu.densify.max_gaussians = Some(5_000);
+        let cpu = cpu.with_method(Method::Evogs);
+        assert_eq!(cpu.densify.max_gaussians, Some(5_000));
     }
 
     #[test]

@@ -220,3 +220,28 @@ fn bad_switch_values_name_the_setting() {
         .to_string();
     assert!(e.contains("--gain"), "{e}");
 }
+
+#[test]
+fn the_dnerf_cap_follows_the_method_unless_given() {
+    use evogs_train::config::{DNERF_MAX_GAUSSIANS_BASELINE, DNERF_MAX_GAUSSIANS_EVOGS};
+    let cap = |flags: &[&str]| config(flags).unwrap().densify.max_gaussians;
+    let dnerf = ["--preset", "dnerf"];
+    assert_eq!(
+        cap(&[&dnerf[..], &["--method", "baseline"]].concat()),
+        Some(DNERF_MAX_GAUSSIANS_BASELINE)
+    );
+    assert_eq!(cap(&dnerf), Some(DNERF_MAX_GAUSSIANS_EVOGS));
+    assert_eq!(
+        cap(&[&dnerf[..], &["--iterations", "3000"]].concat()),
+        Some(DNERF_MAX_GAUSSIANS_EVOGS)
+    );
+    for method in ["baseline", "evogs"] {
+        let given = [
+            &dnerf[..],
+            &["--method", method, "--max-gaussians", "12345"],
+        ]
+        .concat();
+        assert_eq!(cap(&given), Some(12_345), "{method}");
+        assert_eq!(cap(&["--preset", "cpu", "--method", method]), None);
+    }
+}
