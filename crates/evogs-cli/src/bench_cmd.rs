@@ -1,14 +1,20 @@
 //! `evogs bench`: the D-NeRF benchmark (scenes × methods, one table with the published figures,
 //! a PSNR-against-time plot, a picture per scene). Thin: the runner and the outputs are
 //! `evogs_experiments::bench`; this module reads the flags and prints one line per run started,
-//! curve point and run finished.
+//! curve point and run finished. With `--jobs N` it trains up to N runs at once, each in a
+//! process of its own (this executable again, with the hidden `--part`), and gathers their rows
+//! into the one table.
 
 use std::path::PathBuf;
+use std::process::{Child, Command};
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Args;
 use evogs_eval::eval::EvalLpips;
-use evogs_experiments::bench::{BenchProgress, BenchRequest, BenchRun, BenchScene, run_bench};
+use evogs_experiments::bench::{
+    BenchProgress, BenchRequest, BenchRun, BenchScene, read_run_record, run_bench, run_bench_runs,
+    write_summaries,
+};
 use evogs_metrics::lpips::Backbone;
 use evogs_train::{Method, Preset, TrainConfig};
 
@@ -67,6 +73,118 @@ pub struct BenchArgs {
     /// ~/.cache/evogs/lpips; `scripts/lpips-weights` installs them there].
     #[arg(long, value_name = "DIR")]
     pub lpips_weights: Option<PathBuf>,
+
+    /// Train up to N runs at once, each in a process of its own with RAYON_NUM_THREADS = the
+    /// threads / N (at least 1), so each run's peak memory and CPU-time budget are its own: on
+    /// 2 cores `--jobs 2` trains the two methods side by side, one thread each. The table, plot
+    /// and pictures gather every run once all have finished.
+    #[arg(long, default_value_t = 1, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub jobs: u64,
+
+    /// (Internal, for --jobs) train and evaluate the runs and write each run's record, but not
+    /// the table, plot or pictures.
+    #[arg(long, hide = true)]
+    pub part: bool,
+}
+
+/// The flags of `args` that every run shares, as `evogs bench` reads them back (a `--jobs`
+/// part gets these with its own `--data`, `--methods` and `--out`).
+fn shared_flags(args: &BenchArgs) -> Vec<String> {
+    let mut f = vec![
+        "--preset".to_string(),
+        args.preset.to_string(),
+        "--eval-every".to_string(),
+        args.eval_every.to_string(),
+        "--backbone".to_string(),
+        args.backbone.to_string(),
+    ];
+    if let Some(n) = args.iterations {
+        f.extend(["--iterations".to_string(), n.to_string()]);
+    }
+    if let Some(seconds) = args.budget.time_budget {
+        f.extend(["--time-budget".to_string(), format!("{seconds}s")]);
+    }
+    if let Some(clock) = args.budget.budget_clock {
+        f.extend(["--budget-clock".to_string(), clock.to_string()]);
+    }
+    if let Some(s) = args.seed {
+        f.extend(["--seed".to_string(), s.to_string()]);
+    }
+    if args.lpips_vgg {
+        f.push("--lpips-vgg".to_string());
+    }
+    if let Some(dir) = &args.lpips_weights {
+        f.extend(["--lpips-weights".to_string(), dir.display().to_string()]);
+    }
+    f
+}
+
+/// Trains every scene × method of `request` in up to `args.jobs` processes at once (this
+/// executable with `--part`, one run each), then reads their records in the request's order.
+fn run_in_parts(args: &BenchArgs, request: &BenchRequest) -> Result<Vec<BenchRun>> {
+    let exe = std::env::current_exe().context("evogs bench --jobs: finding this executable")?;
+    let jobs = args.jobs as usize;
+    let threads = (rayon::current_num_threads() / jobs).max(1);
+    let shared = shared_flags(args);
+    let mut pending: Vec<(&BenchScene, Method)> = request
+        .scenes
+        .iter()
+        .flat_map(|scene| request.methods.iter().map(move |&m| (scene, m)))
+        .collect();
+    pending.reverse();
+    let mut running: Vec<(Child, String)> = Vec::new();
+    let mut failures = Vec::new();
+    while !pending.is_empty() || !running.is_empty() {
+        while running.len() < jobs && failures.is_empty() {
+            let Some((scene, method)) = pending.pop() else {
+                break;
+            };
+            let child = Command::new(&exe)
+                .arg("bench")
+                .arg("--part")
+                .arg("--data")
+                .arg(&scene.data)
+                .args(["--methods", &method.to_string()])
+                .arg("--out")
+                .arg(&request.out)
+                .args(&shared)
+                .env("RAYON_NUM_THREADS", threads.to_string())
+                .spawn()
+                .with_context(|| format!("evogs bench --jobs: starting {}", exe.display()))?;
+            running.push((child, format!("{} {method}", scene.name)));
+        }
+        if !failures.is_empty() {
+            // Start no more runs; wait for those running.
+            pending.clear();
+        }
+        let mut still = Vec::with_capacity(running.len());
+        for (mut child, label) in running {
+            match child.try_wait()? {
+                Some(status) if !status.success() => {
+                    failures.push(format!("{label} ({status})"));
+                }
+                Some(_) => {}
+                None => still.push((child, label)),
+            }
+        }
+        running = still;
+        if !running.is_empty() {
+            std::thread::sleep(std::time::Duration::from_millis(200));
+        }
+    }
+    anyhow::ensure!(
+        failures.is_empty(),
+        "evogs bench --jobs: failed runs: {} (their errors are above)",
+        failures.join(", ")
+    );
+    let mut runs = Vec::new();
+    for scene in &request.scenes {
+        for method in &request.methods {
+            let dir = request.out.join(&scene.name).join(method.to_string());
+            runs.push(read_run_record(&dir)?);
+        }
+    }
+    Ok(runs)
 }
 
 /// Runs `evogs bench`; returns the runs (the outputs are written).
@@ -94,10 +212,19 @@ pub fn run_bench_cmd(args: &BenchArgs) -> Result<Vec<BenchRun>> {
         &[Backbone::Alex]
     };
     let lpips = EvalLpips::find(backbones, args.lpips_weights.as_deref())?;
+    let runs = request.scenes.len() * request.methods.len();
+    if args.jobs > 1 && runs > 1 && !args.part {
+        // The parts load LPIPS themselves (and say what is missing).
+        request.config.validate()?;
+        let runs = run_in_parts(args, &request)?;
+        write_summaries(&request, &runs)?;
+        return Ok(runs);
+    }
     for line in &lpips.missing {
         eprintln!("LPIPS not reported: {line}");
     }
-    Ok(run_bench(&request, &lpips, &mut |p| match p {
+    let bench = if args.part { run_bench_runs } else { run_bench };
+    Ok(bench(&request, &lpips, &mut |p| match p {
         BenchProgress::Started { scene, method } => eprintln!("{scene} {method}: started"),
         BenchProgress::Point {
             scene,

@@ -14,6 +14,9 @@
 //!   allows (`/proc/self/clear_refs`), read after training; `None` elsewhere.
 //! - Non-finite values: the trained canonical Gaussians are checked; a NaN or Inf during training
 //!   already stops the run with an error naming the Gaussian.
+//! - Each finished run also writes its row as [`RUN_RECORD`] in its run directory, so that runs
+//!   trained apart (`evogs bench --jobs`, one process per run: each its own peak memory and CPU
+//!   clock) are gathered into one table by [`read_run_record`] and [`write_summaries`].
 //!
 //! What it is not: a timing harness (times are wall-clock on whatever else runs on the machine;
 //! the table says so) or a place that chooses settings.
@@ -22,7 +25,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use evogs_io::{ImageRgb, Split};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::error::ExperimentError;
 use crate::write::{write_bytes, write_json, write_png};
@@ -217,7 +220,7 @@ pub fn published_for(scene: &str, resolution: u32) -> Option<&'static Published>
 }
 
 /// A split's mean scores.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SplitScore {
     /// `test` or `val`.
     pub split: String,
@@ -234,7 +237,7 @@ pub struct SplitScore {
 }
 
 /// One point of a run's curve.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CurvePoint {
     /// Iterations done.
     pub iteration: u64,
@@ -245,7 +248,7 @@ pub struct CurvePoint {
 }
 
 /// One trained and evaluated run.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BenchRun {
     /// Scene name.
     pub scene: String,
@@ -457,14 +460,18 @@ fn bench_one(
     })
 }
 
-/// Runs every scene × method of `request`, evaluates each with the LPIPS networks of `lpips`,
-/// writes the outputs ([`write_outputs`]) and returns the runs (scene-major, in the request's
-/// orders).
-pub fn run_bench(
-    request: &BenchRequest,
-    lpips: &EvalLpips,
-    progress: &mut dyn FnMut(BenchProgress<'_>),
-) -> Result<Vec<BenchRun>, ExperimentError> {
+/// File name of a run's row ([`BenchRun`] as JSON) in its run directory.
+pub const RUN_RECORD: &str = "bench_run.json";
+
+/// Reads the row a bench run wrote into `run_dir` ([`RUN_RECORD`]); the error names the file.
+pub fn read_run_record(run_dir: &Path) -> Result<BenchRun, ExperimentError> {
+    let path = run_dir.join(RUN_RECORD);
+    let text =
+        std::fs::read_to_string(&path).map_err(|e| ExperimentError::input(&path, e.to_string()))?;
+    serde_json::from_str(&text).map_err(|e| ExperimentError::input(&path, e.to_string()))
+}
+
+fn check_request(request: &BenchRequest) -> Result<(), ExperimentError> {
     if request.scenes.is_empty() || request.methods.is_empty() {
         return Err(ExperimentError::config(
             "bench",
@@ -475,26 +482,78 @@ pub fn run_bench(
         return Err(ExperimentError::config("eval_every", "must be at least 1"));
     }
     request.config.validate()?;
-    std::fs::create_dir_all(&request.out).map_err(|e| ExperimentError::dir(&request.out, e))?;
+    std::fs::create_dir_all(&request.out).map_err(|e| ExperimentError::dir(&request.out, e))
+}
+
+/// Trains and evaluates every method of `request` on `scene`; each run writes its
+/// [`RUN_RECORD`].
+fn run_scene(
+    request: &BenchRequest,
+    scene: &BenchScene,
+    lpips: &EvalLpips,
+    progress: &mut dyn FnMut(BenchProgress<'_>),
+) -> Result<Vec<BenchRun>, ExperimentError> {
+    let mut runs = Vec::new();
+    for &method in &request.methods {
+        progress(BenchProgress::Started {
+            scene: &scene.name,
+            method,
+        });
+        let config = request.config.clone().with_method(method);
+        let out = request.out.join(&scene.name).join(method.to_string());
+        let run = bench_one(scene, config, request.eval_every, &out, lpips, progress)?;
+        let record = serde_json::to_value(&run)
+            .map_err(|e| ExperimentError::output(out.join(RUN_RECORD), e.to_string()))?;
+        write_json(&out.join(RUN_RECORD), &record)?;
+        progress(BenchProgress::Finished { run: &run });
+        runs.push(run);
+    }
+    Ok(runs)
+}
+
+/// Runs every scene × method of `request`, evaluates each with the LPIPS networks of `lpips`,
+/// writes the outputs ([`write_outputs`]) and returns the runs (scene-major, in the request's
+/// orders).
+pub fn run_bench(
+    request: &BenchRequest,
+    lpips: &EvalLpips,
+    progress: &mut dyn FnMut(BenchProgress<'_>),
+) -> Result<Vec<BenchRun>, ExperimentError> {
+    check_request(request)?;
     let mut runs = Vec::new();
     for scene in &request.scenes {
-        for &method in &request.methods {
-            progress(BenchProgress::Started {
-                scene: &scene.name,
-                method,
-            });
-            let mut config = request.config.clone();
-            config = config.with_method(method);
-            let out = request.out.join(&scene.name).join(method.to_string());
-            let run = bench_one(scene, config, request.eval_every, &out, lpips, progress)?;
-            progress(BenchProgress::Finished { run: &run });
-            runs.push(run);
-        }
+        runs.extend(run_scene(request, scene, lpips, progress)?);
         // The outputs so far, so that an interrupted bench leaves its finished scenes.
         write_outputs(&request.out, &request.config, &runs)?;
         write_picture(&request.out, scene, &runs)?;
     }
     Ok(runs)
+}
+
+/// [`run_bench`] without the outputs: trains and evaluates every scene × method, each run
+/// writing its [`RUN_RECORD`], for a caller that gathers runs trained apart
+/// ([`write_summaries`]).
+pub fn run_bench_runs(
+    request: &BenchRequest,
+    lpips: &EvalLpips,
+    progress: &mut dyn FnMut(BenchProgress<'_>),
+) -> Result<Vec<BenchRun>, ExperimentError> {
+    check_request(request)?;
+    let mut runs = Vec::new();
+    for scene in &request.scenes {
+        runs.extend(run_scene(request, scene, lpips, progress)?);
+    }
+    Ok(runs)
+}
+
+/// Writes the outputs of `runs` into `request.out`: the table, the JSON and the plot
+/// ([`write_outputs`]) and the picture of every scene of the request ([`write_picture`]).
+pub fn write_summaries(request: &BenchRequest, runs: &[BenchRun]) -> Result<(), ExperimentError> {
+    write_outputs(&request.out, &request.config, runs)?;
+    for scene in &request.scenes {
+        write_picture(&request.out, scene, runs)?;
+    }
+    Ok(())
 }
 
 fn fmt_opt(v: Option<f64>, digits: usize) -> String {
@@ -677,6 +736,53 @@ mod tests {
         let p = published_for("lego", 400).unwrap();
         assert_eq!((p.resolution, p.split, p.psnr), (800, "val", 33.07));
         assert!(published_for("mine", 400).is_none());
+    }
+
+    #[test]
+    fn run_records_read_back_and_bad_ones_name_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let run = BenchRun {
+            scene: "hook".into(),
+            method: Method::Evogs,
+            run: dir.path().to_path_buf(),
+            resolution: 400,
+            iterations: 12_000,
+            seconds: 1234.5678901234,
+            peak_rss_bytes: Some(554 << 20),
+            gaussians: 40_000,
+            non_finite: 0,
+            headline: "test".into(),
+            scores: vec![SplitScore {
+                split: "test".into(),
+                images: 20,
+                psnr: 31.234_567_890_123,
+                ssim: 0.97,
+                lpips_alex: None,
+                lpips_vgg: Some(0.0416),
+            }],
+            curve: vec![CurvePoint {
+                iteration: 2000,
+                seconds: 0.1 + 0.2,
+                psnr: 26.03,
+            }],
+        };
+        write_json(
+            &dir.path().join(RUN_RECORD),
+            &serde_json::to_value(&run).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(read_run_record(dir.path()).unwrap(), run);
+        let missing = read_run_record(&dir.path().join("none"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            missing.contains("none") && missing.contains(RUN_RECORD),
+            "{missing}"
+        );
+        std::fs::write(dir.path().join(RUN_RECORD), r#"{"scene": "hook"}"#).unwrap();
+        let bad = read_run_record(dir.path()).unwrap_err().to_string();
+        assert!(bad.contains(RUN_RECORD) && bad.contains("method"), "{bad}");
+        assert_eq!(bad.lines().count(), 1, "{bad}");
     }
 
     #[test]

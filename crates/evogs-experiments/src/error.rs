@@ -35,6 +35,14 @@ pub enum ExperimentError {
         /// What went wrong.
         problem: String,
     },
+    /// A file the experiment reads (a run's record) could not be read or parsed.
+    #[error("{}: {problem}", path.display())]
+    Input {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        problem: String,
+    },
     /// A setting of the request is out of range or unknown.
     #[error("invalid setting `{field}`: {problem}")]
     Config {
@@ -55,6 +63,13 @@ impl ExperimentError {
 
     pub(crate) fn output(path: impl Into<PathBuf>, problem: impl Into<String>) -> Self {
         Self::Output {
+            path: path.into(),
+            problem: problem.into(),
+        }
+    }
+
+    pub(crate) fn input(path: impl Into<PathBuf>, problem: impl Into<String>) -> Self {
+        Self::Input {
             path: path.into(),
             problem: problem.into(),
         }

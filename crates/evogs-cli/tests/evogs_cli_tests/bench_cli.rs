@@ -113,3 +113,114 @@ fn unknown_method_is_a_one_line_error() {
     assert_eq!(e.trim().lines().count(), 1, "{e}");
     assert!(e.contains("method") && e.contains("evo"), "{e}");
 }
+
+/// The numbers of a bench's runs that do not depend on the machine: every run's scene, method,
+/// iterations, Gaussians and scores, and its curve without the times.
+fn machine_free(bench: &std::path::Path) -> Vec<serde_json::Value> {
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(bench.join("bench.json")).unwrap()).unwrap();
+    json["runs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| {
+            let curve: Vec<_> = r["curve"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|p| (p["iteration"].clone(), p["psnr"].clone()))
+                .collect();
+            serde_json::json!([
+                r["scene"],
+                r["method"],
+                r["iterations"],
+                r["gaussians"],
+                r["scores"],
+                curve
+            ])
+        })
+        .collect()
+}
+
+#[test]
+fn jobs_train_the_runs_apart_into_the_same_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("jump"), dir.path().join("wave"));
+    synth("jump", &a, 32, 8);
+    synth("wave", &b, 32, 8);
+    let data = format!("{},{}", s(&a), s(&b));
+    let bench = |out: &std::path::Path, jobs: &str| {
+        let o = evogs(&[
+            "bench",
+            "--data",
+            &data,
+            "--out",
+            s(out),
+            "--preset",
+            "tiny",
+            "--iterations",
+            "20",
+            "--eval-every",
+            "10",
+            "--seed",
+            "3",
+            "--jobs",
+            jobs,
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o)
+    };
+    let (one, two) = (dir.path().join("one"), dir.path().join("two"));
+    bench(&one, "1");
+    let log = bench(&two, "3");
+    for scene in ["jump", "wave"] {
+        for method in ["baseline", "evogs"] {
+            assert!(
+                log.contains(&format!("{scene} {method}: finished")),
+                "{log}"
+            );
+            assert!(
+                two.join(scene)
+                    .join(method)
+                    .join("bench_run.json")
+                    .is_file()
+            );
+        }
+        image::open(two.join(format!("{scene}.png"))).unwrap();
+    }
+    image::open(two.join("bench.png")).unwrap();
+    // Training is bit-identical for any thread count, so the parts give the same numbers in
+    // the same order.
+    let (seq, par) = (machine_free(&one), machine_free(&two));
+    assert_eq!(seq.len(), 4);
+    assert_eq!(seq, par);
+}
+
+#[test]
+fn a_failed_part_fails_the_bench_naming_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("jump");
+    synth("jump", &a, 32, 8);
+    let missing = dir.path().join("nosuch");
+    let data = format!("{},{}", s(&a), s(&missing));
+    let o = evogs(&[
+        "bench",
+        "--data",
+        &data,
+        "--out",
+        s(&dir.path().join("out")),
+        "--preset",
+        "tiny",
+        "--iterations",
+        "10",
+        "--methods",
+        "baseline",
+        "--jobs",
+        "2",
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(e.contains("nosuch"), "{e}");
+    assert!(e.contains("failed runs: nosuch baseline"), "{e}");
+    assert!(!dir.path().join("out").join("bench.md").exists(), "{e}");
+}
