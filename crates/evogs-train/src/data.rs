@@ -137,7 +137,9 @@ pub fn load_dataset_split(
 /// [`crate::Background::Random`]). Errors name the file; a view whose image is not the size of
 /// its file's resized is refused.
 pub fn load_transmittance(views: &SplitViews, factor: f32) -> Result<Vec<Vec<f32>>, TrainError> {
-    views
+    // Collected whole, then the first error in view order: the message does not depend on which
+    // thread failed first.
+    let loaded: Vec<Result<Vec<f32>, TrainError>> = views
         .views
         .par_iter()
         .map(|v| {
@@ -154,5 +156,6 @@ pub fn load_transmittance(views: &SplitViews, factor: f32) -> Result<Vec<Vec<f32
             }
             Ok(t)
         })
-        .collect()
+        .collect();
+    loaded.into_iter().collect()
 }
