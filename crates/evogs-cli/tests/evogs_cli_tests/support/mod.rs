@@ -9,6 +9,7 @@ use std::process::{Command, Output};
 use std::sync::OnceLock;
 
 pub mod capture;
+pub mod cdp;
 pub mod view;
 
 /// The `evogs` binary Cargo built for these tests.
