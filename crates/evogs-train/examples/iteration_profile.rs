@@ -12,7 +12,18 @@
 //! The optional JSON is merged into the config (e.g. the Gaussian count, or EvoGS's settings
 //! `{"evogs":{"gain":"0.5"}}`). Without valgrind it prints the trainer's phase times of the
 //! measured iterations.
+//!
+//! Sampled time of the same iterations alone (the state changes over a run, so the iterations
+//! callgrind counts are the ones to time): with `EVOGS_PERF_CONTROL` naming a FIFO, the example
+//! writes `enable` to it before [`measured`] and `disable` after, for a perf started disabled:
+//!
+//! ```text
+//! mkfifo ctl
+//! EVOGS_PERF_CONTROL=ctl perf record -D -1 --control fifo:ctl -e cpu-clock -F 20000 \
+//!     target/release/examples/iteration_profile evogs 2
+//! ```
 
+use std::io::Write;
 use std::path::Path;
 
 use evogs_io::Split;
@@ -26,6 +37,17 @@ fn measured(t: &mut Trainer, steps: u64) {
     for _ in 0..steps {
         t.step().expect("a training step");
     }
+}
+
+/// Opens perf's control FIFO at `path` and enables sampling.
+fn perf_control(path: std::ffi::OsString) -> std::fs::File {
+    let mut fifo = std::fs::OpenOptions::new()
+        .write(true)
+        .open(&path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    fifo.write_all(b"enable\n")
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    fifo
 }
 
 fn merge(base: &mut serde_json::Value, patch: &serde_json::Value) {
@@ -82,7 +104,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         fwd.mean_contributors()
     );
     t.reset_times();
+    let perf = std::env::var_os("EVOGS_PERF_CONTROL").map(perf_control);
     measured(&mut t, steps);
+    if let Some(mut p) = perf {
+        p.write_all(b"disable\n")?;
+    }
     eprintln!(
         "{method}, {} Gaussians, {steps} iterations:\n{}",
         t.state().len(),
