@@ -19,9 +19,11 @@
 //!
 //! ```text
 //! mkfifo ctl
-//! EVOGS_PERF_CONTROL=ctl perf record -D -1 --control fifo:ctl -e cpu-clock -F 20000 \
+//! EVOGS_PERF_CONTROL=ctl perf record -D -1 --control fifo:ctl -e cpu-clock -F 2000 \
 //!     target/release/examples/iteration_profile evogs 2
 //! ```
+//! (Sampling costs time in a VM: at 2 kHz the iterations took up to ~15 % longer than without
+//! perf, at 20 kHz 4× as long; BENCHMARKS.md, "Where one lego iteration's time goes".)
 
 use std::io::Write;
 use std::path::Path;
