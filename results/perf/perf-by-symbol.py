@@ -1,17 +1,30 @@
-import subprocess,collections,sys,re
-files=sys.argv[3:]; iters=int(sys.argv[1]); hz=float(sys.argv[2])
-c=collections.Counter()
+"""CPU time per function from `perf record -e cpu-clock` files, per iteration.
+
+usage: perf-by-symbol.py ITERATIONS_PER_FILE SAMPLE_HZ FILE...
+
+Reads each file once (`perf script --no-demangle`) and counts samples per mangled symbol, so that
+monomorphs of one generic function (the rasterizer's forward and backward kernels are both
+`run_avx2`) stay apart; names are demangled by `c++filt` for printing (Rust's legacy mangling
+keeps the hash: `…::run_avx2::h0e0f…`).
+"""
+import collections
+import subprocess
+import sys
+
+iters, hz, files = int(sys.argv[1]), float(sys.argv[2]), sys.argv[3:]
+samples = collections.Counter()
 for f in files:
-    out=subprocess.run(['perf','script','-i',f,'-F','ip,sym'],capture_output=True,text=True).stdout
+    out = subprocess.run(
+        ["perf", "script", "-i", f, "-F", "ip,sym", "--no-demangle"],
+        capture_output=True, text=True, check=True,
+    ).stdout
     for line in out.splitlines():
-        c[line.strip().split(None,1)[-1][:120]]+=1
-# split run_avx2 monomorphs by mangled name
-c2=collections.Counter()
-for f in files:
-    out=subprocess.run(['perf','script','-i',f,'-F','ip,sym','--no-demangle'],capture_output=True,text=True).stdout
-    for line in out.splitlines():
-        if 'splat_raster' in line and 'run_avx2' in line: c2[line.strip().split(None,1)[-1]]+=1
-tot=sum(c.values()); n=len(files)*iters
-print(f"{tot} samples, {tot/hz/n*1000:.1f} ms CPU per iteration")
-for k,v in c2.items(): print(f"{v/hz/n*1000:7.2f} ms {100*v/tot:5.1f}%  {k}")
-for k,v in c.most_common(22): print(f"{v/hz/n*1000:7.2f} ms {100*v/tot:5.1f}%  {k}")
+        samples[line.strip().split(None, 1)[-1]] += 1
+top = samples.most_common(25)
+names = subprocess.run(
+    ["c++filt"], input="\n".join(k for k, _ in top), capture_output=True, text=True, check=True
+).stdout.splitlines()
+total, n = sum(samples.values()), len(files) * iters
+print(f"{total} samples, {total / hz / n * 1000:.1f} ms CPU per iteration")
+for name, (_, v) in zip(names, top):
+    print(f"{v / hz / n * 1000:7.2f} ms {100 * v / total:5.1f}%  {name[:120]}")
