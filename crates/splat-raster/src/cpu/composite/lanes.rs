@@ -121,8 +121,91 @@ impl Kernel for Forward<'_> {
     }
 }
 
+/// The per-pixel state of a tile being composited, one vector per block.
+struct Blend<V: Simd> {
+    /// Transmittance.
+    t: [V::F; BLOCKS],
+    /// Lanes that stopped (`T` would fall below [`T_MIN`]).
+    done: [V::M; BLOCKS],
+    red: [V::F; BLOCKS],
+    green: [V::F; BLOCKS],
+    blue: [V::F; BLOCKS],
+    depth: [V::F; BLOCKS],
+    /// One past the list position of the last entry blended.
+    last: [V::I; BLOCKS],
+    /// The number of entries blended.
+    blended: [V::I; BLOCKS],
+    /// Pixels still running.
+    active: usize,
+}
+
+/// One list entry's constants as vectors.
+struct Entry<V: Simd> {
+    opacity: V::F,
+    rgb: [V::F; 3],
+    z: V::F,
+    /// One past its list position.
+    pos: V::I,
+}
+
+/// The kernel's constants as vectors.
+struct Consts<V: Simd> {
+    exp: ExpConsts<V>,
+    zero: V::F,
+    one: V::F,
+    alpha_max: V::F,
+    alpha_min: V::F,
+    t_min: V::F,
+}
+
+/// Blends entry `e` into the `N` distinct blocks `b` (with `σ` and the lanes the ellipse test
+/// keeps), in lockstep: each block's operations are the reference's, and the blocks' chains of
+/// dependent operations (the `exp` above all) are independent, so the core overlaps them.
+#[inline(always)]
+fn blend_blocks<V: Simd, const N: usize>(
+    v: V,
+    k: &Consts<V>,
+    e: &Entry<V>,
+    st: &mut Blend<V>,
+    b: [usize; N],
+    sig: [V::F; N],
+    near: [V::M; N],
+) {
+    // Plain loops, not `std::array::from_fn`: its closures are not always inlined into the
+    // caller compiled for the CPU's instruction set, and out of line each lane operation
+    // becomes a call.
+    let (mut alpha, mut ok, mut next) = ([k.zero; N], [v.none(); N], [k.zero; N]);
+    for i in 0..N {
+        // Lanes outside [0, sigma_cut] are masked off below, so the clamp is not needed.
+        let g = exp_in_range(v, &k.exp, -sig[i]);
+        alpha[i] = v.min(e.opacity * g, k.alpha_max);
+        ok[i] = near[i] & v.ge(sig[i], k.zero) & v.ge(alpha[i], k.alpha_min);
+        next[i] = st.t[b[i]] * (k.one - alpha[i]);
+    }
+    for i in 0..N {
+        let stop = ok[i] & v.lt(next[i], k.t_min);
+        if v.any(stop) {
+            st.done[b[i]] = st.done[b[i]] | stop;
+            st.active -= v.count(stop) as usize;
+        }
+        let blend = ok[i] & !stop;
+        let (b, t) = (b[i], st.t[b[i]]);
+        let w = alpha[i] * t;
+        st.red[b] = v.select(blend, st.red[b] + e.rgb[0] * w, st.red[b]);
+        st.green[b] = v.select(blend, st.green[b] + e.rgb[1] * w, st.green[b]);
+        st.blue[b] = v.select(blend, st.blue[b] + e.rgb[2] * w, st.blue[b]);
+        st.depth[b] = v.select(blend, st.depth[b] + e.z * w, st.depth[b]);
+        st.t[b] = v.select(blend, next[i], t);
+        st.last[b] = v.select_i(blend, e.pos, st.last[b]);
+        st.blended[b] = v.count_lanes(st.blended[b], blend);
+    }
+}
+
 /// Composites one tile front to back, as [`super::scalar::forward_tile_into`] with
 /// [`exp`](super::super::simd::exp).
+///
+/// Per entry, the blocks with a lane left by the ellipse test are listed first (`σ` and the
+/// test are short), then blended two at a time ([`blend_blocks`]).
 #[inline(always)]
 fn forward_tile_into<V: Simd>(
     v: V,
@@ -135,23 +218,35 @@ fn forward_tile_into<V: Simd>(
 ) -> Counters {
     let rect = TileRect::new(frame, tile);
     let (zero, one) = (v.splat(0.0), v.splat(1.0));
-    let mut t = [one; BLOCKS];
-    let mut done = [v.none(); BLOCKS];
-    let mut red = [zero; BLOCKS];
-    let mut green = [zero; BLOCKS];
-    let mut blue = [zero; BLOCKS];
-    let mut depth = [zero; BLOCKS];
-    let mut last = [v.splat_i(0); BLOCKS];
-    // Per lane, the number of entries blended.
-    let mut blended = [v.splat_i(0); BLOCKS];
-    let mut active = rect.pixels();
+    let mut st = Blend::<V> {
+        t: [one; BLOCKS],
+        done: [v.none(); BLOCKS],
+        red: [zero; BLOCKS],
+        green: [zero; BLOCKS],
+        blue: [zero; BLOCKS],
+        depth: [zero; BLOCKS],
+        last: [v.splat_i(0); BLOCKS],
+        blended: [v.splat_i(0); BLOCKS],
+        active: rect.pixels(),
+    };
     let mut counters = Counters::default();
     let px = pixel_columns(v, &rect);
-    let ek = ExpConsts::opaque(v);
     let (alpha_max, alpha_min, t_min) =
         std::hint::black_box((v.splat(ALPHA_MAX), v.splat(ALPHA_MIN), v.splat(T_MIN)));
+    let k = Consts {
+        exp: ExpConsts::opaque(v),
+        zero,
+        one,
+        alpha_max,
+        alpha_min,
+        t_min,
+    };
+    // The blocks an entry meets with a lane left: index, σ and lanes.
+    let mut todo_b = [0usize; BLOCKS];
+    let mut todo_sig = [zero; BLOCKS];
+    let mut todo_near = [v.none(); BLOCKS];
     for (j, &id) in ids.iter().enumerate() {
-        if active == 0 {
+        if st.active == 0 {
             break;
         }
         let s = &splats[id as usize];
@@ -159,58 +254,71 @@ fn forward_tile_into<V: Simd>(
             continue;
         };
         counters.evaluations += u64::from((x1 - x0 + 1) * (y1 - y0 + 1));
-        let pos = v.splat_i(j as i32 + 1);
         let (h0, h1, cols) = columns(v, &rect, &px, s, x0, x1);
-        let (cut, opacity) = (v.splat(s.sigma_cut), v.splat(s.opacity));
-        let rgb = s.rgb.map(|c| v.splat(c));
-        let z = v.splat(s.z);
+        let cut = v.splat(s.sigma_cut);
         // Rows and columns of the tile, bounded so that `b` is seen to be in range.
         let (ry0, ry1) = (y0 - rect.y0, (y1 - rect.y0).min(TILE - 1));
         let h1 = h1.min(HALVES - 1);
+        let mut n = 0;
         for ry in ry0..ry1 + 1 {
             let dy = ((rect.y0 + ry) as f32 + 0.5) - s.v;
             let cdy2 = s.c * dy * dy;
             for (h, col) in (h0..).zip(&cols[h0..h1 + 1]) {
                 let b = ry as usize * HALVES + h;
                 let sig = sigma(v, col, cdy2, dy);
-                let near = col.inside & !done[b] & v.le(sig, cut);
-                if !v.any(near) {
-                    continue;
+                let near = col.inside & !st.done[b] & v.le(sig, cut);
+                if v.any(near) {
+                    // At most one visit per block, so `n < BLOCKS` here.
+                    todo_b[n] = b;
+                    todo_sig[n] = sig;
+                    todo_near[n] = near;
+                    n += 1;
                 }
-                // Lanes outside [0, sigma_cut] are masked off below, so the clamp is not needed.
-                let g = exp_in_range(v, &ek, -sig);
-                let alpha = v.min(opacity * g, alpha_max);
-                let ok = near & v.ge(sig, zero) & v.ge(alpha, alpha_min);
-                let next = t[b] * (one - alpha);
-                let stop = ok & v.lt(next, t_min);
-                if v.any(stop) {
-                    done[b] = done[b] | stop;
-                    active -= v.count(stop) as usize;
-                }
-                let blend = ok & !stop;
-                let w = alpha * t[b];
-                red[b] = v.select(blend, red[b] + rgb[0] * w, red[b]);
-                green[b] = v.select(blend, green[b] + rgb[1] * w, green[b]);
-                blue[b] = v.select(blend, blue[b] + rgb[2] * w, blue[b]);
-                depth[b] = v.select(blend, depth[b] + z * w, depth[b]);
-                t[b] = v.select(blend, next, t[b]);
-                last[b] = v.select_i(blend, pos, last[b]);
-                blended[b] = v.count_lanes(blended[b], blend);
             }
+        }
+        if n == 0 {
+            continue;
+        }
+        let e = Entry {
+            opacity: v.splat(s.opacity),
+            rgb: s.rgb.map(|c| v.splat(c)),
+            z: v.splat(s.z),
+            pos: v.splat_i(j as i32 + 1),
+        };
+        let mut i = 0;
+        while i + 1 < n {
+            let (b, sig, near) = (
+                [todo_b[i], todo_b[i + 1]],
+                [todo_sig[i], todo_sig[i + 1]],
+                [todo_near[i], todo_near[i + 1]],
+            );
+            blend_blocks(v, &k, &e, &mut st, b, sig, near);
+            i += 2;
+        }
+        if i < n {
+            blend_blocks(
+                v,
+                &k,
+                &e,
+                &mut st,
+                [todo_b[i]],
+                [todo_sig[i]],
+                [todo_near[i]],
+            );
         }
     }
     for b in 0..BLOCKS {
         counters.blended += v
-            .to_array_i(blended[b])
+            .to_array_i(st.blended[b])
             .iter()
             .map(|&n| u64::from(n as u32))
             .sum::<u64>();
-        let (tb, lb) = (v.to_array(t[b]), v.to_array_i(last[b]));
+        let (tb, lb) = (v.to_array(st.t[b]), v.to_array_i(st.last[b]));
         let (r, g, bl, d) = (
-            v.to_array(red[b]),
-            v.to_array(green[b]),
-            v.to_array(blue[b]),
-            v.to_array(depth[b]),
+            v.to_array(st.red[b]),
+            v.to_array(st.green[b]),
+            v.to_array(st.blue[b]),
+            v.to_array(st.depth[b]),
         );
         for l in 0..W {
             let k = b * W + l;
