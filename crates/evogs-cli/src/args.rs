@@ -252,8 +252,8 @@ pub struct TrainArgs {
     pub backend: Option<BackendChoice>,
 
     /// Densification never grows the Gaussians past this count (the largest gradients are
-    /// densified first) [preset: dnerf 10000 for baseline, 40000 for evogs; the others no
-    /// limit].
+    /// densified first) [preset: dnerf 10000 for baseline, for evogs 2000000 / training views
+    /// within 10000..=40000; the others no limit].
     #[arg(long, value_name = "N")]
     pub max_gaussians: Option<usize>,
 

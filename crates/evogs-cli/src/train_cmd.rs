@@ -63,6 +63,7 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     }
     if let Some(v) = args.max_gaussians {
         config.densify.max_gaussians = Some(v);
+        config.gaussian_view_budget = None;
     }
     if let Some(v) = args.max_screen_radius {
         config.densify.max_screen_radius = Some(v);

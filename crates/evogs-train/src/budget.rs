@@ -3,7 +3,7 @@
 //!
 //! A run's schedule is written in iterations (`TrainConfig`: warm-up, SH steps, lr decays,
 //! densification window and interval, opacity resets), scaled to the run's nominal length `N`
-//! by [`TrainConfig::with_iterations`]. Under a budget of `B` seconds a step does not advance
+//! by [`TrainConfig::with_iterations`](crate::TrainConfig::with_iterations). Under a budget of `B` seconds a step does not advance
 //! the schedule by one iteration: it is placed at the **schedule iteration** `⌈N · s / B⌉`,
 //! where `s` is the budget spent when the step is predicted to end (spent so far plus the
 //! estimated cost of a step). The trainer runs every schedule event between the previous step's

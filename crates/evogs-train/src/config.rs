@@ -28,7 +28,8 @@
 //! method ([`Preset::max_gaussians`]): at [`DNERF_MAX_GAUSSIANS_BASELINE`] for the baseline
 //! (uncapped, lego's Gaussians multiplied before the width-64 network had learned any motion and
 //! its shovel stayed a static blur) and at [`DNERF_MAX_GAUSSIANS_EVOGS`] for EvoGS (more
-//! Gaussians fit lego's training views better). It initialises the network
+//! Gaussians fit lego's training views better), lowered for scenes with more training views to
+//! [`DNERF_GAUSSIAN_VIEW_BUDGET_EVOGS`] / views ([`TrainConfig::gaussian_view_budget`]). It initialises the network
 //! as D-3DGS does ([`NetInit::Torch`]): He initialisation with zero heads moves the deformation
 //! by ~0.024 world units in its first Adam step and, with a short warm-up, diverged (lego,
 //! `results/dnerf/`). What these choices do on lego is measured in `results/dnerf/`.
@@ -50,8 +51,17 @@ pub const DNERF_MAX_GAUSSIANS_BASELINE: usize = 10_000;
 /// The `dnerf` preset's cap on the Gaussian count for EvoGS, chosen on lego's training views:
 /// at 50 CPU-minutes, 40 000 gave 34.92 dB against 33.52 / 33.66 at 10 000 with seeds 0 and 1
 /// (issue Q, `results/dnerf/` A.10). Φ learns the motion with more Gaussians; the baseline's
-/// MLP does not, hence a cap per method.
+/// MLP does not, hence a cap per method. Scenes with more than 50 training views get less
+/// ([`DNERF_GAUSSIAN_VIEW_BUDGET_EVOGS`]).
 pub const DNERF_MAX_GAUSSIANS_EVOGS: usize = 40_000;
+
+/// The `dnerf` preset's budget of Gaussians × training views for EvoGS
+/// ([`TrainConfig::gaussian_view_budget`]): the cap falls to 2 000 000 / views where that is below
+/// [`DNERF_MAX_GAUSSIANS_EVOGS`], so 40 000 on lego (50 views), 20 000 on hook (100), 13 333 on
+/// mutant (150) and 10 000 on jumpingjacks (200). Chosen on training views at 50 CPU-minutes: it
+/// gave the best cap tried on lego, jumpingjacks and mutant and the second best on hook
+/// (0.16 dB below 10 000, one seed; issue Q, `results/dnerf/` A.10–A.13).
+pub const DNERF_GAUSSIAN_VIEW_BUDGET_EVOGS: u64 = 2_000_000;
 
 /// [`unknown_message`] as the error of the setting [`OneWord::FIELD`].
 pub(crate) fn unknown<T: OneWord>(value: &str) -> TrainError {
@@ -177,7 +187,8 @@ pub enum Preset {
     /// run's N (it ends at 8e-4·500^-0.3 ≈ 1.2e-4 rather than 1.6e-6), as D-3DGS's 40 000-step
     /// decay does over the first 12 000 of its steps; and a cap on the Gaussians per method
     /// ([`Preset::max_gaussians`]: 10 000 for the baseline, which uncapped did not learn lego's
-    /// motion, 40 000 for EvoGS; issue Q).
+    /// motion, 40 000 for EvoGS, lowered to 2 000 000 / training views by
+    /// [`Preset::gaussian_view_budget`]; issue Q).
     Dnerf,
 }
 
@@ -193,6 +204,16 @@ impl Preset {
             (Preset::Dnerf, Method::Baseline) => Some(DNERF_MAX_GAUSSIANS_BASELINE),
             (Preset::Dnerf, Method::Evogs) => Some(DNERF_MAX_GAUSSIANS_EVOGS),
             (Preset::Paper | Preset::Cpu | Preset::Tiny, _) => None,
+        }
+    }
+
+    /// The preset's budget of Gaussians × training views for `method`
+    /// ([`TrainConfig::gaussian_view_budget`]): the `dnerf` preset's
+    /// [`DNERF_GAUSSIAN_VIEW_BUDGET_EVOGS`] for EvoGS, none otherwise.
+    pub fn gaussian_view_budget(self, method: Method) -> Option<u64> {
+        match (self, method) {
+            (Preset::Dnerf, Method::Evogs) => Some(DNERF_GAUSSIAN_VIEW_BUDGET_EVOGS),
+            _ => None,
         }
     }
 }
@@ -340,6 +361,14 @@ pub struct TrainConfig {
     /// as none.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub memory_limit: Option<u64>,
+    /// A budget of Gaussians × training views: the run caps the Gaussian count (densify's
+    /// `max_gaussians`) at this budget divided by its number of training views, but not below
+    /// `init_points` (resolved when the run starts, [`TrainConfig::gaussian_cap`]). Fewer
+    /// views are each seen more often in the same time, and fit more Gaussians (issue Q). Set
+    /// by the `dnerf` preset for EvoGS ([`Preset::gaussian_view_budget`]); `--max-gaussians`
+    /// clears it. None by default; runs written before it existed read as none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gaussian_view_budget: Option<u64>,
     /// A time budget (`--time-budget`): the run trains until it is spent, its schedule of
     /// `iterations` iterations following the budget ([`crate::budget`]). None: the run trains
     /// `iterations` iterations (runs written before it existed read as none).
@@ -385,6 +414,7 @@ impl TrainConfig {
             backend: splat_raster::BackendChoice::Cpu,
             time_from: evogs_io::TimeFrom::Order,
             memory_limit: None,
+            gaussian_view_budget: None,
             budget: None,
         };
         match preset {
@@ -464,13 +494,33 @@ impl TrainConfig {
         }
     }
 
+    /// The cap on the Gaussian count of a run with `views` training views: densify's
+    /// `max_gaussians`, lowered to [`TrainConfig::gaussian_view_budget`] / `views` (but not
+    /// below `init_points`) where a budget is set; None: no cap.
+    pub fn gaussian_cap(&self, views: usize) -> Option<usize> {
+        let per_view = self.gaussian_view_budget.map(|b| {
+            let n = b / (views.max(1) as u64);
+            usize::try_from(n)
+                .unwrap_or(usize::MAX)
+                .max(self.init_points)
+        });
+        match (self.densify.max_gaussians, per_view) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
     /// The same settings for `method`. A cap on the Gaussians still at the preset's value for
-    /// the current method becomes the preset's value for `method` ([`Preset::max_gaussians`]);
-    /// a cap set otherwise (`--max-gaussians`) is kept.
+    /// the current method becomes the preset's value for `method` ([`Preset::max_gaussians`]),
+    /// and so does the budget per view ([`Preset::gaussian_view_budget`]); values set
+    /// otherwise (`--max-gaussians`) are kept.
     #[must_use]
     pub fn with_method(mut self, method: Method) -> Self {
         if self.densify.max_gaussians == self.preset.max_gaussians(self.method) {
             self.densify.max_gaussians = self.preset.max_gaussians(method);
+        }
+        if self.gaussian_view_budget == self.preset.gaussian_view_budget(self.method) {
+            self.gaussian_view_budget = self.preset.gaussian_view_budget(method);
         }
         self.method = method;
         self
@@ -547,6 +597,9 @@ impl TrainConfig {
         }
         if let Some(b) = &self.budget {
             b.validate()?;
+        }
+        if self.gaussian_view_budget == Some(0) {
+            return bad("gaussian_view_budget", "must be at least 1 when set");
         }
         let d = &self.densify;
         for (field, set_by, is_set) in [
@@ -673,9 +726,14 @@ mod tests {
             let c = TrainConfig::preset(Preset::Dnerf).with_iterations(n);
             assert_eq!(c.method, Method::Baseline);
             assert_eq!(c.densify.max_gaussians, Some(DNERF_MAX_GAUSSIANS_BASELINE));
+            assert_eq!(c.gaussian_view_budget, None);
             let evogs = c.clone().with_method(Method::Evogs);
             assert_eq!(evogs.method, Method::Evogs);
             assert_eq!(evogs.densify.max_gaussians, Some(DNERF_MAX_GAUSSIANS_EVOGS));
+            assert_eq!(
+                evogs.gaussian_view_budget,
+                Some(DNERF_GAUSSIAN_VIEW_BUDGET_EVOGS)
+            );
             // Back again, and set before the length: the same settings.
             assert_eq!(evogs.clone().with_method(Method::Baseline), c);
             let first = TrainConfig::preset(Preset::Dnerf)
@@ -694,6 +752,47 @@ mod tests {
                 assert_eq!(c.densify.max_gaussians, None, "{p} {m}");
             }
         }
+    }
+
+    #[test]
+    fn dnerf_evogs_cap_follows_the_training_views() {
+        let evogs = TrainConfig::preset(Preset::Dnerf).with_method(Method::Evogs);
+        // lego, hook, mutant, jumpingjacks; above the cap below 50; never below init_points.
+        for (views, want) in [
+            (50, 40_000),
+            (100, 20_000),
+            (150, 13_333),
+            (200, 10_000),
+            (10, DNERF_MAX_GAUSSIANS_EVOGS),
+            (1_000, 10_000),
+            (0, DNERF_MAX_GAUSSIANS_EVOGS),
+        ] {
+            assert_eq!(evogs.gaussian_cap(views), Some(want), "{views} views");
+        }
+        assert_eq!(evogs.init_points, 10_000);
+        let baseline = evogs.clone().with_method(Method::Baseline);
+        for views in [50, 200] {
+            assert_eq!(
+                baseline.gaussian_cap(views),
+                Some(DNERF_MAX_GAUSSIANS_BASELINE)
+            );
+        }
+        // A budget alone caps; neither: no cap.
+        let mut cpu = TrainConfig::preset(Preset::Cpu);
+        assert_eq!(cpu.gaussian_cap(50), None);
+        cpu.gaussian_view_budget = Some(3_000_000);
+        assert_eq!(cpu.gaussian_cap(100), Some(30_000));
+        assert_eq!(
+            cpu.clone().with_method(Method::Evogs).gaussian_view_budget,
+            Some(3_000_000)
+        );
+        cpu.gaussian_view_budget = Some(0);
+        assert!(
+            cpu.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("gaussian_view_budget")
+        );
     }
 
     #[test]

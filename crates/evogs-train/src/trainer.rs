@@ -264,6 +264,7 @@ impl Trainer {
             extent = 1.1 * config.init_half_extent;
         }
         let mut densify = densify_config(&config);
+        densify.max_gaussians = config.gaussian_cap(train.views.len());
         densify.validate()?;
         let mut backbone = backbone;
         backbone.prepare(&train.times(), state.len(), extent)?;
@@ -750,6 +751,22 @@ mod tests {
         }
         assert_eq!((u.iteration(), u.schedule_iteration()), (3, 3));
         assert!(u.step_to(0).is_err());
+    }
+
+    #[test]
+    fn the_cap_follows_the_training_views() {
+        // Tiny with a budget of 1 000 Gaussians × views above 20 initial points: 100 at 10 views,
+        // 20 (the initial points) at 100; densify's own cap still bounds it.
+        let mut c = TrainConfig::preset(Preset::Tiny);
+        c.init_points = 20;
+        c.gaussian_view_budget = Some(1_000);
+        let cap = |c: &TrainConfig, n| Trainer::new(c.clone(), views(n)).unwrap().max_gaussians();
+        assert_eq!(cap(&c, 10), Some(100));
+        assert_eq!(cap(&c, 100), Some(20));
+        c.densify.max_gaussians = Some(60);
+        assert_eq!(cap(&c, 10), Some(60));
+        c.gaussian_view_budget = None;
+        assert_eq!(cap(&c, 1), Some(60));
     }
 
     #[test]

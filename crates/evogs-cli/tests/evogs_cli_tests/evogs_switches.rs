@@ -223,8 +223,21 @@ fn bad_switch_values_name_the_setting() {
 
 #[test]
 fn the_dnerf_cap_follows_the_method_unless_given() {
-    use evogs_train::config::{DNERF_MAX_GAUSSIANS_BASELINE, DNERF_MAX_GAUSSIANS_EVOGS};
+    use evogs_train::config::{
+        DNERF_GAUSSIAN_VIEW_BUDGET_EVOGS, DNERF_MAX_GAUSSIANS_BASELINE, DNERF_MAX_GAUSSIANS_EVOGS,
+    };
     let cap = |flags: &[&str]| config(flags).unwrap().densify.max_gaussians;
+    let budget = |flags: &[&str]| config(flags).unwrap().gaussian_view_budget;
+    // EvoGS's budget per view: set by the preset, cleared by a cap given by hand (which is then
+    // the cap whatever the views).
+    assert_eq!(
+        budget(&["--preset", "dnerf"]),
+        Some(DNERF_GAUSSIAN_VIEW_BUDGET_EVOGS)
+    );
+    assert_eq!(budget(&["--preset", "dnerf", "--method", "baseline"]), None);
+    let given = config(&["--preset", "dnerf", "--max-gaussians", "30000"]).unwrap();
+    assert_eq!(given.gaussian_view_budget, None);
+    assert_eq!(given.gaussian_cap(200), Some(30_000));
     let dnerf = ["--preset", "dnerf"];
     assert_eq!(
         cap(&[&dnerf[..], &["--method", "baseline"]].concat()),
