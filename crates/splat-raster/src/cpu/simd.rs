@@ -537,7 +537,7 @@ pub(crate) const EXP_MIN: f32 = -80.0;
 /// `expf` polynomial for `e^r` evaluated by Estrin's scheme, and `2^n` built in the exponent
 /// bits. Every multiply-add is fused ([`Simd::mul_add`]): the kernels wait on this chain of
 /// dependent operations (it is the longest in a block), and fusing and Estrin's pairing shorten
-/// it from 16 dependent operations to 10.
+/// it from 20 dependent operations to 10.
 #[cfg_attr(not(test), allow(dead_code))]
 #[inline(always)]
 pub(crate) fn exp<S: Simd>(s: S, x: S::F) -> S::F {
