@@ -29,8 +29,8 @@
 //! (uncapped, lego's Gaussians multiplied before the width-64 network had learned any motion and
 //! its shovel stayed a static blur) and at [`DNERF_MAX_GAUSSIANS_EVOGS`] for EvoGS (more
 //! Gaussians fit lego's training views better), lowered for scenes with more training views to
-//! [`DNERF_GAUSSIAN_VIEW_BUDGET_EVOGS`] / views ([`TrainConfig::gaussian_view_budget`]). It initialises the network
-//! as D-3DGS does ([`NetInit::Torch`]): He initialisation with zero heads moves the deformation
+//! [`DNERF_GAUSSIAN_VIEW_BUDGET_EVOGS`] / views ([`TrainConfig::gaussian_view_budget`]). It
+//! initialises the network as D-3DGS does ([`NetInit::Torch`]): He initialisation with zero heads moves the deformation
 //! by ~0.024 world units in its first Adam step and, with a short warm-up, diverged (lego,
 //! `results/dnerf/`). What these choices do on lego is measured in `results/dnerf/`.
 
@@ -363,8 +363,8 @@ pub struct TrainConfig {
     pub memory_limit: Option<u64>,
     /// A budget of Gaussians × training views: the run caps the Gaussian count (densify's
     /// `max_gaussians`) at this budget divided by its number of training views, but not below
-    /// `init_points` (resolved when the run starts, [`TrainConfig::gaussian_cap`]). Fewer
-    /// views are each seen more often in the same time, and fit more Gaussians (issue Q). Set
+    /// `init_points` (resolved when the run starts, [`TrainConfig::gaussian_cap`]). On the D-NeRF
+    /// scenes the cap the training views chose fell as the view count rose (issue Q). Set
     /// by the `dnerf` preset for EvoGS ([`Preset::gaussian_view_budget`]); `--max-gaussians`
     /// clears it. None by default; runs written before it existed read as none.
     #[serde(default, skip_serializing_if = "Option::is_none")]
