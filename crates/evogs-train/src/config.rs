@@ -30,9 +30,9 @@
 //! its shovel stayed a static blur) and at [`DNERF_MAX_GAUSSIANS_EVOGS`] for EvoGS (more
 //! Gaussians fit lego's training views better), lowered for scenes with more training views to
 //! [`DNERF_GAUSSIAN_VIEW_BUDGET_EVOGS`] / views ([`TrainConfig::gaussian_view_budget`]). It
-//! initialises the network as D-3DGS does ([`NetInit::Torch`]): He initialisation with zero heads moves the deformation
-//! by ~0.024 world units in its first Adam step and, with a short warm-up, diverged (lego,
-//! `results/dnerf/`). What these choices do on lego is measured in `results/dnerf/`.
+//! initialises the network as D-3DGS does ([`NetInit::Torch`]): He initialisation with zero
+//! heads moves the deformation by ~0.024 world units in its first Adam step and, with a short
+//! warm-up, diverged (lego, `results/dnerf/`). What these choices do on lego is measured in `results/dnerf/`.
 
 use densify::{DensifyConfig, Schedule};
 use serde::{Deserialize, Serialize};
