@@ -198,6 +198,25 @@ pub struct TrainArgs {
     #[arg(long, value_name = "LR")]
     pub psi_lr: Option<f32>,
 
+    /// EvoGS: Φ's B-spline control vectors over the frames' time span (at least 4; more let the
+    /// deformation change faster in time) [default: 16].
+    #[arg(long, value_name = "M")]
+    pub bspline_controls: Option<usize>,
+
+    /// EvoGS: Φ's tri-plane resolutions, comma-separated (their features are concatenated)
+    /// [default: 32,64].
+    #[arg(long, value_name = "R,R", value_delimiter = ',')]
+    pub triplane_resolutions: Option<Vec<usize>>,
+
+    /// EvoGS: Φ's tri-plane channels per plane [default: 8].
+    #[arg(long, value_name = "C")]
+    pub triplane_channels: Option<usize>,
+
+    /// Width of the deformation network (D-3DGS's MLP; EvoGS's Φ decodes at half of it)
+    /// [preset: paper 256, cpu and dnerf 64, tiny 32].
+    #[arg(long, value_name = "W", value_parser = clap::value_parser!(u64).range(2..))]
+    pub net_width: Option<u64>,
+
     /// Print, with each progress line, EvoGS's motion statistics since the last line: samples
     /// per decade of speed / extent with their mean θ (a diagnostic of the uncertainty trigger).
     #[arg(long)]
@@ -235,7 +254,7 @@ pub struct TrainArgs {
     /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
     #[arg(
         long,
-        conflicts_with_all = ["data", "time_from", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "max_gaussians", "max_screen_radius", "memory_limit", "checkpoint_every", "time_budget", "budget_clock"]
+        conflicts_with_all = ["data", "time_from", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "bspline_controls", "triplane_resolutions", "triplane_channels", "net_width", "max_gaussians", "max_screen_radius", "memory_limit", "checkpoint_every", "time_budget", "budget_clock"]
     )]
     pub resume: bool,
 

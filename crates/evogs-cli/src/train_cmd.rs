@@ -61,6 +61,18 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     if let Some(v) = args.psi_lr {
         e.psi_lr = Some(v);
     }
+    if let Some(v) = args.bspline_controls {
+        e.bspline_controls = v;
+    }
+    if let Some(v) = &args.triplane_resolutions {
+        e.triplane_resolutions.clone_from(v);
+    }
+    if let Some(v) = args.triplane_channels {
+        e.triplane_channels = v;
+    }
+    if let Some(v) = args.net_width {
+        config.net.width = usize::try_from(v).context("--net-width")?;
+    }
     if let Some(v) = args.max_gaussians {
         config.densify.max_gaussians = Some(v);
         config.gaussian_view_budget = None;

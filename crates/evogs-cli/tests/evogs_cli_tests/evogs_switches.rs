@@ -133,6 +133,21 @@ fn each_switch_reaches_the_config() {
             |e| e.evo.motion_floor.to_string(),
             5e-4f32.to_string(),
         ),
+        (
+            &["--bspline-controls", "48"],
+            |e| e.bspline_controls.to_string(),
+            48.to_string(),
+        ),
+        (
+            &["--triplane-resolutions", "64,128"],
+            |e| format!("{:?}", e.triplane_resolutions),
+            format!("{:?}", [64, 128]),
+        ),
+        (
+            &["--triplane-channels", "12"],
+            |e| e.triplane_channels.to_string(),
+            12.to_string(),
+        ),
     ];
     for (flags, get, want) in table {
         let c = config(flags).unwrap_or_else(|e| panic!("{flags:?}: {e:#}"));
@@ -142,6 +157,12 @@ fn each_switch_reaches_the_config() {
         let back: TrainConfig = serde_json::from_str(&serde_json::to_string(&c).unwrap()).unwrap();
         assert_eq!(back, c, "{flags:?}");
     }
+    // The network's width is the run's, not EvoGS's (Φ decodes at half of it).
+    assert_eq!(config(&["--net-width", "128"]).unwrap().net.width, 128);
+    assert_eq!(
+        config(&["--preset", "dnerf"]).unwrap().net.width,
+        TrainConfig::preset(evogs_train::Preset::Dnerf).net.width
+    );
     // Without flags: the method's defaults.
     assert_eq!(config(&[]).unwrap().evogs, EvoSettings::default());
 }
@@ -189,6 +210,12 @@ fn bad_switch_values_name_the_setting() {
     for (flags, field) in [
         (&["--motion-floor", "-1"][..], "evogs.motion_floor"),
         (&["--grid-lr-scale", "0"][..], "evogs.grid_lr_scale"),
+        (&["--bspline-controls", "3"][..], "evogs.bspline"),
+        (
+            &["--triplane-resolutions", "64,1"][..],
+            "evogs.triplane_resolutions",
+        ),
+        (&["--triplane-channels", "0"][..], "evogs.triplane"),
     ] {
         let e = format!("{:#}", config(flags).unwrap_err());
         assert!(e.contains(&format!("`{field}`")), "{flags:?}: {e}");
