@@ -8,16 +8,21 @@
 //! vertically first (the up to 11 source rows, zero outside the image) into a row padded with
 //! zeros, then horizontally (taps paired by symmetry); the vertical-then-horizontal order gives
 //! the same zero-padded convolution as the plain code's horizontal-then-vertical one, up to
-//! rounding. Pass 1 blurs `x, y, x², y², xy`, evaluates the SSIM map, its three per-pixel
+//! rounding. Both directions run over chunks of [`CHUNK`] numbers whose sums stay in registers
+//! across the taps: the vertical window of all five moments reads each source row of `x` and
+//! `y` once per chunk (`k·x` then `x·(k·x)` for `x²`), where blurring one map at a time read the
+//! sources five times and stored the partial sums after every tap.
+//! Pass 1 blurs `x, y, x², y², xy`, evaluates the SSIM map, its three per-pixel
 //! sensitivities (`∂S/∂μx`, `∂S/∂E[x²]`, `∂S/∂E[xy]`, as in [`ssim`](crate::ssim)'s module docs)
 //! and the row sums of `S`, `|x − y|` and `(x − y)²`. Pass 2 blurs the sensitivities back (the
 //! window is self-adjoint) and adds the L1 sign term.
 //!
 //! Determinism: rows are independent and run in parallel in blocks of fixed size; a row's sums
 //! are taken over eight fixed lanes, and rows are added in row order, so the result is
-//! bit-identical for any number of threads. On x86-64 with AVX2 (checked at run time) the same
-//! code is compiled with AVX2 enabled: every step is the same IEEE operation per element (no
-//! fused multiply-add), so it gives the same bits as the baseline build.
+//! bit-identical for any number of threads. On x86-64 with AVX2 and FMA (checked at run time)
+//! the same code is compiled with both enabled: every step is the same IEEE operation per
+//! element, and each multiply-add is fused in every build ([`Real::mul_add`]: an instruction
+//! there, a correctly rounded library call in the baseline build), so both give the same bits.
 //!
 //! What it is not: the reference. [`photometric_loss`](crate::photometric_loss) is; the tests
 //! check this one against it and against f64 finite differences.
@@ -37,6 +42,9 @@ const PAD: usize = 3 * RADIUS;
 const BLOCK_ROWS: usize = 8;
 /// Lanes of the per-row sums.
 const LANES: usize = 8;
+/// Numbers per chunk of a row whose window sums are kept in registers (two AVX2 vectors of
+/// f32); a row's last `3W mod CHUNK` numbers go one at a time through the same operations.
+const CHUNK: usize = 16;
 
 /// The loss of one rendering and its terms, from [`LossWorkspace::compute`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -154,7 +162,7 @@ impl<T: Real> LossWorkspace<T> {
                 let out = Sensitivities { d_mu, d_xx, d_xy };
                 if avx2 {
                     #[cfg(target_arch = "x86_64")]
-                    // SAFETY: `avx2` is true only where `avx2_available()` found AVX2 on this CPU.
+                    // SAFETY: `avx2` is true only where `avx2_available()` found AVX2 and FMA on this CPU.
                     unsafe {
                         pass1_avx2(&ctx, b * BLOCK_ROWS, out, scratch, sums);
                     };
@@ -184,7 +192,7 @@ impl<T: Real> LossWorkspace<T> {
             .for_each(|(b, (grad, scratch))| {
                 if avx2 {
                     #[cfg(target_arch = "x86_64")]
-                    // SAFETY: `avx2` is true only where `avx2_available()` found AVX2 on this CPU.
+                    // SAFETY: `avx2` is true only where `avx2_available()` found AVX2 and FMA on this CPU.
                     unsafe {
                         pass2_avx2(&ctx, b * BLOCK_ROWS, maps, grad, scratch);
                     };
@@ -204,11 +212,11 @@ impl<T: Real> LossWorkspace<T> {
     }
 }
 
-/// Whether the AVX2 build can run here.
+/// Whether the AVX2 build (AVX2 and FMA) can run here.
 fn avx2_available() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        std::arch::is_x86_feature_detected!("avx2")
+        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
@@ -262,7 +270,7 @@ struct Sensitivities<'a, T> {
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn pass1_avx2<T: Real>(
     ctx: &Ctx<'_, T>,
     row0: usize,
@@ -274,7 +282,7 @@ fn pass1_avx2<T: Real>(
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn pass2_avx2<T: Real>(
     ctx: &Ctx<'_, T>,
     row0: usize,
@@ -311,11 +319,17 @@ fn pass1<T: Real>(
     for (r, sum) in sums.iter_mut().enumerate() {
         let y = row0 + r;
         let at = r * n..(r + 1) * n;
-        vertical(ctx, y, &mut p_x[PAD..PAD + n], ctx.x, ctx.x, |a, _| a);
-        vertical(ctx, y, &mut p_y[PAD..PAD + n], ctx.y, ctx.y, |a, _| a);
-        vertical(ctx, y, &mut p_xx[PAD..PAD + n], ctx.x, ctx.x, |a, _| a * a);
-        vertical(ctx, y, &mut p_yy[PAD..PAD + n], ctx.y, ctx.y, |a, _| a * a);
-        vertical(ctx, y, &mut p_xy[PAD..PAD + n], ctx.x, ctx.y, |a, b| a * b);
+        vertical_moments(
+            ctx,
+            y,
+            &mut [
+                &mut p_x[PAD..PAD + n],
+                &mut p_y[PAD..PAD + n],
+                &mut p_xx[PAD..PAD + n],
+                &mut p_yy[PAD..PAD + n],
+                &mut p_xy[PAD..PAD + n],
+            ],
+        );
         horizontal(&ctx.k, p_x, mu_x);
         horizontal(&ctx.k, p_y, mu_y);
         horizontal(&ctx.k, p_xx, e_xx);
@@ -372,9 +386,16 @@ fn pass2<T: Real>(
     let rows = grad.len() / n;
     for r in 0..rows {
         let y = row0 + r;
-        vertical(ctx, y, &mut p_mu[PAD..PAD + n], d_mu, d_mu, |a, _| a);
-        vertical(ctx, y, &mut p_xx[PAD..PAD + n], d_xx, d_xx, |a, _| a);
-        vertical(ctx, y, &mut p_xy[PAD..PAD + n], d_xy, d_xy, |a, _| a);
+        vertical_maps(
+            ctx,
+            y,
+            [d_mu, d_xx, d_xy],
+            &mut [
+                &mut p_mu[PAD..PAD + n],
+                &mut p_xx[PAD..PAD + n],
+                &mut p_xy[PAD..PAD + n],
+            ],
+        );
         horizontal(&ctx.k, p_mu, g_mu);
         horizontal(&ctx.k, p_xx, g_xx);
         horizontal(&ctx.k, p_xy, g_xy);
@@ -406,47 +427,142 @@ fn split5<T>(buf: &mut [T], len: usize) -> [&mut [T]; 5] {
     [a, b, c, d, &mut rest[..len]]
 }
 
-/// `acc = Σ_taps k[tap] · f(a[row], b[row])` over the source rows `y − 5 ..= y + 5` inside the
-/// image, in that order.
+/// The source rows of output row `y`'s vertical window, `y − 5 ..= y + 5` inside the image.
 #[inline(always)]
-fn vertical<T: Real>(
-    ctx: &Ctx<'_, T>,
-    y: usize,
-    acc: &mut [T],
-    a: &[T],
-    b: &[T],
-    f: impl Fn(T, T) -> T,
-) {
-    let n = acc.len();
-    acc.fill(T::default());
-    let lo = y.saturating_sub(RADIUS);
-    let hi = (y + RADIUS).min(ctx.h - 1);
-    for src in lo..=hi {
-        let k = ctx.k[src + RADIUS - y];
-        let ar = &a[src * n..(src + 1) * n];
-        let br = &b[src * n..(src + 1) * n];
-        for ((o, &p), &q) in acc.iter_mut().zip(ar).zip(br) {
-            *o += k * f(p, q);
-        }
+fn window_rows(y: usize, h: usize) -> std::ops::RangeInclusive<usize> {
+    y.saturating_sub(RADIUS)..=(y + RADIUS).min(h - 1)
+}
+
+/// The vertical window of output row `y` of the five moments `x, y, x², y², xy` into `out`
+/// (rows of `3W` numbers): `Σ_taps k·f` over [`window_rows`] in order, each multiply-add fused.
+#[inline(always)]
+fn vertical_moments<T: Real>(ctx: &Ctx<'_, T>, y: usize, out: &mut [&mut [T]; 5]) {
+    let n = 3 * ctx.w;
+    let mut c = 0;
+    while c + CHUNK <= n {
+        moments_chunk::<T, CHUNK>(ctx, y, c, out);
+        c += CHUNK;
+    }
+    while c < n {
+        moments_chunk::<T, 1>(ctx, y, c, out);
+        c += 1;
     }
 }
 
-/// `out[i] = k5·p[i] + Σ_{d=1..5} k[5−d]·(p[i − 3d] + p[i + 3d])` on a row padded with `PAD`
-/// zeros each side (`padded` is `out.len() + 2·PAD` long).
+/// [`vertical_moments`] of the `L` numbers from `c`.
+#[inline(always)]
+fn moments_chunk<T: Real, const L: usize>(
+    ctx: &Ctx<'_, T>,
+    y: usize,
+    c: usize,
+    out: &mut [&mut [T]; 5],
+) {
+    let n = 3 * ctx.w;
+    let mut acc = [[T::default(); L]; 5];
+    for src in window_rows(y, ctx.h) {
+        let k = ctx.k[src + RADIUS - y];
+        let at = src * n + c;
+        let (xs, ys) = (&ctx.x[at..at + L], &ctx.y[at..at + L]);
+        for j in 0..L {
+            let (p, q) = (xs[j], ys[j]);
+            let (kp, kq) = (k * p, k * q);
+            acc[0][j] += kp;
+            acc[1][j] += kq;
+            acc[2][j] = kp.mul_add(p, acc[2][j]);
+            acc[3][j] = kq.mul_add(q, acc[3][j]);
+            acc[4][j] = kp.mul_add(q, acc[4][j]);
+        }
+    }
+    for (o, a) in out.iter_mut().zip(&acc) {
+        o[c..c + L].copy_from_slice(a);
+    }
+}
+
+/// The vertical window of output row `y` of `M` maps (rows of `3W` numbers) into `out`:
+/// `Σ_taps k·map` over [`window_rows`] in order, each multiply-add fused.
+#[inline(always)]
+fn vertical_maps<T: Real, const M: usize>(
+    ctx: &Ctx<'_, T>,
+    y: usize,
+    maps: [&[T]; M],
+    out: &mut [&mut [T]; M],
+) {
+    let n = 3 * ctx.w;
+    let mut c = 0;
+    while c + CHUNK <= n {
+        maps_chunk::<T, M, CHUNK>(ctx, y, c, &maps, out);
+        c += CHUNK;
+    }
+    while c < n {
+        maps_chunk::<T, M, 1>(ctx, y, c, &maps, out);
+        c += 1;
+    }
+}
+
+/// [`vertical_maps`] of the `L` numbers from `c`.
+#[inline(always)]
+fn maps_chunk<T: Real, const M: usize, const L: usize>(
+    ctx: &Ctx<'_, T>,
+    y: usize,
+    c: usize,
+    maps: &[&[T]; M],
+    out: &mut [&mut [T]; M],
+) {
+    let n = 3 * ctx.w;
+    let mut acc = [[T::default(); L]; M];
+    for src in window_rows(y, ctx.h) {
+        let k = ctx.k[src + RADIUS - y];
+        let at = src * n + c;
+        for (a, map) in acc.iter_mut().zip(maps) {
+            let m = &map[at..at + L];
+            for j in 0..L {
+                a[j] = k.mul_add(m[j], a[j]);
+            }
+        }
+    }
+    for (o, a) in out.iter_mut().zip(&acc) {
+        o[c..c + L].copy_from_slice(a);
+    }
+}
+
+/// `out[i] = k5·p[i] + Σ_{d=1..5} k[5−d]·(p[i − 3d] + p[i + 3d])` (each multiply-add fused) on
+/// a row padded with `PAD` zeros each side (`padded` is `out.len() + 2·PAD` long).
 #[inline(always)]
 fn horizontal<T: Real>(k: &[T; SSIM_WINDOW], padded: &[T], out: &mut [T]) {
     let n = out.len();
-    for (o, &c) in out.iter_mut().zip(&padded[PAD..PAD + n]) {
-        *o = k[RADIUS] * c;
+    let mut c = 0;
+    while c + CHUNK <= n {
+        horizontal_chunk::<T, CHUNK>(k, padded, out, c);
+        c += CHUNK;
+    }
+    while c < n {
+        horizontal_chunk::<T, 1>(k, padded, out, c);
+        c += 1;
+    }
+}
+
+/// [`horizontal`] of the `L` numbers from `c`.
+#[inline(always)]
+fn horizontal_chunk<T: Real, const L: usize>(
+    k: &[T; SSIM_WINDOW],
+    padded: &[T],
+    out: &mut [T],
+    c: usize,
+) {
+    let centre = &padded[PAD + c..PAD + c + L];
+    let mut acc = [T::default(); L];
+    for j in 0..L {
+        acc[j] = k[RADIUS] * centre[j];
     }
     for d in 1..=RADIUS {
         let kd = k[RADIUS - d];
-        let left = &padded[PAD - 3 * d..PAD - 3 * d + n];
-        let right = &padded[PAD + 3 * d..PAD + 3 * d + n];
-        for ((o, &l), &r) in out.iter_mut().zip(left).zip(right) {
-            *o += kd * (l + r);
+        let left = &padded[PAD + c - 3 * d..PAD + c - 3 * d + L];
+        let right = &padded[PAD + c + 3 * d..PAD + c + 3 * d + L];
+        for j in 0..L {
+            acc[j] = kd.mul_add(left[j] + right[j], acc[j]);
         }
     }
+    out[c..c + L].copy_from_slice(&acc);
 }
 
 /// Sum of `v` in f64 over eight fixed lanes (element `i` to lane `i % 8`), the lanes added in

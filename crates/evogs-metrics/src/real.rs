@@ -24,6 +24,11 @@ pub trait Real:
     fn from_f64(v: f64) -> Self;
     /// Converts to f64 exactly.
     fn to_f64(self) -> f64;
+    /// `self · a + b` rounded once ([`f32::mul_add`]): one instruction where the build has a
+    /// fused multiply-add, a correctly rounded library call elsewhere, so every build gives the
+    /// same bits.
+    #[must_use]
+    fn mul_add(self, a: Self, b: Self) -> Self;
 }
 
 impl Real for f32 {
@@ -33,6 +38,9 @@ impl Real for f32 {
     fn to_f64(self) -> f64 {
         f64::from(self)
     }
+    fn mul_add(self, a: Self, b: Self) -> Self {
+        f32::mul_add(self, a, b)
+    }
 }
 
 impl Real for f64 {
@@ -41,5 +49,8 @@ impl Real for f64 {
     }
     fn to_f64(self) -> f64 {
         self
+    }
+    fn mul_add(self, a: Self, b: Self) -> Self {
+        f64::mul_add(self, a, b)
     }
 }
