@@ -124,9 +124,32 @@ fn phi(c: &mut Criterion<CpuTime>) {
     g.finish();
 }
 
+/// One Adam step of an f32 group the size of a lego run's Gaussian parameters (30 000
+/// Gaussians of 59 numbers: position, scale, rotation, opacity and degree-3 SH).
+fn adam(c: &mut Criterion<CpuTime>) {
+    let mut g = c.benchmark_group("phases/adam");
+    let n = 30_000 * 59;
+    let mut adam = tiny_nn::Adam::new();
+    let id = adam
+        .add_group("gaussians", n, 59, tiny_nn::LrSchedule::Constant(1e-3))
+        .unwrap();
+    let mut params = vals(n, 10);
+    let grads = vals(n, 11);
+    g.throughput(Throughput::Elements(n as u64));
+    let mut it = 0;
+    g.bench_function(BenchmarkId::new("step_f32", n), |b| {
+        b.iter(|| {
+            it += 1;
+            adam.step(id, it, tiny_nn::StoreMut::F32(&mut params), &grads)
+                .unwrap()
+        });
+    });
+    g.finish();
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().with_measurement(CpuTime::total());
-    targets = products, decoder, phi
+    targets = products, decoder, phi, adam
 }
 criterion_main!(benches);
