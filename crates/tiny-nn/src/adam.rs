@@ -355,7 +355,7 @@ mod tests {
     #[test]
     fn vectorised_update_gives_the_same_bits() {
         let n = 1_003;
-        let value = |i: usize, s: f32| ((i as f32 * s).sin() * 10f32.powi((i % 9) as i32 - 4));
+        let value = |i: usize, s: f32| (i as f32 * s).sin() * 10f32.powi((i % 9) as i32 - 4);
         let grads: Vec<f32> = (0..n).map(|i| value(i, 0.37)).collect();
         let start = (
             (0..n).map(|i| value(i, 0.11)).collect::<Vec<f32>>(),
