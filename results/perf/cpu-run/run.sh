@@ -1,7 +1,7 @@
 #!/bin/bash
-# $1 = tag (old|new), binary accordingly; lego cpu preset EvoGS seed 0, 2 threads, alone.
+# $1 = tag (old|new, or a commit: /work/runs/evogs-COMMIT), binary accordingly; lego cpu preset EvoGS seed 0, 2 threads, alone.
 set -u
-case $1 in old) B=/work/runs/evogs-591d409;; new) B=/work/runs/evogs-c4d9021;; esac
+case $1 in old) B=/work/runs/evogs-591d409;; new) B=/work/runs/evogs-c4d9021;; *) B=/work/runs/evogs-$1;; esac
 M=${2:-evogs}
 O=/work/runs/cpurun/$1-$M
 rm -rf $O
