@@ -1,4 +1,4 @@
-//! Runtime dispatch of the crate's own row loops (the encoders inside Φ) to AVX2.
+//! Runtime dispatch of the crate's own row loops (the encoders inside Φ, Adam's f32 update) to AVX2.
 //!
 //! The crate is compiled for the baseline x86-64 target (SSE2): its own loops run 4 lanes wide
 //! and `floor` is a libm call, while `gemm` picks AVX2 kernels at run time. [`vectorised`] runs a
