@@ -214,8 +214,8 @@ pub struct TrainArgs {
 
     /// Width of the deformation network (D-3DGS's MLP; EvoGS's Φ decodes at half of it)
     /// [preset: paper 256, cpu and dnerf 64, tiny 32].
-    #[arg(long, value_name = "W", value_parser = clap::value_parser!(u64).range(2..))]
-    pub net_width: Option<u64>,
+    #[arg(long, value_name = "W", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(2..))]
+    pub net_width: Option<usize>,
 
     /// Print, with each progress line, EvoGS's motion statistics since the last line: samples
     /// per decade of speed / extent with their mean θ (a diagnostic of the uncertainty trigger).

@@ -71,7 +71,7 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
         e.triplane_channels = v;
     }
     if let Some(v) = args.net_width {
-        config.net.width = usize::try_from(v).context("--net-width")?;
+        config.net.width = v;
     }
     if let Some(v) = args.max_gaussians {
         config.densify.max_gaussians = Some(v);

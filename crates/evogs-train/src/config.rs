@@ -32,7 +32,8 @@
 //! [`DNERF_GAUSSIAN_VIEW_BUDGET_EVOGS`] / views ([`TrainConfig::gaussian_view_budget`]). It
 //! initialises the network as D-3DGS does ([`NetInit::Torch`]): He initialisation with zero
 //! heads moves the deformation by ~0.024 world units in its first Adam step and, with a short
-//! warm-up, diverged (lego, `results/dnerf/`). What these choices do on lego is measured in `results/dnerf/`.
+//! warm-up, diverged (lego, `results/dnerf/`). What these choices do on lego is measured in
+//! `results/dnerf/`.
 
 use densify::{DensifyConfig, Schedule};
 use serde::{Deserialize, Serialize};
