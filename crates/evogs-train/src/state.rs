@@ -4,8 +4,8 @@
 //!
 //! Parameter groups follow 3DGS/D-3DGS (`training_setup`): `xyz`, `f_dc`, `f_rest`, `opacity`,
 //! `scaling`, `rotation`, and one group per backbone buffer. The Gaussians keep SH coefficient-
-//! major rows (`splat-raster`); the `f_dc` and `f_rest` groups are gathered from and scattered
-//! back to them around each Adam step, so their moments are rows of 3 and `3·((deg+1)²−1)`.
+//! major rows (`splat-raster`); the `f_dc` and `f_rest` groups are column ranges of those rows,
+//! updated in place (`Adam::step_columns`), so their moments are rows of 3 and `3·((deg+1)²−1)`.
 
 use densify::{DensifyPlan, DensifyStats, Moments, PerGaussian, apply_plan};
 use splat_raster::{GaussianGrads, Gaussians};
@@ -73,19 +73,6 @@ pub struct SceneState {
     groups: GaussianGroups,
     /// One group per backbone parameter buffer, in the backbone's order.
     net_groups: Vec<GroupId>,
-    /// The SH rows split into the `f_dc` and `f_rest` groups' layout around each Adam step,
-    /// reused every step (only their capacity outlives a step).
-    sh_split: ShSplit,
-}
-
-/// Buffers of [`SceneState::step_gaussians`]: the SH DC and higher bands of every Gaussian and
-/// of its gradient, each contiguous.
-#[derive(Clone, Debug, Default)]
-struct ShSplit {
-    dc: Vec<f32>,
-    dc_grad: Vec<f32>,
-    rest: Vec<f32>,
-    rest_grad: Vec<f32>,
 }
 
 /// Per-Gaussian lr schedules (3DGS `training_setup` with D-3DGS's `spatial_lr_scale`).
@@ -173,7 +160,6 @@ impl SceneState {
             adam,
             groups,
             net_groups,
-            sh_split: ShSplit::default(),
         })
     }
 
@@ -301,7 +287,6 @@ impl SceneState {
     ) -> Result<(), TrainError> {
         let g = &mut self.gaussians;
         let stride = g.sh_stride();
-        let rest = stride - 3;
         let ids = self.groups;
         let adam = &mut self.adam;
         adam.step(
@@ -310,27 +295,11 @@ impl SceneState {
             StoreMut::F32(g.means.as_flattened_mut()),
             grads.means.as_flattened(),
         )?;
-        let ShSplit {
-            dc,
-            dc_grad,
-            rest: hi,
-            rest_grad: hi_grad,
-        } = &mut self.sh_split;
-        for v in [&mut *dc, &mut *dc_grad, &mut *hi, &mut *hi_grad] {
-            v.clear();
-        }
-        for (row, grow) in g.sh.chunks_exact(stride).zip(grads.sh.chunks_exact(stride)) {
-            dc.extend_from_slice(&row[..3]);
-            dc_grad.extend_from_slice(&grow[..3]);
-            hi.extend_from_slice(&row[3..]);
-            hi_grad.extend_from_slice(&grow[3..]);
-        }
-        adam.step(ids.f_dc, lr_step, StoreMut::F32(dc), dc_grad)?;
-        adam.step(ids.f_rest, lr_step, StoreMut::F32(hi), hi_grad)?;
-        for (i, row) in g.sh.chunks_exact_mut(stride).enumerate() {
-            row[..3].copy_from_slice(&dc[i * 3..i * 3 + 3]);
-            row[3..].copy_from_slice(&hi[i * rest..(i + 1) * rest]);
-        }
+        // The SH rows are updated in place: `f_dc` holds their first three values, `f_rest`
+        // the others (3DGS's two groups, with their own rates).
+        let sh_grads = grads.sh.as_slice();
+        adam.step_columns(ids.f_dc, lr_step, &mut g.sh, sh_grads, stride, 0..3)?;
+        adam.step_columns(ids.f_rest, lr_step, &mut g.sh, sh_grads, stride, 3..stride)?;
         if !skip_opacity {
             adam.step(
                 ids.opacity,

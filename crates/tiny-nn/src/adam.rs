@@ -104,6 +104,24 @@ pub struct AdamGroup {
     pub v: Vec<f32>,
 }
 
+impl AdamGroup {
+    /// Counts one more update and returns its constants at `iteration`.
+    fn advance(&mut self, b1: f32, b2: f32, eps: f32, iteration: i64) -> UpdateConsts {
+        self.step += 1;
+        let lr = self.schedule.at(iteration);
+        let t = self.step.min(i32::MAX as u64) as i32;
+        let bc1 = 1.0 - (b1 as f64).powi(t);
+        let bc2 = 1.0 - (b2 as f64).powi(t);
+        UpdateConsts {
+            b1,
+            b2,
+            eps,
+            step_size: (lr as f64 / bc1) as f32,
+            bc2_sqrt: bc2.sqrt() as f32,
+        }
+    }
+}
+
 /// The Adam optimiser over any number of groups.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Adam {
@@ -206,19 +224,7 @@ impl Adam {
                 check_len(&format!("Adam group `{}` {what}", g.name), g.m.len(), len)?;
             }
         }
-        g.step += 1;
-        let lr = g.schedule.at(iteration);
-        let bc1 = 1.0 - (b1 as f64).powi(g.step.min(i32::MAX as u64) as i32);
-        let bc2 = 1.0 - (b2 as f64).powi(g.step.min(i32::MAX as u64) as i32);
-        let step_size = (lr as f64 / bc1) as f32;
-        let bc2_sqrt = bc2.sqrt() as f32;
-        let k = UpdateConsts {
-            b1,
-            b2,
-            eps,
-            step_size,
-            bc2_sqrt,
-        };
+        let k = g.advance(b1, b2, eps, iteration);
         let update = |m: &mut f32, v: &mut f32, gr: f32| k.update(m, v, gr);
         // Element by element, so chunks in parallel give the same values for any thread count.
         let sat = match params {
@@ -251,6 +257,75 @@ impl Adam {
                 .sum(),
         };
         Ok(sat)
+    }
+
+    /// One Adam update of group `id`, as [`Adam::step`], of the columns `cols` of rows that are
+    /// `stride` values long: `params` and `grads` hold `rows × stride` values, the group's
+    /// moments `rows × cols.len()` (its rows). So one group can update a column range of a wider
+    /// per-row array in place (3DGS's `f_dc` and `f_rest` are two column ranges of the SH rows)
+    /// without copying it out and back. The values are those of [`Adam::step`] on the columns
+    /// copied out, bit for bit.
+    pub fn step_columns(
+        &mut self,
+        id: GroupId,
+        iteration: i64,
+        params: &mut [f32],
+        grads: &[f32],
+        stride: usize,
+        cols: std::ops::Range<usize>,
+    ) -> Result<(), NnError> {
+        let (b1, b2, eps) = (self.beta1, self.beta2, self.eps);
+        let g = self.checked_group(id)?;
+        let w = cols.len();
+        // No columns fit a group that holds no value (3DGS's `f_rest` at SH degree 0).
+        let fits = cols.end <= stride
+            && if w == 0 {
+                g.m.is_empty()
+            } else {
+                w == g.row_width
+            };
+        if !fits {
+            return Err(NnError::Config(format!(
+                "Adam group `{}`: columns {cols:?} of rows of {stride} do not give its rows of {}",
+                g.name, g.row_width
+            )));
+        }
+        let rows =
+            g.m.len()
+                .checked_div(w)
+                .unwrap_or(params.len() / stride.max(1));
+        for (what, len) in [("parameters", params.len()), ("gradients", grads.len())] {
+            if len != rows * stride {
+                check_len(
+                    &format!("Adam group `{}` {what}", g.name),
+                    rows * stride,
+                    len,
+                )?;
+            }
+        }
+        let k = g.advance(b1, b2, eps, iteration);
+        if w == 0 {
+            return Ok(());
+        }
+        // Rows per parallel task: about as many values as a task of `step`.
+        let chunk = (STEP_CHUNK / stride).max(1);
+        params
+            .par_chunks_mut(chunk * stride)
+            .zip(grads.par_chunks(chunk * stride))
+            .zip(g.m.par_chunks_mut(chunk * w))
+            .zip(g.v.par_chunks_mut(chunk * w))
+            .for_each(|(((p, grads), m), v)| {
+                vectorised(UpdateColumnsF32 {
+                    p,
+                    m,
+                    v,
+                    grads,
+                    stride,
+                    cols: cols.clone(),
+                    k,
+                });
+            });
+        Ok(())
     }
 
     /// Zeroes both moments of the given rows of group `id` (3DGS does this for the opacity of
@@ -346,9 +421,42 @@ impl Kernel for UpdateF32<'_> {
     }
 }
 
+/// [`UpdateF32`] on the columns `cols` of each `stride`-long row of `p` and `grads`, the moments
+/// holding `cols.len()` values per row.
+struct UpdateColumnsF32<'a> {
+    p: &'a mut [f32],
+    m: &'a mut [f32],
+    v: &'a mut [f32],
+    grads: &'a [f32],
+    stride: usize,
+    cols: std::ops::Range<usize>,
+    k: UpdateConsts,
+}
+
+impl Kernel for UpdateColumnsF32<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run(self) {
+        let (k, w) = (self.k, self.cols.len());
+        let rows = self
+            .p
+            .chunks_exact_mut(self.stride)
+            .zip(self.grads.chunks_exact(self.stride))
+            .zip(self.m.chunks_exact_mut(w))
+            .zip(self.v.chunks_exact_mut(w));
+        for (((p, grads), m), v) in rows {
+            let (p, grads) = (&mut p[self.cols.clone()], &grads[self.cols.clone()]);
+            for (((p, m), v), &gr) in p.iter_mut().zip(m).zip(v).zip(grads) {
+                *p -= k.update(m, v, gr);
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::{UpdateConsts, UpdateF32};
+    use super::{Adam, LrSchedule, UpdateConsts, UpdateF32};
+    use crate::precision::StoreMut;
     use crate::simd::{Kernel, vectorised};
 
     /// The AVX2 build of the f32 update gives the bits of the baseline build.
@@ -387,5 +495,62 @@ mod tests {
             (bits(&p), bits(&m), bits(&v))
         };
         assert_eq!(run(true), run(false));
+    }
+
+    /// `step_columns` on two column ranges of wide rows gives, bit for bit, what `step` gives
+    /// on the columns copied out (3DGS's SH split), over several steps, and refuses columns that
+    /// do not match the group's rows.
+    #[test]
+    fn step_columns_equals_step_on_the_columns_copied_out() {
+        let (rows, stride) = (1_500, 12);
+        let value = |i: usize, s: f32| (i as f32 * s).sin() * 10f32.powi((i % 7) as i32 - 3);
+        let mut wide: Vec<f32> = (0..rows * stride).map(|i| value(i, 0.13)).collect();
+        let split = |x: &[f32], cols: std::ops::Range<usize>| -> Vec<f32> {
+            x.chunks_exact(stride)
+                .flat_map(|r| r[cols.clone()].to_vec())
+                .collect()
+        };
+        let (mut dc, mut rest) = (split(&wide, 0..3), split(&wide, 3..stride));
+        let adam = || {
+            let mut a = Adam::new();
+            let dc = a
+                .add_group("dc", rows * 3, 3, LrSchedule::Constant(2.5e-3))
+                .unwrap();
+            let rest = a
+                .add_group("rest", rows * 9, 9, LrSchedule::Constant(1.25e-4))
+                .unwrap();
+            (a, dc, rest)
+        };
+        let (mut a, a_dc, a_rest) = adam();
+        let (mut b, b_dc, b_rest) = adam();
+        for step in 0..3 {
+            let grads: Vec<f32> = (0..rows * stride).map(|i| value(i + step, 0.41)).collect();
+            a.step_columns(a_dc, 0, &mut wide, &grads, stride, 0..3)
+                .unwrap();
+            a.step_columns(a_rest, 0, &mut wide, &grads, stride, 3..stride)
+                .unwrap();
+            b.step(b_dc, 0, StoreMut::F32(&mut dc), &split(&grads, 0..3))
+                .unwrap();
+            b.step(
+                b_rest,
+                0,
+                StoreMut::F32(&mut rest),
+                &split(&grads, 3..stride),
+            )
+            .unwrap();
+        }
+        let bits = |x: &[f32]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&split(&wide, 0..3)), bits(&dc));
+        assert_eq!(bits(&split(&wide, 3..stride)), bits(&rest));
+        assert_eq!(a.groups(), b.groups());
+        let grads = vec![0.0; rows * stride];
+        assert!(
+            a.step_columns(a_dc, 0, &mut wide, &grads, stride, 0..4)
+                .is_err()
+        );
+        assert!(
+            a.step_columns(a_dc, 0, &mut wide, &grads[1..], stride, 0..3)
+                .is_err()
+        );
     }
 }
