@@ -158,8 +158,6 @@ impl Default for CpuState {
 /// The forward pass's own buffers (only their capacity outlives a pass).
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Scratch {
-    /// Per Gaussian, its projection or why it was culled.
-    projected: Vec<Result<project::Projected, CullReason>>,
     /// Per Gaussian (by index), its record (default when culled).
     splats: Vec<Splat>,
     /// Per Gaussian, its tile rectangle (None when culled).
@@ -171,6 +169,24 @@ pub(crate) struct Scratch {
     depth_t: Vec<f32>,
     /// The binning's buffers.
     bin: tiles::BinScratch,
+}
+
+/// Gaussians per task of the projection (fixed, so the work split does not depend on the
+/// thread count; the counts summed never do).
+const PROJECT_CHUNK: usize = 256;
+
+/// The counts of `a` and `b` added (their `total`s included).
+fn sum_culls(a: CullStats, b: CullStats) -> CullStats {
+    CullStats {
+        total: a.total + b.total,
+        drawn: a.drawn + b.drawn,
+        non_finite: a.non_finite + b.non_finite,
+        zero_quaternion: a.zero_quaternion + b.zero_quaternion,
+        low_opacity: a.low_opacity + b.low_opacity,
+        behind_near_plane: a.behind_near_plane + b.behind_near_plane,
+        degenerate_covariance: a.degenerate_covariance + b.degenerate_covariance,
+        off_screen: a.off_screen + b.off_screen,
+    }
 }
 
 fn count(stats: &mut CullStats, reason: CullReason) {
@@ -241,7 +257,6 @@ impl CpuRasterizer {
             ..
         } = cpu;
         let Scratch {
-            projected,
             splats,
             rects,
             depth,
@@ -249,37 +264,40 @@ impl CpuRasterizer {
             depth_t,
             bin,
         } = scratch;
-        projected.clear();
-        projected.par_extend(
-            (0..n)
-                .into_par_iter()
-                .map(|i| project::project(&frame, &g, active, i)),
-        );
-        let mut stats = CullStats {
-            total: n,
-            ..CullStats::default()
-        };
+        // Per Gaussian, in parallel: its record, tile rectangle, depth and screen radius (the
+        // defaults when culled), and the cull counts summed. Every row is written, so the
+        // buffers are only resized.
         let radii = &mut out.state.radii;
-        for v in [&mut *depth, &mut *radii] {
-            v.clear();
-            v.resize(n, 0.0);
-        }
-        splats.clear();
         splats.resize(n, Splat::default());
-        rects.clear();
         rects.resize(n, None);
-        for (i, p) in projected.iter().enumerate() {
-            match p {
-                Ok(p) => {
-                    stats.drawn += 1;
-                    splats[i] = p.splat;
-                    rects[i] = Some(p.tiles);
-                    depth[i] = p.splat.z;
-                    radii[i] = p.radius;
-                }
-                Err(reason) => count(&mut stats, *reason),
-            }
-        }
+        depth.resize(n, 0.0);
+        radii.resize(n, 0.0);
+        let culls = splats
+            .par_iter_mut()
+            .zip(rects.par_iter_mut())
+            .zip(depth.par_iter_mut())
+            .zip(radii.par_iter_mut())
+            .enumerate()
+            .with_min_len(PROJECT_CHUNK)
+            .fold(
+                CullStats::default,
+                |mut stats, (i, (((splat, rect), z), radius))| {
+                    match project::project(&frame, &g, active, i) {
+                        Ok(p) => {
+                            stats.drawn += 1;
+                            (*splat, *rect, *z, *radius) =
+                                (p.splat, Some(p.tiles), p.splat.z, p.radius);
+                        }
+                        Err(reason) => {
+                            count(&mut stats, reason);
+                            (*splat, *rect, *z, *radius) = (Splat::default(), None, 0.0, 0.0);
+                        }
+                    }
+                    stats
+                },
+            )
+            .reduce(CullStats::default, sum_culls);
+        let stats = CullStats { total: n, ..culls };
         tiles::bin_into(
             rects,
             depth,
@@ -291,16 +309,13 @@ impl CpuRasterizer {
         );
         // The records in depth order, as the tile lists index them.
         sorted.clear();
-        sorted.extend(lists.order.iter().map(|&i| splats[i as usize]));
+        sorted.par_extend(lists.order.par_iter().map(|&i| splats[i as usize]));
         let n_tiles = frame.tiles_x as usize * frame.tiles_y as usize;
-        // Every tile writes all its lanes: the values left from before are overwritten.
-        color_t.clear();
+        // Every tile writes all its lanes: the values left from before are overwritten, so
+        // the buffers are only resized.
         color_t.resize(n_tiles * LANES, [0.0; 3]);
-        for v in [&mut *depth_t, &mut *final_t] {
-            v.clear();
-            v.resize(n_tiles * LANES, 0.0);
-        }
-        last.clear();
+        depth_t.resize(n_tiles * LANES, 0.0);
+        final_t.resize(n_tiles * LANES, 0.0);
         last.resize(n_tiles * LANES, 0);
         let (lists, sorted) = (&*lists, &*sorted);
         let counters = color_t
@@ -338,12 +353,10 @@ impl CpuRasterizer {
                 evaluations: a.evaluations + b.evaluations,
                 blended: a.blended + b.blended,
             });
+        // Every pixel is written below: the images are only resized.
         let (w, h) = (cam.width as usize, cam.height as usize);
-        for v in [&mut out.alpha, &mut out.depth] {
-            v.clear();
-            v.resize(w * h, 0.0);
-        }
-        out.color.clear();
+        out.alpha.resize(w * h, 0.0);
+        out.depth.resize(w * h, 0.0);
         out.color.resize(w * h, [0.0; 3]);
         let (color_t, depth_t, final_t) = (&*color_t, &*depth_t, &*final_t);
         out.color
@@ -400,7 +413,6 @@ impl CpuRasterizer {
         // write the entries before the tile's last contributor, the tile zeroes the rest first).
         let lists = &cpu.lists;
         let entries = &mut out.scratch.entries;
-        entries.clear();
         entries.resize(lists.ids.len(), SplatGrads::default());
         let tile_pass = |tile: usize, slots: &mut [SplatGrads]| {
             slots.fill(SplatGrads::default());
