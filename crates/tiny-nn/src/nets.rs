@@ -1,5 +1,7 @@
 //! Composite networks: the EvoGS observation network Φ and the D-3DGS deformation MLP.
 
+use rayon::prelude::*;
+
 use crate::encoding::bspline::{BSplineConfig, BSplineTime};
 use crate::encoding::sinusoidal::Sinusoidal;
 use crate::encoding::triplane::{TriPlane, TriPlaneConfig};
@@ -9,6 +11,9 @@ use crate::precision::{Precision, StoreMut, StoreRef};
 use crate::reduce::add_into;
 use crate::simd::{Kernel, vectorised};
 use crate::weights::Parameters;
+
+/// Rows per parallel task when [`ObservationNet`] permutes rows to and from the decoder's order.
+const GATHER_ROWS: usize = 1024;
 
 /// Settings of the EvoGS observation network Φ: `[tri-plane(x), B-spline(t)] → MLP → D`.
 #[derive(Clone, Debug, PartialEq)]
@@ -44,10 +49,11 @@ pub struct ObservationNet {
 ///
 /// The decoder runs over the rows in the tri-plane's spatial order (see
 /// [`ObservationNet::forward`]): `order[i]` is the input row of decoder row `i`, and the cached
-/// positions and times are stored in that order.
+/// positions and times are stored in that order; `rank[r]` is the decoder row of input row `r`.
 #[derive(Clone, Debug, Default)]
 pub struct ObservationCache {
     order: Vec<usize>,
+    rank: Vec<usize>,
     positions: Vec<f32>,
     times: Vec<f32>,
     mlp: MlpCache,
@@ -149,18 +155,25 @@ impl ObservationNet {
         let c = self.triplane.config().channels;
         let ObservationCache {
             order,
+            rank,
             positions: sorted_positions,
             times: sorted_times,
             mlp,
         } = cache;
         self.triplane.spatial_order(positions, order);
-        sorted_positions.clear();
-        sorted_positions.resize(rows * 3, 0.0);
-        for (dst, &r) in sorted_positions.chunks_exact_mut(3).zip(order.iter()) {
-            dst.copy_from_slice(&positions[r * 3..r * 3 + 3]);
+        rank.resize(rows, 0);
+        for (i, &r) in order.iter().enumerate() {
+            rank[r] = i;
         }
+        // The rows in decoder order, gathered in parallel (every value is written).
+        sorted_positions.resize(rows * 3, 0.0);
+        sorted_positions
+            .par_chunks_mut(3)
+            .zip(order.par_iter())
+            .with_min_len(GATHER_ROWS)
+            .for_each(|(dst, &r)| dst.copy_from_slice(&positions[r * 3..r * 3 + 3]));
         sorted_times.clear();
-        sorted_times.extend(order.iter().map(|&r| times[r]));
+        sorted_times.par_extend(order.par_iter().map(|&r| times[r]));
         let (positions, times) = (&sorted_positions[..], &sorted_times[..]);
         self.mlp.forward_cached(
             rows,
@@ -180,11 +193,10 @@ impl ObservationNet {
         let d = self.mlp.output_width();
         let sorted_out = mlp.output();
         let mut out = vec![0f32; rows * d];
-        for (i, &r) in order.iter().enumerate() {
-            sorted_out
-                .slice(i * d, d)
-                .read_into(&mut out[r * d..(r + 1) * d]);
-        }
+        out.par_chunks_mut(d.max(1))
+            .zip(rank.par_iter())
+            .with_min_len(GATHER_ROWS)
+            .for_each(|(dst, &i)| sorted_out.slice(i * d, d).read_into(dst));
         Ok(out)
     }
 
@@ -199,15 +211,17 @@ impl ObservationNet {
         let rows = cache.mlp.rows();
         let d = self.mlp.output_width();
         check_len("observation output gradient", rows * d, d_out.len())?;
-        if cache.order.len() != rows {
+        if cache.order.len() != rows || cache.rank.len() != rows {
             return Err(NnError::Config(
                 "observation cache does not hold a forward pass".into(),
             ));
         }
         let mut sorted_d_out = vec![0f32; rows * d];
-        for (dst, &r) in sorted_d_out.chunks_exact_mut(d).zip(&cache.order) {
-            dst.copy_from_slice(&d_out[r * d..(r + 1) * d]);
-        }
+        sorted_d_out
+            .par_chunks_mut(d.max(1))
+            .zip(cache.order.par_iter())
+            .with_min_len(GATHER_ROWS)
+            .for_each(|(dst, &r)| dst.copy_from_slice(&d_out[r * d..(r + 1) * d]));
         let planes = self.triplane.planes_f32();
         let ctrl = self.bspline.controls_f32();
         let (wx, wt) = (self.triplane.output_width(), self.bspline.output_width());
@@ -245,12 +259,16 @@ impl ObservationNet {
             },
         )?;
         let positions = want_position_grad.then(|| {
-            let mut out = vec![0f32; rows * 3];
+            // The blocks in decoder order, then each input row's gathered in parallel.
+            let mut sorted = vec![0f32; rows * 3];
             for (r0, block) in pos_blocks {
-                for (&r, g) in cache.order[r0..].iter().zip(block.chunks_exact(3)) {
-                    out[r * 3..r * 3 + 3].copy_from_slice(g);
-                }
+                sorted[r0 * 3..r0 * 3 + block.len()].copy_from_slice(&block);
             }
+            let mut out = vec![0f32; rows * 3];
+            out.par_chunks_mut(3)
+                .zip(cache.rank.par_iter())
+                .with_min_len(GATHER_ROWS)
+                .for_each(|(dst, &i)| dst.copy_from_slice(&sorted[i * 3..i * 3 + 3]));
             out
         });
         Ok(ObservationGrads {

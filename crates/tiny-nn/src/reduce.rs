@@ -34,9 +34,15 @@ where
     parts.into_iter().reduce(merge).unwrap_or_else(init)
 }
 
-/// Adds `b` into `a` element by element.
+/// Values per parallel task of [`add_into`].
+const ADD_CHUNK: usize = 1 << 14;
+
+/// Adds `b` into `a` element by element (in parallel chunks: each element's sum is the same
+/// for any split).
 pub(crate) fn add_into(mut a: Vec<f32>, b: Vec<f32>) -> Vec<f32> {
-    a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+    a.par_chunks_mut(ADD_CHUNK)
+        .zip(b.par_chunks(ADD_CHUNK))
+        .for_each(|(a, b)| a.iter_mut().zip(b).for_each(|(x, y)| *x += y));
     a
 }
 

@@ -444,7 +444,8 @@ impl TriPlane {
         let cell_from_q =
             |v: f32| (((v + 1.0) * 0.5 * ORDER_CELLS as f32) as usize).min(ORDER_CELLS - 1);
         let keys: Vec<u16> = positions
-            .chunks_exact(dims)
+            .par_chunks_exact(dims)
+            .with_min_len(1024)
             .map(|p| {
                 let (q, _) = self.normalise(p);
                 let mut key = 0u16;
