@@ -330,7 +330,7 @@ pub(crate) fn fill_inputs(
     times: &mut Vec<f32>,
 ) {
     positions.clear();
-    positions.extend(canonical.means.iter().flat_map(|m| m.iter().copied()));
+    positions.extend_from_slice(canonical.means.as_flattened());
     times.clear();
     times.resize(canonical.len(), time);
 }

@@ -30,6 +30,7 @@ use std::path::Path;
 
 use densify::{Deformation, PerGaussian, residual_norms, thetas};
 use evo_state::{Backward, EvoConfig, EvoError, EvoState, Frames, Step};
+use rayon::prelude::*;
 use splat_core::{GaussiansView, sigmoid};
 use tiny_nn::{
     BSplineConfig, LrSchedule, ObservationConfig, ObservationNet, Parameters, PlaneCombine,
@@ -48,6 +49,9 @@ use crate::observer::Observer;
 fn evo_err(e: EvoError) -> BackboneError {
     BackboneError::config("evolution state", e.to_string())
 }
+
+/// Rows per parallel task when the deformation rows are rearranged.
+const ROWS_PER_TASK: usize = 1024;
 
 /// Φ's configuration for a run: half the baseline network's width (`net_width`), scene box
 /// `[-h, h]³` of the initial cube (`half_extent`), output D, initialised from the run's `seed`.
@@ -251,14 +255,15 @@ impl<P: Observer> EvoBackbone<P> {
         let n = corrected.len() / d.max(1);
         out.clear();
         out.resize(n * DEFORM_DIM, 0.0);
-        for (row, src) in out
-            .chunks_exact_mut(DEFORM_DIM)
-            .zip(corrected.chunks_exact(d))
-        {
-            for (&col, &v) in self.deform_from_evo.iter().zip(src) {
-                row[col] = v;
-            }
-        }
+        let deform_from_evo = &self.deform_from_evo;
+        out.par_chunks_mut(DEFORM_DIM)
+            .zip(corrected.par_chunks_exact(d.max(1)))
+            .with_min_len(ROWS_PER_TASK)
+            .for_each(|(row, src)| {
+                for (&col, &v) in deform_from_evo.iter().zip(src) {
+                    row[col] = v;
+                }
+            });
     }
 }
 
@@ -332,7 +337,7 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
         self.widen_into(step.corrected(), out);
         if training {
             opacity.clear();
-            opacity.extend(canonical.opacity_logits.iter().map(|&o| sigmoid(o)));
+            opacity.par_extend(canonical.opacity_logits.par_iter().map(|&o| sigmoid(o)));
             self.training = Some(Training {
                 step,
                 z,
@@ -369,16 +374,18 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
             ));
         }
         let dl_dd = &mut self.dl_dd;
-        dl_dd.clear();
+        // Every value is written below.
         dl_dd.resize(n * d, 0.0);
-        for (dst, src) in dl_dd
-            .chunks_exact_mut(d)
-            .zip(d_deform.chunks_exact(DEFORM_DIM))
-        {
-            for (o, &col) in dst.iter_mut().zip(&self.deform_from_evo) {
-                *o = src[col];
-            }
-        }
+        let deform_from_evo = &self.deform_from_evo;
+        dl_dd
+            .par_chunks_mut(d.max(1))
+            .zip(d_deform.par_chunks_exact(DEFORM_DIM))
+            .with_min_len(ROWS_PER_TASK)
+            .for_each(|(dst, src)| {
+                for (o, &col) in dst.iter_mut().zip(deform_from_evo) {
+                    *o = src[col];
+                }
+            });
         let mut bw = self.backward.take().unwrap_or_default();
         self.evo
             .backward_into(&t.step, &t.z, dl_dd, &t.opacity, &mut bw)

@@ -8,6 +8,7 @@
 //! `pc.get_scaling + d_scaling`). Here both are added to the raw parameters, for every backbone
 //! alike (DESIGN §11): a scale offset then stays relative and can never make a scale negative.
 
+use rayon::prelude::*;
 use splat_raster::{GaussianGrads, Gaussians, GaussiansView};
 
 use evogs_backbones::{Appearance, COLOUR_COLUMN, DEFORM_DIM, OPACITY_COLUMN};
@@ -40,10 +41,10 @@ impl DeformedGeometry {
     /// allocation once the buffers have held as many Gaussians (the trainer keeps one across
     /// iterations, so it allocates only when densification grows the count).
     pub fn assign(&mut self, canonical: &Gaussians, d: Option<&[f32]>, appearance: Appearance) {
-        self.means.clear();
-        self.log_scales.clear();
-        self.rotations.clear();
         let Some(d) = d else {
+            self.means.clear();
+            self.log_scales.clear();
+            self.rotations.clear();
             self.means.extend_from_slice(&canonical.means);
             self.log_scales.extend_from_slice(&canonical.log_scales);
             self.rotations.extend_from_slice(&canonical.rotations);
@@ -51,18 +52,28 @@ impl DeformedGeometry {
             self.sh = None;
             return;
         };
-        for (i, r) in d.chunks_exact(DEFORM_DIM).enumerate() {
-            let (m, q, s) = (
-                canonical.means[i],
-                canonical.rotations[i],
-                canonical.log_scales[i],
-            );
-            self.means.push([m[0] + r[0], m[1] + r[1], m[2] + r[2]]);
-            self.rotations
-                .push([q[0] + r[3], q[1] + r[4], q[2] + r[5], q[3] + r[6]]);
-            self.log_scales
-                .push([s[0] + r[7], s[1] + r[8], s[2] + r[9]]);
-        }
+        // Every row is written below, in parallel.
+        let n = d.len() / DEFORM_DIM;
+        self.means.resize(n, [0.0; 3]);
+        self.rotations.resize(n, [0.0; 4]);
+        self.log_scales.resize(n, [0.0; 3]);
+        self.means
+            .par_iter_mut()
+            .zip(self.rotations.par_iter_mut())
+            .zip(self.log_scales.par_iter_mut())
+            .zip(d.par_chunks_exact(DEFORM_DIM))
+            .enumerate()
+            .with_min_len(ROWS_PER_TASK)
+            .for_each(|(i, (((mean, rotation), log_scale), r))| {
+                let (m, q, s) = (
+                    canonical.means[i],
+                    canonical.rotations[i],
+                    canonical.log_scales[i],
+                );
+                *mean = [m[0] + r[0], m[1] + r[1], m[2] + r[2]];
+                *rotation = [q[0] + r[3], q[1] + r[4], q[2] + r[5], q[3] + r[6]];
+                *log_scale = [s[0] + r[7], s[1] + r[8], s[2] + r[9]];
+            });
         let mut opacity = self.opacity_logits.take().unwrap_or_default();
         if appearance.opacity {
             opacity.clear();
@@ -133,17 +144,30 @@ pub fn deformation_gradient(grads: &GaussianGrads, sh_stride: usize) -> Vec<f32>
 /// rows).
 pub fn deformation_gradient_into(grads: &GaussianGrads, sh_stride: usize, out: &mut Vec<f32>) {
     let n = grads.means.len();
-    out.clear();
-    out.reserve(n * DEFORM_DIM);
-    for i in 0..n {
-        out.extend_from_slice(&grads.means[i]);
-        out.extend_from_slice(&grads.rotations[i]);
-        out.extend_from_slice(&grads.log_scales[i]);
-        out.push(grads.opacity_logits.get(i).copied().unwrap_or(0.0));
-        let dc = grads.sh.get(i * sh_stride..i * sh_stride + 3);
-        out.extend_from_slice(dc.unwrap_or(&[0.0; 3]));
-    }
+    // Every value of every row is written below.
+    out.resize(n * DEFORM_DIM, 0.0);
+    out.par_chunks_mut(DEFORM_DIM)
+        .enumerate()
+        .with_min_len(ROWS_PER_TASK)
+        .for_each(|(i, row)| {
+            let dc = grads.sh.get(i * sh_stride..i * sh_stride + 3);
+            let dc = dc.unwrap_or(&[0.0; 3]);
+            let opacity = grads.opacity_logits.get(i).copied().unwrap_or(0.0);
+            let parts: [&[f32]; 5] = [
+                &grads.means[i],
+                &grads.rotations[i],
+                &grads.log_scales[i],
+                &[opacity],
+                dc,
+            ];
+            for (dst, &v) in row.iter_mut().zip(parts.into_iter().flatten()) {
+                *dst = v;
+            }
+        });
 }
+
+/// Rows per parallel task of [`deformation_gradient_into`].
+const ROWS_PER_TASK: usize = 1024;
 
 #[cfg(test)]
 mod tests {
