@@ -3,13 +3,13 @@
 # at the rule's cap of 10 000) with one of Φ's shape flags changed: more B-spline control vectors
 # (the deformation's temporal resolution: 16 controls span 200 frames, ~15 frames per knot) or
 # finer tri-plane resolutions. Chosen on the training views; test with LPIPS-VGG after.
-# Usage: run.sh SCENE CAP ID FLAGS...
+# Usage: [SEED=N] [BUDGET=50m] run.sh SCENE CAP ID FLAGS...
 set -u
 O=/work/runs/phishape; cd $O
 B=/work/runs/evogs-phiflags
 scene=$1; cap=$2; id=$scene-$3; shift 3
 RAYON_NUM_THREADS=1 /usr/bin/time -v $B train --data /work/shared/data/dnerf-$scene --out $O/$id --preset dnerf \
-    --method evogs --seed 0 --max-gaussians $cap --time-budget ${BUDGET:-50m} "$@" > $O/$id.log 2> $O/$id.time
+    --method evogs --seed ${SEED:-0} --max-gaussians $cap --time-budget ${BUDGET:-50m} "$@" > $O/$id.log 2> $O/$id.time
 mkdir -p /tmp/nolpips
 EVOGS_LPIPS_WEIGHTS=/tmp/nolpips RAYON_NUM_THREADS=1 $B eval --run $O/$id --split train > $O/$id-eval-train.log 2>&1
 if [ "$scene" = lego ]; then
