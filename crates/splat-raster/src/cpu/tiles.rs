@@ -344,14 +344,17 @@ mod tests {
                 .collect();
             let depth: Vec<f32> = parts.iter().map(|&(_, d)| 0.5 + f32::from(d)).collect();
             let touches = |id: u32, tx: u32, ty: u32| {
-                (id ^ salt).wrapping_mul(2_654_435_761).wrapping_add(tx * 31 + ty * 17) % 5 != 0
+                !(id ^ salt)
+                    .wrapping_mul(2_654_435_761)
+                    .wrapping_add(tx * 31 + ty * 17)
+                    .is_multiple_of(5)
             };
             let expected = reference(&rects, &depth, tiles_x, tiles_y, touches);
             let (mut lists, mut scratch) = (TileLists::default(), BinScratch::default());
             for threads in [1, 2, 3] {
                 let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
                 pool.install(|| {
-                    bin_into(&rects, &depth, tiles_x, tiles_y, touches, &mut lists, &mut scratch)
+                    bin_into(&rects, &depth, tiles_x, tiles_y, touches, &mut lists, &mut scratch);
                 });
                 prop_assert_eq!(&lists, &expected, "{} threads", threads);
             }
