@@ -552,5 +552,17 @@ mod tests {
             a.step_columns(a_dc, 0, &mut wide, &grads[1..], stride, 0..3)
                 .is_err()
         );
+        // No columns of a group with no values (`f_rest` at SH degree 0): the step is counted.
+        let empty = a
+            .add_group("empty", 0, 1, LrSchedule::Constant(1e-3))
+            .unwrap();
+        let (mut dc_only, zeros) = (vec![0.5f32; rows * 3], vec![0.0f32; rows * 3]);
+        a.step_columns(empty, 0, &mut dc_only, &zeros, 3, 3..3)
+            .unwrap();
+        assert_eq!((a.group(empty).step, dc_only[0]), (1, 0.5));
+        assert!(
+            a.step_columns(a_dc, 0, &mut wide, &grads, stride, 3..3)
+                .is_err()
+        );
     }
 }
