@@ -46,8 +46,10 @@ pub(crate) struct BinScratch {
     tile_of_pair: Vec<u32>,
     /// Depth-order sort keys.
     keys: Vec<u64>,
-    /// Per tile range of the scatter, per range of pair indices, its `(pair, entry)` positions.
-    parts: Vec<Vec<Vec<(u32, u32)>>>,
+    /// The pair of each entry (the inverse of `entry_from_pair`, built first).
+    pair_from_entry: Vec<u32>,
+    /// Per tile, the next free position in `ids`.
+    cursor: Vec<usize>,
 }
 
 /// Bins drawn Gaussians into tiles. `rects[i]` is Gaussian `i`'s inclusive tile rectangle
@@ -90,7 +92,8 @@ pub(crate) fn bin_into(
         touched,
         tile_of_pair,
         keys,
-        parts,
+        pair_from_entry,
+        cursor,
     } = scratch;
     // The tiles each Gaussian touches, in row-major tile order, Gaussian by Gaussian.
     touched.resize_with(n.div_ceil(CHUNK), Default::default);
@@ -159,105 +162,182 @@ pub(crate) fn bin_into(
     // Every position of both arrays is written below.
     ids.resize(tile_of_pair.len(), 0);
     entry_from_pair.resize(tile_of_pair.len(), 0);
+    pair_from_entry.resize(tile_of_pair.len(), 0);
+    cursor.resize(n_tiles, 0);
     scatter(
         order,
         pairs_of,
         tile_of_pair,
         offsets,
-        ids,
-        entry_from_pair,
-        parts,
+        (ids, entry_from_pair),
+        (pair_from_entry, cursor),
     );
 }
 
 /// The counting sort's scatter: visiting Gaussians in depth order, each of its pairs takes the
 /// next free position of its tile's list (`ids[e] = rank`, `entry_from_pair[p] = e`).
 ///
-/// In parallel without shared writes: the tiles are cut into `G` ranges of about equal entry
-/// counts, and each range's task visits every Gaussian in depth order but fills only its own
-/// part of `ids` (a contiguous slice), noting `(p, e)` for its pairs in one list per range of
-/// pair indices; then each range of pair indices (a contiguous slice of `entry_from_pair`) is
-/// filled from its lists. Every position has one value whatever `G` is, so the lists do not
-/// depend on the thread count.
+/// In parallel without shared writes or allocations: the tiles are cut into `G` ranges of about
+/// equal entry counts (each a contiguous part of `ids`); each range's task visits every Gaussian
+/// in depth order and fills its own part of `ids` and of `pair_from_entry` (the pair of each
+/// entry). Then `entry_from_pair`, the inverse, is cut into `G` ranges of pairs, each task
+/// reading all of `pair_from_entry` and writing its own range. Every position has one value
+/// whatever `G` is, so the lists do not depend on the thread count.
 fn scatter(
     order: &[u32],
     pairs_of: &[usize],
     tile_of_pair: &[u32],
     offsets: &[usize],
-    ids: &mut [u32],
-    entry_from_pair: &mut [u32],
-    parts: &mut Vec<Vec<Vec<(u32, u32)>>>,
+    lists: (&mut [u32], &mut [u32]),
+    scratch: (&mut [u32], &mut [usize]),
 ) {
+    let (ids, entry_from_pair) = lists;
+    let (pair_from_entry, cursor) = scratch;
     let n_tiles = offsets.len() - 1;
-    let total = tile_of_pair.len();
-    let g = rayon::current_num_threads().clamp(1, n_tiles.max(1));
-    // Tile range k is [tile_cut[k], tile_cut[k + 1]); pair range k is [pair_cut[k], ...).
-    let tile_cut: Vec<usize> = (0..=g)
-        .map(|k| match k {
-            _ if k == g => n_tiles,
-            _ => offsets[..n_tiles].partition_point(|&o| o < k * total / g),
-        })
-        .collect();
-    let pair_cut: Vec<usize> = (0..=g).map(|k| k * total / g).collect();
-    parts.resize_with(g, Vec::new);
-    // Each tile range's slice of `ids`, cut in order.
-    let mut id_slices = Vec::with_capacity(g);
-    let mut rest = &mut *ids;
-    for k in 0..g {
-        let len = offsets[tile_cut[k + 1]] - offsets[tile_cut[k]];
-        let (head, tail) = rest.split_at_mut(len);
-        id_slices.push(head);
-        rest = tail;
+    let cuts = Cuts {
+        groups: rayon::current_num_threads().clamp(1, n_tiles.max(1)),
+        n_tiles,
+        total: tile_of_pair.len(),
+        offsets,
+    };
+    cursor.copy_from_slice(&offsets[..n_tiles]);
+    let visit = Visit {
+        order,
+        pairs_of,
+        tile_of_pair,
+        cuts: &cuts,
+    };
+    visit.tile_ranges(0..cuts.groups, ids, pair_from_entry, cursor);
+    inverse_ranges(&cuts, 0..cuts.groups, entry_from_pair, pair_from_entry);
+}
+
+/// Where [`scatter`] cuts its work.
+struct Cuts<'a> {
+    groups: usize,
+    n_tiles: usize,
+    /// Pairs (entries) in all.
+    total: usize,
+    offsets: &'a [usize],
+}
+
+impl Cuts<'_> {
+    /// First tile of tile range `k` (`n_tiles` for `k = groups`).
+    fn tile(&self, k: usize) -> usize {
+        if k == self.groups {
+            self.n_tiles
+        } else {
+            let target = k * self.total / self.groups;
+            self.offsets[..self.n_tiles].partition_point(|&o| o < target)
+        }
     }
-    id_slices
-        .into_par_iter()
-        .zip(parts.par_iter_mut())
-        .enumerate()
-        .for_each(|(k, (ids, lists))| {
-            let (t0, t1) = (tile_cut[k] as u32, tile_cut[k + 1] as u32);
-            let base = offsets[tile_cut[k]];
-            let mut cursor: Vec<usize> = offsets[tile_cut[k]..tile_cut[k + 1]].to_vec();
-            lists.resize_with(g, Vec::new);
-            lists.iter_mut().for_each(Vec::clear);
-            for (rank, &id) in order.iter().enumerate() {
-                let pairs = pairs_of[id as usize]..pairs_of[id as usize + 1];
-                // A Gaussian's pairs are in ascending tile order: skip it when none is ours.
-                if pairs.is_empty()
-                    || tile_of_pair[pairs.end - 1] < t0
-                    || tile_of_pair[pairs.start] >= t1
-                {
-                    continue;
-                }
-                for p in pairs {
-                    let t = tile_of_pair[p];
-                    if (t0..t1).contains(&t) {
-                        let slot = &mut cursor[(t - t0) as usize];
-                        ids[*slot - base] = rank as u32;
-                        let range = pair_cut.partition_point(|&c| c <= p) - 1;
-                        lists[range].push((p as u32, *slot as u32));
-                        *slot += 1;
-                    }
+
+    /// First entry of tile range `k`.
+    fn entry(&self, k: usize) -> usize {
+        self.offsets[self.tile(k)]
+    }
+
+    /// First pair of pair range `k`.
+    fn pair(&self, k: usize) -> usize {
+        k * self.total / self.groups
+    }
+}
+
+/// What every tile range's task of [`scatter`] reads.
+struct Visit<'a> {
+    order: &'a [u32],
+    pairs_of: &'a [usize],
+    tile_of_pair: &'a [u32],
+    cuts: &'a Cuts<'a>,
+}
+
+impl Visit<'_> {
+    /// Tile ranges `ks`, split in halves across the pool; `ids` and `pair_from_entry` start at
+    /// the first entry of range `ks.start`, `cursor` at its first tile.
+    fn tile_ranges(
+        &self,
+        ks: std::ops::Range<usize>,
+        ids: &mut [u32],
+        pair_from_entry: &mut [u32],
+        cursor: &mut [usize],
+    ) {
+        match ks.len() {
+            0 => {}
+            1 => self.tile_range(ks.start, ids, pair_from_entry, cursor),
+            len => {
+                let mid = ks.start + len / 2;
+                let entries = self.cuts.entry(mid) - self.cuts.entry(ks.start);
+                let tiles = self.cuts.tile(mid) - self.cuts.tile(ks.start);
+                let (ids_a, ids_b) = ids.split_at_mut(entries);
+                let (pfe_a, pfe_b) = pair_from_entry.split_at_mut(entries);
+                let (cur_a, cur_b) = cursor.split_at_mut(tiles);
+                rayon::join(
+                    || self.tile_ranges(ks.start..mid, ids_a, pfe_a, cur_a),
+                    || self.tile_ranges(mid..ks.end, ids_b, pfe_b, cur_b),
+                );
+            }
+        }
+    }
+
+    /// Tile range `k`: every Gaussian in depth order, its pairs in the range placed.
+    fn tile_range(
+        &self,
+        k: usize,
+        ids: &mut [u32],
+        pair_from_entry: &mut [u32],
+        cursor: &mut [usize],
+    ) {
+        let (t0, t1) = (self.cuts.tile(k) as u32, self.cuts.tile(k + 1) as u32);
+        let base = self.cuts.entry(k);
+        for (rank, &id) in self.order.iter().enumerate() {
+            let pairs = self.pairs_of[id as usize]..self.pairs_of[id as usize + 1];
+            // A Gaussian's pairs are in ascending tile order: skip it when none is ours.
+            if pairs.is_empty()
+                || self.tile_of_pair[pairs.end - 1] < t0
+                || self.tile_of_pair[pairs.start] >= t1
+            {
+                continue;
+            }
+            for p in pairs {
+                let t = self.tile_of_pair[p];
+                if (t0..t1).contains(&t) {
+                    let slot = &mut cursor[(t - t0) as usize];
+                    ids[*slot - base] = rank as u32;
+                    pair_from_entry[*slot - base] = p as u32;
+                    *slot += 1;
                 }
             }
-        });
-    let mut pair_slices = Vec::with_capacity(g);
-    let mut rest = &mut *entry_from_pair;
-    for k in 0..g {
-        let (head, tail) = rest.split_at_mut(pair_cut[k + 1] - pair_cut[k]);
-        pair_slices.push(head);
-        rest = tail;
+        }
     }
-    let parts = &*parts;
-    pair_slices
-        .into_par_iter()
-        .enumerate()
-        .for_each(|(k, slice)| {
-            for lists in parts {
-                for &(p, e) in &lists[k] {
-                    slice[p as usize - pair_cut[k]] = e;
+}
+
+/// `entry_from_pair[pair_from_entry[e]] = e` over pair ranges `ks`, split in halves across the
+/// pool (`entry_from_pair` starts at the first pair of range `ks.start`).
+fn inverse_ranges(
+    cuts: &Cuts<'_>,
+    ks: std::ops::Range<usize>,
+    entry_from_pair: &mut [u32],
+    pair_from_entry: &[u32],
+) {
+    match ks.len() {
+        0 => {}
+        1 => {
+            let (p0, p1) = (cuts.pair(ks.start), cuts.pair(ks.end));
+            for (e, &p) in pair_from_entry.iter().enumerate() {
+                let p = p as usize;
+                if (p0..p1).contains(&p) {
+                    entry_from_pair[p - p0] = e as u32;
                 }
             }
-        });
+        }
+        len => {
+            let mid = ks.start + len / 2;
+            let (a, b) = entry_from_pair.split_at_mut(cuts.pair(mid) - cuts.pair(ks.start));
+            rayon::join(
+                || inverse_ranges(cuts, ks.start..mid, a, pair_from_entry),
+                || inverse_ranges(cuts, mid..ks.end, b, pair_from_entry),
+            );
+        }
+    }
 }
 
 #[cfg(test)]
