@@ -446,9 +446,7 @@ impl Kernel for UpdateColumnsF32<'_> {
             .zip(self.v.chunks_exact_mut(w));
         for (((p, grads), m), v) in rows {
             let (p, grads) = (&mut p[self.cols.clone()], &grads[self.cols.clone()]);
-            for (((p, m), v), &gr) in p.iter_mut().zip(m).zip(v).zip(grads) {
-                *p -= k.update(m, v, gr);
-            }
+            UpdateF32 { p, m, v, grads, k }.run();
         }
     }
 }
