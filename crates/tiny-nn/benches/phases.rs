@@ -124,6 +124,39 @@ fn phi(c: &mut Criterion<CpuTime>) {
     g.finish();
 }
 
+/// The trainer's Φ (`EvoSettings::default` at network width 64: concatenated tri-plane C = 8 at
+/// 32² and 64², B-spline 16 × 8, decoder 56 → 32 → 32 → 10) over 30 000 rows, all at one time
+/// as in a training step, with all threads: forward, and backward alone (from a kept cache).
+fn phi_trainer(c: &mut Criterion<CpuTime>) {
+    let mut g = c.benchmark_group("phases/phi_trainer");
+    let rows = 30_000;
+    let mut triplane = tiny_nn::TriPlaneConfig::new(8, &[32, 64], tiny_nn::PlaneCombine::Concat);
+    triplane.box_min = [-1.3; 3];
+    triplane.box_max = [1.3; 3];
+    let net = tiny_nn::ObservationNet::new(tiny_nn::ObservationConfig {
+        triplane,
+        bspline: tiny_nn::BSplineConfig::new(16, 8),
+        width: 32,
+        hidden_layers: 2,
+        output: 10,
+        precision: tiny_nn::Precision::F32,
+        seed: 1,
+    })
+    .unwrap();
+    let p = vals(rows * 3, 7);
+    let t = vec![0.37f32; rows];
+    let d = vals(rows * 10, 9);
+    let (_, mut cache) = net.forward(&p, &t, rows).unwrap();
+    g.throughput(Throughput::Elements(rows as u64));
+    g.bench_function(BenchmarkId::new("fwd", rows), |b| {
+        b.iter(|| net.forward_into(&p, &t, rows, &mut cache).unwrap());
+    });
+    g.bench_function(BenchmarkId::new("bwd", rows), |b| {
+        b.iter(|| net.backward(&cache, &d, true).unwrap());
+    });
+    g.finish();
+}
+
 /// One Adam step of an f32 group the size of a lego run's Gaussian parameters (30 000
 /// Gaussians of 59 numbers: position, scale, rotation, opacity and degree-3 SH).
 fn adam(c: &mut Criterion<CpuTime>) {
@@ -150,6 +183,6 @@ fn adam(c: &mut Criterion<CpuTime>) {
 criterion_group! {
     name = benches;
     config = Criterion::default().with_measurement(CpuTime::total());
-    targets = products, decoder, phi, adam
+    targets = products, decoder, phi, phi_trainer, adam
 }
 criterion_main!(benches);

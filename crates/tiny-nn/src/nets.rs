@@ -175,6 +175,12 @@ impl ObservationNet {
         sorted_times.clear();
         sorted_times.par_extend(order.par_iter().map(|&r| times[r]));
         let (positions, times) = (&sorted_positions[..], &sorted_times[..]);
+        // One time for every row (a training step's frame): its encoding, computed once.
+        let time_row = uniform_time(times).map(|t| {
+            let mut row = vec![0f32; self.bspline.output_width()];
+            self.bspline.encode_row_into(&ctrl, t, &mut row);
+            row
+        });
         self.mlp.forward_cached(
             rows,
             |r0, nr, buf| {
@@ -184,6 +190,7 @@ impl ObservationNet {
                     ctrl: &ctrl,
                     positions: &positions[r0 * 3..(r0 + nr) * 3],
                     times: &times[r0..r0 + nr],
+                    time_row: time_row.as_deref(),
                     out: buf,
                     feat: &mut vec![0f32; 3 * c],
                 });
@@ -227,6 +234,10 @@ impl ObservationNet {
         let (wx, wt) = (self.triplane.output_width(), self.bspline.output_width());
         let c = self.triplane.config().channels;
         let (np, nb) = (self.triplane.param_count(), self.bspline.param_count());
+        // With one time for every row, the control vectors' gradient is the B-spline's backward
+        // of the rows' summed time-feature gradients, taken once (the same sum regrouped).
+        let shared = uniform_time(&cache.times);
+        let nb = if shared.is_some() { wt } else { nb };
         type Acc = (Vec<f32>, Vec<f32>, Vec<(usize, Vec<f32>)>);
         let (mlp, (tp, bs, pos_blocks)) = self.mlp.backward_with(
             &cache.mlp,
@@ -241,6 +252,7 @@ impl ObservationNet {
                     ctrl: &ctrl,
                     positions: &cache.positions[r0 * 3..(r0 + nr) * 3],
                     times: &cache.times[r0..r0 + nr],
+                    shared_time: shared.is_some(),
                     d_features: dx,
                     d_planes: &mut acc.0,
                     d_controls: &mut acc.1,
@@ -271,6 +283,14 @@ impl ObservationNet {
                 .for_each(|(dst, &i)| dst.copy_from_slice(&sorted[i * 3..i * 3 + 3]));
             out
         });
+        let bs = match shared {
+            Some(t) => {
+                let mut controls = vec![0f32; self.bspline.param_count()];
+                self.bspline.backward_row_into(&ctrl, t, &bs, &mut controls);
+                controls
+            }
+            None => bs,
+        };
         Ok(ObservationGrads {
             triplane: tp,
             bspline: bs,
@@ -287,6 +307,8 @@ struct EncodeRows<'a> {
     ctrl: &'a [f32],
     positions: &'a [f32],
     times: &'a [f32],
+    /// The encoding of every row's time, when all rows share one (see [`uniform_time`]).
+    time_row: Option<&'a [f32]>,
     out: &'a mut [f32],
     feat: &'a mut [f32],
 }
@@ -307,7 +329,10 @@ impl Kernel for EncodeRows<'_> {
             self.net
                 .triplane
                 .encode_row_into(self.planes, p, fx, self.feat);
-            self.net.bspline.encode_row_into(self.ctrl, t, ft);
+            match self.time_row {
+                Some(enc) => ft.copy_from_slice(enc),
+                None => self.net.bspline.encode_row_into(self.ctrl, t, ft),
+            }
         }
     }
 }
@@ -320,6 +345,9 @@ struct BackwardRows<'a> {
     ctrl: &'a [f32],
     positions: &'a [f32],
     times: &'a [f32],
+    /// All rows share one time: `d_controls` (E values) receives the sum of the rows'
+    /// time-feature gradients instead of the control vectors' gradient.
+    shared_time: bool,
     d_features: &'a [f32],
     d_planes: &'a mut [f32],
     d_controls: &'a mut [f32],
@@ -350,11 +378,26 @@ impl Kernel for BackwardRows<'_> {
                 self.dfeat,
                 dp,
             );
-            self.net
-                .bspline
-                .backward_row_into(self.ctrl, t, &g[wx..], self.d_controls);
+            if self.shared_time {
+                self.d_controls
+                    .iter_mut()
+                    .zip(&g[wx..])
+                    .for_each(|(a, &g)| *a += g);
+            } else {
+                self.net
+                    .bspline
+                    .backward_row_into(self.ctrl, t, &g[wx..], self.d_controls);
+            }
         }
     }
+}
+
+/// The time of every row when all rows have the same one (bit for bit), else None.
+fn uniform_time(times: &[f32]) -> Option<f32> {
+    let (&first, rest) = times.split_first()?;
+    rest.iter()
+        .all(|t| t.to_bits() == first.to_bits())
+        .then_some(first)
 }
 
 fn prefixed<T>(prefix: &'static str, v: Vec<(String, T)>) -> impl Iterator<Item = (String, T)> {
@@ -628,6 +671,7 @@ mod tests {
                     ctrl: &ctrl,
                     positions: &positions,
                     times: &times,
+                    time_row: None,
                     out: &mut out,
                     feat: &mut vec![0f32; 3 * c],
                 };
@@ -642,9 +686,16 @@ mod tests {
             let d_features: Vec<f32> = (0..rows * width)
                 .map(|i| ((i * 13) % 17) as f32 / 8.0 - 1.0)
                 .collect();
-            let backward = |avx: bool| {
+            let backward = |avx: bool, shared_time: bool| {
                 let mut d_planes = vec![0f32; net.triplane.param_count()];
-                let mut d_controls = vec![0f32; net.bspline.param_count()];
+                let mut d_controls = vec![
+                    0f32;
+                    if shared_time {
+                        net.bspline.output_width()
+                    } else {
+                        net.bspline.param_count()
+                    }
+                ];
                 let mut d_positions = vec![0f32; rows * 3];
                 let k = BackwardRows {
                     net: &net,
@@ -652,6 +703,7 @@ mod tests {
                     ctrl: &ctrl,
                     positions: &positions,
                     times: &times,
+                    shared_time,
                     d_features: &d_features,
                     d_planes: &mut d_planes,
                     d_controls: &mut d_controls,
@@ -667,9 +719,12 @@ mod tests {
                 let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                 (bits(&d_planes), bits(&d_controls), bits(&d_positions))
             };
-            let (a, b) = (backward(true), backward(false));
-            assert!(a.0.iter().any(|&x| x != 0));
-            assert_eq!(a, b);
+            for shared_time in [false, true] {
+                let (a, b) = (backward(true, shared_time), backward(false, shared_time));
+                assert!(a.0.iter().any(|&x| x != 0));
+                assert!(a.1.iter().any(|&x| x != 0));
+                assert_eq!(a, b);
+            }
         }
     }
 }

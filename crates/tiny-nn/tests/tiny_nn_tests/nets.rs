@@ -40,36 +40,47 @@ fn observation_net_starts_at_zero() {
     assert!(y.iter().all(|&v| v == 0.0));
 }
 
+/// The rows at one shared time, as a training step queries Φ (its B-spline is evaluated once).
+fn shared_time(rows: usize) -> Vec<f32> {
+    vec![0.37; rows]
+}
+
 #[test]
 fn observation_net_gradients_match_finite_differences() {
+    let (p, t) = inputs(4);
+    observation_net_fd(&p, &t);
+    observation_net_fd(&p, &shared_time(4));
+}
+
+fn observation_net_fd(p: &[f32], t: &[f32]) {
     let mut net = phi(Precision::F32);
     let n = net.mlp.param_count();
     net.mlp.set_params(&vals(n, 40, 0.5)).unwrap();
-    let rows = 4;
-    let (p, t) = inputs(rows);
+    let rows = t.len();
+    let p = p.to_vec();
     let c = vals(rows * 4, 41, 1.0);
-    let (_, cache) = net.forward(&p, &t, rows).unwrap();
+    let (_, cache) = net.forward(&p, t, rows).unwrap();
     let g = net.backward(&cache, &c, true).unwrap();
     let mut n2 = net.clone();
     let tp = net.triplane.params().to_vec_f32();
     check_fd("Φ tri-plane", &tp, &g.triplane, 1e-2, 3e-3, |pp| {
         n2.triplane.set_params(pp).unwrap();
-        dot(&n2.forward(&p, &t, rows).unwrap().0, &c)
+        dot(&n2.forward(&p, t, rows).unwrap().0, &c)
     });
     let mut n2 = net.clone();
     let bp = net.bspline.params().to_vec_f32();
     check_fd("Φ B-spline", &bp, &g.bspline, 1e-2, 3e-3, |pp| {
         n2.bspline.set_params(pp).unwrap();
-        dot(&n2.forward(&p, &t, rows).unwrap().0, &c)
+        dot(&n2.forward(&p, t, rows).unwrap().0, &c)
     });
     let mut n2 = net.clone();
     let mp = net.mlp.params().to_vec_f32();
     check_fd("Φ MLP", &mp, &g.mlp, 1e-3, 5e-3, |pp| {
         n2.mlp.set_params(pp).unwrap();
-        dot(&n2.forward(&p, &t, rows).unwrap().0, &c)
+        dot(&n2.forward(&p, t, rows).unwrap().0, &c)
     });
     check_fd("Φ positions", &p, &g.positions.unwrap(), 1e-3, 5e-3, |pp| {
-        dot(&net.forward(pp, &t, rows).unwrap().0, &c)
+        dot(&net.forward(pp, t, rows).unwrap().0, &c)
     });
 }
 
@@ -212,17 +223,26 @@ fn weights_errors_name_the_file_and_the_tensor() {
 
 #[test]
 fn fused_paths_match_the_separate_modules_over_many_blocks() {
+    let rows = 2100; // 9 forward blocks of 256 and 3 backward blocks of 1024, the last partial
+    let (p, t) = inputs(rows);
+    phi_matches_its_modules(&p, &t);
+    // One time for all rows: the B-spline once, its gradient from the rows' summed gradients.
+    phi_matches_its_modules(&p, &shared_time(rows));
+    deform_net_matches_single_rows(&p, &t);
+}
+
+/// Φ's fused forward and backward against its encoders, concatenation and decoder run apart.
+fn phi_matches_its_modules(p: &[f32], t: &[f32]) {
     let mut net = phi(Precision::F32);
     let n = net.mlp.param_count();
     net.mlp.set_params(&vals(n, 80, 0.5)).unwrap();
-    let rows = 2100; // 9 forward blocks of 256 and 3 backward blocks of 1024, the last partial
-    let (p, t) = inputs(rows);
+    let rows = t.len();
     let d = vals(rows * 4, 81, 1.0);
-    let (y, cache) = net.forward(&p, &t, rows).unwrap();
+    let (y, cache) = net.forward(p, t, rows).unwrap();
     let g = net.backward(&cache, &d, true).unwrap();
     // Separate: encoders, concatenation, MLP.
-    let (fx, tc) = net.triplane.forward(&p, rows).unwrap();
-    let (ft, bc) = net.bspline.forward(&t).unwrap();
+    let (fx, tc) = net.triplane.forward(p, rows).unwrap();
+    let (ft, bc) = net.bspline.forward(t).unwrap();
     let (wx, wt) = (net.triplane.output_width(), net.bspline.output_width());
     let input: Vec<f32> = (0..rows)
         .flat_map(|r| {
@@ -250,9 +270,19 @@ fn fused_paths_match_the_separate_modules_over_many_blocks() {
     assert!(close(&g.triplane, &gt.params));
     assert!(close(&g.bspline, &gb.params));
     assert_eq!(g.positions.unwrap(), gt.positions.unwrap());
+}
 
+/// The D-3DGS network over many blocks against one row at a time.
+fn deform_net_matches_single_rows(p: &[f32], t: &[f32]) {
+    let rows = t.len();
+    let close = |a: &[f32], b: &[f32]| {
+        a.len() == b.len()
+            && a.iter()
+                .zip(b)
+                .all(|(x, y)| (x - y).abs() <= 1e-5 * (1.0 + y.abs()))
+    };
     let dn = small_deform(Precision::F32);
-    let (y, cache) = dn.forward(&p, &t, rows).unwrap();
+    let (y, cache) = dn.forward(p, t, rows).unwrap();
     let d10 = vals(rows * 10, 82, 1.0);
     let g = dn.backward(&cache, &d10, true).unwrap();
     for r in [0usize, 255, 256, 1023, 1024, 2099] {
@@ -297,6 +327,13 @@ fn observation_net_gradients_are_bit_identical_for_any_thread_count() {
     // Many rows, so that several blocks (and groups) take part.
     let rows = 20_000;
     let (p, t) = inputs(rows);
+    for t in [t, shared_time(rows)] {
+        phi_grads_do_not_depend_on_threads(&net, &p, &t);
+    }
+}
+
+fn phi_grads_do_not_depend_on_threads(net: &ObservationNet, p: &[f32], t: &[f32]) {
+    let rows = t.len();
     let c = vals(rows * 4, 43, 1.0);
     let grads_with = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
@@ -304,7 +341,7 @@ fn observation_net_gradients_are_bit_identical_for_any_thread_count() {
             .build()
             .unwrap();
         pool.install(|| {
-            let (_, cache) = net.forward(&p, &t, rows).unwrap();
+            let (_, cache) = net.forward(p, t, rows).unwrap();
             let g = net.backward(&cache, &c, true).unwrap();
             let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             (bits(&g.triplane), bits(&g.bspline), bits(&g.mlp))
