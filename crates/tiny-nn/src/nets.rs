@@ -234,10 +234,6 @@ impl ObservationNet {
         let (wx, wt) = (self.triplane.output_width(), self.bspline.output_width());
         let c = self.triplane.config().channels;
         let (np, nb) = (self.triplane.param_count(), self.bspline.param_count());
-        // With one time for every row, the control vectors' gradient is the B-spline's backward
-        // of the rows' summed time-feature gradients, taken once (the same sum regrouped).
-        let shared = uniform_time(&cache.times);
-        let nb = if shared.is_some() { wt } else { nb };
         type Acc = (Vec<f32>, Vec<f32>, Vec<(usize, Vec<f32>)>);
         let (mlp, (tp, bs, pos_blocks)) = self.mlp.backward_with(
             &cache.mlp,
@@ -252,7 +248,6 @@ impl ObservationNet {
                     ctrl: &ctrl,
                     positions: &cache.positions[r0 * 3..(r0 + nr) * 3],
                     times: &cache.times[r0..r0 + nr],
-                    shared_time: shared.is_some(),
                     d_features: dx,
                     d_planes: &mut acc.0,
                     d_controls: &mut acc.1,
@@ -283,14 +278,6 @@ impl ObservationNet {
                 .for_each(|(dst, &i)| dst.copy_from_slice(&sorted[i * 3..i * 3 + 3]));
             out
         });
-        let bs = match shared {
-            Some(t) => {
-                let mut controls = vec![0f32; self.bspline.param_count()];
-                self.bspline.backward_row_into(&ctrl, t, &bs, &mut controls);
-                controls
-            }
-            None => bs,
-        };
         Ok(ObservationGrads {
             triplane: tp,
             bspline: bs,
@@ -345,9 +332,6 @@ struct BackwardRows<'a> {
     ctrl: &'a [f32],
     positions: &'a [f32],
     times: &'a [f32],
-    /// All rows share one time: `d_controls` (E values) receives the sum of the rows'
-    /// time-feature gradients instead of the control vectors' gradient.
-    shared_time: bool,
     d_features: &'a [f32],
     d_planes: &'a mut [f32],
     d_controls: &'a mut [f32],
@@ -378,16 +362,9 @@ impl Kernel for BackwardRows<'_> {
                 self.dfeat,
                 dp,
             );
-            if self.shared_time {
-                self.d_controls
-                    .iter_mut()
-                    .zip(&g[wx..])
-                    .for_each(|(a, &g)| *a += g);
-            } else {
-                self.net
-                    .bspline
-                    .backward_row_into(self.ctrl, t, &g[wx..], self.d_controls);
-            }
+            self.net
+                .bspline
+                .backward_row_into(self.ctrl, t, &g[wx..], self.d_controls);
         }
     }
 }
@@ -686,16 +663,9 @@ mod tests {
             let d_features: Vec<f32> = (0..rows * width)
                 .map(|i| ((i * 13) % 17) as f32 / 8.0 - 1.0)
                 .collect();
-            let backward = |avx: bool, shared_time: bool| {
+            let backward = |avx: bool| {
                 let mut d_planes = vec![0f32; net.triplane.param_count()];
-                let mut d_controls = vec![
-                    0f32;
-                    if shared_time {
-                        net.bspline.output_width()
-                    } else {
-                        net.bspline.param_count()
-                    }
-                ];
+                let mut d_controls = vec![0f32; net.bspline.param_count()];
                 let mut d_positions = vec![0f32; rows * 3];
                 let k = BackwardRows {
                     net: &net,
@@ -703,7 +673,6 @@ mod tests {
                     ctrl: &ctrl,
                     positions: &positions,
                     times: &times,
-                    shared_time,
                     d_features: &d_features,
                     d_planes: &mut d_planes,
                     d_controls: &mut d_controls,
@@ -719,12 +688,9 @@ mod tests {
                 let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                 (bits(&d_planes), bits(&d_controls), bits(&d_positions))
             };
-            for shared_time in [false, true] {
-                let (a, b) = (backward(true, shared_time), backward(false, shared_time));
-                assert!(a.0.iter().any(|&x| x != 0));
-                assert!(a.1.iter().any(|&x| x != 0));
-                assert_eq!(a, b);
-            }
+            let (a, b) = (backward(true), backward(false));
+            assert!(a.0.iter().any(|&x| x != 0));
+            assert_eq!(a, b);
         }
     }
 }

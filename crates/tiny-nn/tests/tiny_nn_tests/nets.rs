@@ -226,7 +226,7 @@ fn fused_paths_match_the_separate_modules_over_many_blocks() {
     let rows = 2100; // 9 forward blocks of 256 and 3 backward blocks of 1024, the last partial
     let (p, t) = inputs(rows);
     phi_matches_its_modules(&p, &t);
-    // One time for all rows: the B-spline once, its gradient from the rows' summed gradients.
+    // One time for all rows, as a training step queries Φ: the B-spline is evaluated once.
     phi_matches_its_modules(&p, &shared_time(rows));
     deform_net_matches_single_rows(&p, &t);
 }
