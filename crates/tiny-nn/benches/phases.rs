@@ -98,7 +98,6 @@ fn decoder(c: &mut Criterion<CpuTime>) {
 /// Φ (product tri-plane C = 32 at 64², B-spline 16 × 16, decoder 48 → 64 → 64 → 10) over 100K
 /// rows with all threads: forward, and backward alone (from a kept cache).
 fn phi(c: &mut Criterion<CpuTime>) {
-    let mut g = c.benchmark_group("phases/phi");
     let rows = 100_000;
     let net = tiny_nn::ObservationNet::new(tiny_nn::ObservationConfig {
         triplane: tiny_nn::TriPlaneConfig::new(32, &[64], tiny_nn::PlaneCombine::Product),
@@ -110,16 +109,30 @@ fn phi(c: &mut Criterion<CpuTime>) {
         seed: 1,
     })
     .unwrap();
-    let p = vals(rows * 3, 7);
     let t: Vec<f32> = vals(rows, 8).iter().map(|v| v * 0.5 + 0.5).collect();
-    let d = vals(rows * 10, 9);
-    let (_, mut cache) = net.forward(&p, &t, rows).unwrap();
+    phi_passes(c, "phases/phi", &net, &t, false);
+}
+
+/// Φ's forward, and its backward alone (from a kept cache), over one row per time in `t`
+/// (positions from a fixed sequence), with all threads.
+fn phi_passes(
+    c: &mut Criterion<CpuTime>,
+    group: &str,
+    net: &tiny_nn::ObservationNet,
+    t: &[f32],
+    want_position_grad: bool,
+) {
+    let mut g = c.benchmark_group(group);
+    let rows = t.len();
+    let p = vals(rows * 3, 7);
+    let d = vals(rows * net.mlp.output_width(), 9);
+    let (_, mut cache) = net.forward(&p, t, rows).unwrap();
     g.throughput(Throughput::Elements(rows as u64));
     g.bench_function(BenchmarkId::new("fwd", rows), |b| {
-        b.iter(|| net.forward_into(&p, &t, rows, &mut cache).unwrap());
+        b.iter(|| net.forward_into(&p, t, rows, &mut cache).unwrap());
     });
     g.bench_function(BenchmarkId::new("bwd", rows), |b| {
-        b.iter(|| net.backward(&cache, &d, false).unwrap());
+        b.iter(|| net.backward(&cache, &d, want_position_grad).unwrap());
     });
     g.finish();
 }
@@ -128,8 +141,6 @@ fn phi(c: &mut Criterion<CpuTime>) {
 /// 32² and 64², B-spline 16 × 8, decoder 56 → 32 → 32 → 10) over 30 000 rows, all at one time
 /// as in a training step, with all threads: forward, and backward alone (from a kept cache).
 fn phi_trainer(c: &mut Criterion<CpuTime>) {
-    let mut g = c.benchmark_group("phases/phi_trainer");
-    let rows = 30_000;
     let mut triplane = tiny_nn::TriPlaneConfig::new(8, &[32, 64], tiny_nn::PlaneCombine::Concat);
     triplane.box_min = [-1.3; 3];
     triplane.box_max = [1.3; 3];
@@ -143,18 +154,7 @@ fn phi_trainer(c: &mut Criterion<CpuTime>) {
         seed: 1,
     })
     .unwrap();
-    let p = vals(rows * 3, 7);
-    let t = vec![0.37f32; rows];
-    let d = vals(rows * 10, 9);
-    let (_, mut cache) = net.forward(&p, &t, rows).unwrap();
-    g.throughput(Throughput::Elements(rows as u64));
-    g.bench_function(BenchmarkId::new("fwd", rows), |b| {
-        b.iter(|| net.forward_into(&p, &t, rows, &mut cache).unwrap());
-    });
-    g.bench_function(BenchmarkId::new("bwd", rows), |b| {
-        b.iter(|| net.backward(&cache, &d, true).unwrap());
-    });
-    g.finish();
+    phi_passes(c, "phases/phi_trainer", &net, &[0.37; 30_000], true);
 }
 
 /// One Adam step of an f32 group the size of a lego run's Gaussian parameters (30 000
