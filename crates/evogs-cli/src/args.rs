@@ -203,6 +203,11 @@ pub struct TrainArgs {
     #[arg(long, value_name = "M")]
     pub bspline_controls: Option<usize>,
 
+    /// EvoGS: Φ's time features, the length of each B-spline control vector (at least 1; more
+    /// give the decoder more independent curves over time) [default: 8].
+    #[arg(long, value_name = "W")]
+    pub bspline_width: Option<usize>,
+
     /// EvoGS: Φ's tri-plane resolutions, comma-separated (their features are concatenated)
     /// [default: 32,64].
     #[arg(long, value_name = "R,R", value_delimiter = ',')]
@@ -254,7 +259,7 @@ pub struct TrainArgs {
     /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
     #[arg(
         long,
-        conflicts_with_all = ["data", "time_from", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "bspline_controls", "triplane_resolutions", "triplane_channels", "net_width", "max_gaussians", "max_screen_radius", "memory_limit", "checkpoint_every", "time_budget", "budget_clock"]
+        conflicts_with_all = ["data", "time_from", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "bspline_controls", "bspline_width", "triplane_resolutions", "triplane_channels", "net_width", "max_gaussians", "max_screen_radius", "memory_limit", "checkpoint_every", "time_budget", "budget_clock"]
     )]
     pub resume: bool,
 

@@ -64,6 +64,9 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     if let Some(v) = args.bspline_controls {
         e.bspline_controls = v;
     }
+    if let Some(v) = args.bspline_width {
+        e.bspline_width = v;
+    }
     if let Some(v) = &args.triplane_resolutions {
         e.triplane_resolutions.clone_from(v);
     }

@@ -139,6 +139,11 @@ fn each_switch_reaches_the_config() {
             48.to_string(),
         ),
         (
+            &["--bspline-width", "32"],
+            |e| e.bspline_width.to_string(),
+            32.to_string(),
+        ),
+        (
             &["--triplane-resolutions", "64,128"],
             |e| format!("{:?}", e.triplane_resolutions),
             format!("{:?}", [64, 128]),
@@ -211,6 +216,7 @@ fn bad_switch_values_name_the_setting() {
         (&["--motion-floor", "-1"][..], "evogs.motion_floor"),
         (&["--grid-lr-scale", "0"][..], "evogs.grid_lr_scale"),
         (&["--bspline-controls", "3"][..], "evogs.bspline"),
+        (&["--bspline-width", "0"][..], "evogs.bspline"),
         (
             &["--triplane-resolutions", "64,1"][..],
             "evogs.triplane_resolutions",
