@@ -303,7 +303,11 @@ impl CpuRasterizer {
             depth,
             frame.tiles_x,
             frame.tiles_y,
-            |id, tx, ty| splats[id as usize].touches_tile(&frame, tx, ty),
+            |id, rect, tiles| {
+                splats[id as usize].for_each_touched_tile(&frame, rect, |tx, ty| {
+                    tiles.push(ty * frame.tiles_x + tx);
+                });
+            },
             lists,
             bin,
         );

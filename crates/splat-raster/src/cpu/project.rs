@@ -52,38 +52,111 @@ impl Splat {
     /// the rectangle the minimum lies on one of its edges, where it is a 1-D clamped minimum.
     pub fn min_sigma_over(&self, x0: f32, x1: f32, y0: f32, y1: f32) -> f32 {
         let (dx0, dx1, dy0, dy1) = (x0 - self.u, x1 - self.u, y0 - self.v, y1 - self.v);
-        if dx0 <= 0.0 && dx1 >= 0.0 && dy0 <= 0.0 && dy1 >= 0.0 {
+        self.min_sigma_at(
+            [dx0, dx1],
+            [dy0, dy1],
+            self.edge_minima_y([dx0, dx1]),
+            self.edge_minima_x([dy0, dy1]),
+        )
+    }
+
+    /// On the vertical edges `dx`, the unclamped `dy` of the 1-D minima: `−b·dx / c`.
+    fn edge_minima_y(&self, dx: [f32; 2]) -> [f32; 2] {
+        dx.map(|dx| -self.b * dx / self.c)
+    }
+
+    /// On the horizontal edges `dy`, the unclamped `dx` of the 1-D minima: `−b·dy / a`.
+    fn edge_minima_x(&self, dy: [f32; 2]) -> [f32; 2] {
+        dy.map(|dy| -self.b * dy / self.a)
+    }
+
+    /// [`Splat::min_sigma_over`] of the rectangle with offsets `dx`, `dy` from the mean, given
+    /// its edges' unclamped minima ([`Splat::edge_minima_y`], [`Splat::edge_minima_x`]).
+    fn min_sigma_at(&self, dx: [f32; 2], dy: [f32; 2], at_y: [f32; 2], at_x: [f32; 2]) -> f32 {
+        if dx[0] <= 0.0 && dx[1] >= 0.0 && dy[0] <= 0.0 && dy[1] >= 0.0 {
             return 0.0;
         }
         let mut best = f32::INFINITY;
-        for dx in [dx0, dx1] {
-            let dy = (-self.b * dx / self.c).clamp(dy0, dy1);
-            best = best.min(self.sigma_at(dx, dy));
+        for (dx, at) in dx.into_iter().zip(at_y) {
+            best = best.min(self.sigma_at(dx, at.clamp(dy[0], dy[1])));
         }
-        for dy in [dy0, dy1] {
-            let dx = (-self.b * dy / self.a).clamp(dx0, dx1);
-            best = best.min(self.sigma_at(dx, dy));
+        for (dy, at) in dy.into_iter().zip(at_x) {
+            best = best.min(self.sigma_at(at.clamp(dx[0], dx[1]), dy));
         }
         best
+    }
+
+    /// The cut-off [`Splat::touches_tile`] compares the smallest `σ` with: `sigma_cut` with a
+    /// small slack for rounding, so no pixel that the per-pixel test keeps is lost.
+    fn tile_cut(&self) -> f32 {
+        self.sigma_cut * (1.0 + 1e-4) + 1e-4
     }
 
     /// Whether some pixel centre of tile `(tx, ty)` inside the image may reach `σ <= sigma_cut`
     /// (with a small slack for rounding, so no pixel that the per-pixel test keeps is lost).
     pub fn touches_tile(&self, frame: &Frame, tx: u32, ty: u32) -> bool {
-        let x0 = tx * TILE;
-        let y0 = ty * TILE;
-        let x1 = (x0 + TILE - 1).min(frame.width - 1);
-        let y1 = (y0 + TILE - 1).min(frame.height - 1);
-        let m = self.min_sigma_over(
-            x0 as f32 + 0.5,
-            x1 as f32 + 0.5,
-            y0 as f32 + 0.5,
-            y1 as f32 + 0.5,
-        );
+        let [x0, x1] = pixel_span(tx, frame.width);
+        let [y0, y1] = pixel_span(ty, frame.height);
+        let m = self.min_sigma_over(x0, x1, y0, y1);
         // NaN (degenerate arithmetic) keeps the tile: the per-pixel test decides.
-        let beyond = m > self.sigma_cut * (1.0 + 1e-4) + 1e-4;
+        let beyond = m > self.tile_cut();
         !beyond
     }
+
+    /// [`Splat::touches_tile`] over the inclusive tile rectangle `[tx0, ty0, tx1, ty1]`:
+    /// `touched(tx, ty)` for each tile it keeps, in ascending tile order (row by row). The same
+    /// decisions bit for bit (the same operations on the same values), with the divisions that
+    /// depend only on a tile's column or row done once per column (up to [`HOISTED_COLUMNS`]
+    /// columns) or row instead of once per tile.
+    pub fn for_each_touched_tile(
+        &self,
+        frame: &Frame,
+        [tx0, ty0, tx1, ty1]: [u32; 4],
+        mut touched: impl FnMut(u32, u32),
+    ) {
+        let columns = (tx1 - tx0 + 1) as usize;
+        if columns > HOISTED_COLUMNS {
+            for ty in ty0..=ty1 {
+                for tx in tx0..=tx1 {
+                    if self.touches_tile(frame, tx, ty) {
+                        touched(tx, ty);
+                    }
+                }
+            }
+            return;
+        }
+        let mut dx = [[0f32; 2]; HOISTED_COLUMNS];
+        let mut at_y = [[0f32; 2]; HOISTED_COLUMNS];
+        for (k, tx) in (tx0..=tx1).enumerate() {
+            dx[k] = pixel_span(tx, frame.width).map(|x| x - self.u);
+            at_y[k] = self.edge_minima_y(dx[k]);
+        }
+        let cut = self.tile_cut();
+        for ty in ty0..=ty1 {
+            let dy = pixel_span(ty, frame.height).map(|y| y - self.v);
+            let at_x = self.edge_minima_x(dy);
+            for (k, tx) in (tx0..=tx1).enumerate() {
+                let m = self.min_sigma_at(dx[k], dy, at_y[k], at_x);
+                // NaN keeps the tile, as in `touches_tile`.
+                let beyond = m > cut;
+                if !beyond {
+                    touched(tx, ty);
+                }
+            }
+        }
+    }
+}
+
+/// Tile columns of a rectangle whose per-column divisions
+/// [`Splat::for_each_touched_tile`] keeps on the stack (wider rectangles divide per tile).
+pub(crate) const HOISTED_COLUMNS: usize = 64;
+
+/// The first and last pixel centres `[p0 + 0.5, p1 + 0.5]` of tile row or column `t` in an image
+/// `size` pixels across (the last tile may be partial).
+fn pixel_span(t: u32, size: u32) -> [f32; 2] {
+    let p0 = t * TILE;
+    let p1 = (p0 + TILE - 1).min(size - 1);
+    [p0 as f32 + 0.5, p1 as f32 + 0.5]
 }
 
 /// A drawn Gaussian: its record, its tile rectangle (inclusive) and its 3σ screen radius.
@@ -542,6 +615,57 @@ mod tests {
                 "{m} above grid minimum {grid}"
             );
             assert!(m >= grid * 0.95 - 1e-2, "{m} far below grid minimum {grid}");
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig { cases: 256, ..Default::default() })]
+
+        /// The tiles `for_each_touched_tile` lists are those `touches_tile` keeps, in ascending
+        /// order: round and needle-thin conics, means inside and outside the rectangle, partial
+        /// edge tiles, and rectangles wider than the hoisted columns.
+        #[test]
+        fn touched_tiles_are_those_touches_tile_keeps(
+            (log_sx, log_sy, rho) in (-3.0f32..6.0, -3.0f32..6.0, -0.9999f32..0.9999),
+            (fu, fv) in (-0.5f32..1.5, -0.5f32..1.5),
+            opacity in 0.004f32..1.0,
+            (width, height) in (1u32..1200, 1u32..800),
+            (x, y, w, h) in (0u32..80, 0u32..50, 0u32..80, 0u32..50),
+        ) {
+            let cam = splat_core::Camera::look_at(
+                width,
+                height,
+                0.8,
+                Vec3::new(0.0, 0.0, -4.0),
+                Vec3::ZERO,
+                Vec3::Y,
+            );
+            let frame = Frame::new(&cam);
+            let (tx1, ty1) = (frame.tiles_x - 1, frame.tiles_y - 1);
+            let (x0, y0) = (x.min(tx1), y.min(ty1));
+            let rect = [x0, y0, (x0 + w).min(tx1), (y0 + h).min(ty1)];
+            // The mean near the rectangle and extents from a fraction of a tile to many tiles,
+            // so that many tiles lie on the ellipse's boundary.
+            let (sx, sy) = (log_sx.exp(), log_sy.exp());
+            let (ca, cc, cb) = (sx * sx, sy * sy, rho * sx * sy);
+            let det = ca * cc - cb * cb;
+            let span = |lo: u32, hi: u32, f: f32| (lo * TILE) as f32 + f * ((hi - lo + 1) * TILE) as f32;
+            let s = Splat {
+                u: span(rect[0], rect[2], fu),
+                v: span(rect[1], rect[3], fv),
+                a: cc / det,
+                b: -cb / det,
+                c: ca / det,
+                sigma_cut: (255.0 * opacity).ln().max(0.0),
+                ..Splat::default()
+            };
+            let mut listed = Vec::new();
+            s.for_each_touched_tile(&frame, rect, |tx, ty| listed.push((ty, tx)));
+            let kept: Vec<(u32, u32)> = (rect[1]..=rect[3])
+                .flat_map(|ty| (rect[0]..=rect[2]).map(move |tx| (ty, tx)))
+                .filter(|&(ty, tx)| s.touches_tile(&frame, tx, ty))
+                .collect();
+            proptest::prop_assert_eq!(listed, kept);
         }
     }
 }

@@ -69,21 +69,40 @@ pub(crate) fn bin(
         depth,
         tiles_x,
         tiles_y,
-        touches,
+        tiles_where(tiles_x, touches),
         &mut lists,
         &mut BinScratch::default(),
     );
     lists
 }
 
+/// The `touched` argument of [`bin_into`] from a per-tile predicate `touches(i, tx, ty)`.
+#[cfg(test)]
+fn tiles_where(
+    tiles_x: u32,
+    touches: impl Fn(u32, u32, u32) -> bool + Sync,
+) -> impl Fn(u32, [u32; 4], &mut Vec<u32>) + Sync {
+    move |id, [x0, y0, x1, y1], touched| {
+        for ty in y0..=y1 {
+            for tx in x0..=x1 {
+                if touches(id, tx, ty) {
+                    touched.push(ty * tiles_x + tx);
+                }
+            }
+        }
+    }
+}
+
 /// [`bin`] into `lists`, reusing its buffers and `scratch`'s: the same lists, without fresh
-/// allocations once the buffers are large enough.
+/// allocations once the buffers are large enough. `tiles_of(i, rect, tiles)` pushes onto `tiles`
+/// the index `ty · tiles_x + tx` of each tile of Gaussian `i`'s rectangle `rect` it touches, in
+/// ascending order.
 pub(crate) fn bin_into(
     rects: &[Option<[u32; 4]>],
     depth: &[f32],
     tiles_x: u32,
     tiles_y: u32,
-    touches: impl Fn(u32, u32, u32) -> bool + Sync,
+    tiles_of: impl Fn(u32, [u32; 4], &mut Vec<u32>) + Sync,
     lists: &mut TileLists,
     scratch: &mut BinScratch,
 ) {
@@ -106,15 +125,8 @@ pub(crate) fn bin_into(
             tiles.clear();
             for (k, rect) in rects.iter().enumerate() {
                 let before = tiles.len();
-                if let Some([x0, y0, x1, y1]) = *rect {
-                    let id = (c * CHUNK + k) as u32;
-                    for ty in y0..=y1 {
-                        for tx in x0..=x1 {
-                            if touches(id, tx, ty) {
-                                tiles.push(ty * tiles_x + tx);
-                            }
-                        }
-                    }
+                if let Some(rect) = *rect {
+                    tiles_of((c * CHUNK + k) as u32, rect, tiles);
                 }
                 counts.push((tiles.len() - before) as u32);
             }
@@ -434,7 +446,15 @@ mod tests {
             for threads in [1, 2, 3] {
                 let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
                 pool.install(|| {
-                    bin_into(&rects, &depth, tiles_x, tiles_y, touches, &mut lists, &mut scratch);
+                    bin_into(
+                        &rects,
+                        &depth,
+                        tiles_x,
+                        tiles_y,
+                        tiles_where(tiles_x, touches),
+                        &mut lists,
+                        &mut scratch,
+                    );
                 });
                 prop_assert_eq!(&lists, &expected, "{} threads", threads);
             }
