@@ -373,8 +373,13 @@ pub(crate) fn project(
         z,
         bbox: [x_lo as u32, y_lo as u32, x_hi as u32, y_hi as u32],
     };
-    let touches_any = (tiles[1]..=tiles[3])
-        .any(|ty| (tiles[0]..=tiles[2]).any(|tx| splat.touches_tile(frame, tx, ty)));
+    // Whether any tile is touched does not depend on the order the tiles are tried in: the
+    // tile of the mean first (touched unless the Gaussian is all but invisible), then the rest.
+    let [mx, my] = [u, v].map(|p| (p / TILE as f32) as u32);
+    let mean_in_rect = (tiles[0]..=tiles[2]).contains(&mx) && (tiles[1]..=tiles[3]).contains(&my);
+    let touches_any = (mean_in_rect && splat.touches_tile(frame, mx, my))
+        || (tiles[1]..=tiles[3])
+            .any(|ty| (tiles[0]..=tiles[2]).any(|tx| splat.touches_tile(frame, tx, ty)));
     if !touches_any {
         return Err(CullReason::OffScreen);
     }
