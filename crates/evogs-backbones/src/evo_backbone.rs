@@ -33,8 +33,8 @@ use evo_state::{Backward, EvoConfig, EvoError, EvoState, Frames, Step};
 use rayon::prelude::*;
 use splat_core::{GaussiansView, sigmoid};
 use tiny_nn::{
-    BSplineConfig, LrSchedule, ObservationConfig, ObservationNet, Parameters, PlaneCombine,
-    StoreMut, StoreRef, TriPlaneConfig,
+    BSplineConfig, LrSchedule, ObservationConfig, ObservationNet, Parameters, StoreMut, StoreRef,
+    TriPlaneConfig,
 };
 
 use crate::backbone::{
@@ -66,7 +66,7 @@ pub fn observation_config(
     let mut triplane = TriPlaneConfig::new(
         s.triplane_channels,
         &s.triplane_resolutions,
-        PlaneCombine::Concat,
+        s.triplane_combine,
     );
     triplane.box_min = [-h; 3];
     triplane.box_max = [h; 3];

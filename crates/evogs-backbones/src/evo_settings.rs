@@ -8,6 +8,7 @@
 //! | [`DensifyPolicy`] | `standard`, `trigger`, `trigger+deform` | 3DGS ADC, + EvoGS trigger, + deformation-aware clone/split |
 //! | [`Storage`] | `f32`, `f16` | buffer storage (`--buffer`) |
 //! | [`Precision`] | `f32`, `f16` | Φ's storage (`--net-precision`) |
+//! | [`PlaneCombine`] | `concat`, `product` | Φ's planes concatenated or multiplied (`--triplane-combine`) |
 //! | [`Layout`] | `pos,rot,scale[,opacity,colour]` | the deformation components |
 //!
 //! The motion floor (`motion_floor` of [`EvoSettings::evo`], `--motion-floor`) is the trainer's own,
@@ -27,9 +28,9 @@ use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 
 /// The settings' types are the libraries' own, recorded in `config.json` through their `serde`
 /// features: evo-state's configuration with its gain, history mode and buffer storage, tiny-nn's
-/// precision and splat-core's deformation layout.
+/// precision and plane combination, and splat-core's deformation layout.
 pub use evo_state::{EvoConfig, Gain, HistoryMode, Layout, Storage};
-pub use tiny_nn::Precision;
+pub use tiny_nn::{PlaneCombine, Precision};
 
 use crate::error::BackboneError;
 use crate::one_word::{OneWord, unknown};
@@ -86,6 +87,12 @@ pub struct EvoSettings {
     pub triplane_channels: usize,
     /// Φ's tri-plane resolutions.
     pub triplane_resolutions: Vec<usize>,
+    /// `--triplane-combine`: how Φ's three planes of a resolution are combined: `concat`
+    /// (3C features) or `product` (their element-wise product, C features: K-Planes' and
+    /// 4DGaussians' HexPlane combination, which localises a feature in all three axes).
+    /// Absent in older `config.json` files: `concat`, which those runs were trained with.
+    #[serde(default = "concat")]
+    pub triplane_combine: PlaneCombine,
     /// Φ's B-spline control vectors (M >= 4).
     pub bspline_controls: usize,
     /// Width of each B-spline control vector.
@@ -118,6 +125,11 @@ pub const TRAINER_GRID_LR_SCALE: f32 = 10.0;
 /// Ψ's learning rate (constant, Adam; DESIGN §4.9). Provisional: 1e-3 is Adam's usual rate for a
 /// small MLP, not yet chosen by a sweep on training views.
 pub const TRAINER_PSI_LR: f32 = 1e-3;
+
+/// serde's default of [`EvoSettings::triplane_combine`].
+fn concat() -> PlaneCombine {
+    PlaneCombine::Concat
+}
 
 /// serde's default of [`EvoSettings::grid_lr_scale`].
 fn unit_scale() -> f32 {
@@ -159,6 +171,7 @@ impl Default for EvoSettings {
             net_precision: Precision::F32,
             triplane_channels: 8,
             triplane_resolutions: vec![32, 64],
+            triplane_combine: PlaneCombine::Concat,
             bspline_controls: 16,
             bspline_width: 8,
             hidden_layers: 2,
@@ -272,6 +285,7 @@ mod tests {
             "net_precision",
             "triplane_channels",
             "triplane_resolutions",
+            "triplane_combine",
             "bspline_controls",
             "bspline_width",
             "hidden_layers",

@@ -44,7 +44,8 @@ pub use backbone::{
 pub use error::BackboneError;
 pub use evo_backbone::EvoBackbone;
 pub use evo_settings::{
-    DensifyPolicy, EvoConfig, EvoSettings, Gain, HistoryMode, Layout, Precision, Storage,
+    DensifyPolicy, EvoConfig, EvoSettings, Gain, HistoryMode, Layout, PlaneCombine, Precision,
+    Storage,
 };
 pub use grid4d_backbone::{Grid4dBackbone, Grid4dLr, Grid4dPhi, Grid4dRun};
 pub use hex_backbone::HexBackbone;

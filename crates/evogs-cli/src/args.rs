@@ -213,6 +213,11 @@ pub struct TrainArgs {
     #[arg(long, value_name = "R,R", value_delimiter = ',')]
     pub triplane_resolutions: Option<Vec<usize>>,
 
+    /// EvoGS: how Φ's three planes of a resolution are combined: concat (3C features) or product
+    /// (C features, each localised in all three axes: K-Planes, 4DGaussians) [default: concat].
+    #[arg(long, value_name = "concat|product")]
+    pub triplane_combine: Option<evogs_backbones::PlaneCombine>,
+
     /// EvoGS: Φ's tri-plane channels per plane [default: 8].
     #[arg(long, value_name = "C")]
     pub triplane_channels: Option<usize>,
@@ -259,7 +264,7 @@ pub struct TrainArgs {
     /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
     #[arg(
         long,
-        conflicts_with_all = ["data", "time_from", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "bspline_controls", "bspline_width", "triplane_resolutions", "triplane_channels", "net_width", "max_gaussians", "max_screen_radius", "memory_limit", "checkpoint_every", "time_budget", "budget_clock"]
+        conflicts_with_all = ["data", "time_from", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "bspline_controls", "bspline_width", "triplane_resolutions", "triplane_combine", "triplane_channels", "net_width", "max_gaussians", "max_screen_radius", "memory_limit", "checkpoint_every", "time_budget", "budget_clock"]
     )]
     pub resume: bool,
 

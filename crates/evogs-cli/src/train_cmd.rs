@@ -70,6 +70,9 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     if let Some(v) = &args.triplane_resolutions {
         e.triplane_resolutions.clone_from(v);
     }
+    if let Some(v) = args.triplane_combine {
+        e.triplane_combine = v;
+    }
     if let Some(v) = args.triplane_channels {
         e.triplane_channels = v;
     }

@@ -108,8 +108,8 @@ pub use encoding::hashgrid::{
 };
 pub use encoding::sinusoidal::Sinusoidal;
 pub use encoding::triplane::{
-    PlaneCombine, PlaneRegulariser, TimeAxis, TriPlane, TriPlaneCache, TriPlaneConfig,
-    TriPlaneGrads,
+    PlaneCombine, PlaneCombineParseError, PlaneRegulariser, TimeAxis, TriPlane, TriPlaneCache,
+    TriPlaneConfig, TriPlaneGrads,
 };
 pub use error::NnError;
 pub use grid4d::{

@@ -149,6 +149,11 @@ fn each_switch_reaches_the_config() {
             format!("{:?}", [64, 128]),
         ),
         (
+            &["--triplane-combine", "product"],
+            |e| e.triplane_combine.to_string(),
+            "product".to_string(),
+        ),
+        (
             &["--triplane-channels", "12"],
             |e| e.triplane_channels.to_string(),
             12.to_string(),
@@ -186,6 +191,7 @@ fn bad_switch_values_name_the_setting() {
         ),
         (&["--buffer", "f8"][..], "f32, f16"),
         (&["--net-precision", "bf16"][..], "f32, f16"),
+        (&["--triplane-combine", "sum"][..], "concat, product"),
         (&["--components", "pos,pos"][..], "listed twice"),
         (
             &["--components", "velocity"][..],

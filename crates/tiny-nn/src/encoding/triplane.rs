@@ -29,6 +29,7 @@
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 
 use crate::reduce::{add_into, fold_in_order};
 
@@ -37,12 +38,33 @@ use crate::error::{NnError, check_len};
 use crate::precision::{Precision, Store, StoreMut, StoreRef};
 
 /// How the planes of one scale are combined.
+///
+/// Spelled `concat` / `product` on the command line (`FromStr`, `Display`, derived with `strum`)
+/// and, with the `serde` feature, in files.
+#[derive(EnumString, Display, IntoStaticStr, VariantNames)]
+#[strum(serialize_all = "lowercase", parse_err_ty = PlaneCombineParseError, parse_err_fn = PlaneCombineParseError::new)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "lowercase")
+)]
 pub enum PlaneCombine {
     /// Concatenate the planes' features (3C or 6C per scale).
     Concat,
     /// Multiply the planes' features element-wise (C per scale).
     Product,
+}
+
+/// A plane-combination spelling other than `concat` and `product`.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown value `{0}`; expected one of {expected}", expected = PlaneCombine::VARIANTS.join(", "))]
+pub struct PlaneCombineParseError(pub String);
+
+impl PlaneCombineParseError {
+    fn new(value: &str) -> Self {
+        Self(value.to_string())
+    }
 }
 
 /// Bits per axis of the cells of [`TriPlane::spatial_order`].
