@@ -1,10 +1,11 @@
-//! `config.json` files written by an older evogs (main at 6068508, before the settings became the
-//! libraries' own types) still load, give the settings the same flags give today (with
-//! `--max-screen-radius 20`: the screen-size prune was always on then), and a run resumed from
-//! such a config keeps it. Today's format is pinned by the same three runs' files written by
-//! today's evogs (`tests/data/config-current`): each old file loads as its current twin and is
-//! written back as the twin's bytes, and each twin is written back byte for byte. How the
-//! fixtures were made: `tests/data/config-6068508/README.md`, `tests/data/config-current/README.md`.
+//! `config.json` files written by older evogs (main at 6068508, before the settings became the
+//! libraries' own types; main at e616b30, before `--triplane-combine`) still load, give the
+//! settings the same flags give today (with `--max-screen-radius 20`: the screen-size prune was
+//! always on then), and a run resumed from such a config keeps it. Today's format is pinned by
+//! the same three runs' files written by today's evogs (`tests/data/config-current`): each old
+//! file loads as its current twin and is written back as the twin's bytes, and each twin is
+//! written back byte for byte. How the fixtures were made: the `README.md` of each directory of
+//! `tests/data/config-*`.
 
 use std::path::{Path, PathBuf};
 
@@ -94,8 +95,9 @@ const FIXTURES: [(&str, &[&str]); 3] = [
     ),
 ];
 
-/// The fixtures of evogs at 6068508.
-const OLD: &str = "config-6068508";
+/// The fixtures of older evogs: at 6068508, and at e616b30 (the format before
+/// `triplane_combine`).
+const OLD: [&str; 2] = ["config-6068508", "config-e616b30"];
 /// The same runs' files in today's format.
 const CURRENT: &str = "config-current";
 
@@ -116,8 +118,8 @@ fn lego() -> PathBuf {
 
 #[test]
 fn old_configs_load_as_the_same_flags_give_and_are_written_back_in_todays_format() {
-    for (name, flags) in FIXTURES {
-        let (_, run) = fixture(OLD, name);
+    for ((name, flags), old) in FIXTURES.into_iter().flat_map(|f| OLD.map(|old| (f, old))) {
+        let (_, run) = fixture(old, name);
         let (current_text, current) = fixture(CURRENT, name);
         let mut argv = vec!["evogs", "train", "--data", "d", "--out", "o"];
         argv.extend_from_slice(flags);
@@ -125,13 +127,13 @@ fn old_configs_load_as_the_same_flags_give_and_are_written_back_in_todays_format
             unreachable!("parsed a train command")
         };
         let today = config_from_args(&args).unwrap();
-        assert_eq!(run.train, today, "{name}");
+        assert_eq!(run.train, today, "{old}/{name}");
         assert_eq!(current.train, today, "{name}");
         // Today's format: an old file is written back as its current twin, byte for byte, and
-        // the twin as itself. (The format changed once since 6068508, in the order of the
-        // `evogs` object's keys: evo-state's config is embedded first.)
+        // the twin as itself. (The format changed twice since 6068508: in the order of the
+        // `evogs` object's keys, evo-state's config embedded first; then `triplane_combine`.)
         let text = serde_json::to_string_pretty(&run).unwrap();
-        assert_eq!(text, current_text, "{name}");
+        assert_eq!(text, current_text, "{old}/{name}");
         assert_eq!(
             serde_json::to_string_pretty(&current).unwrap(),
             current_text,
@@ -143,7 +145,7 @@ fn old_configs_load_as_the_same_flags_give_and_are_written_back_in_todays_format
 #[test]
 fn a_run_resumed_from_an_old_config_keeps_its_settings() {
     for (name, _) in FIXTURES {
-        let (_, old) = fixture(OLD, name);
+        let (_, old) = fixture(OLD[0], name);
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("run");
         let mut request = TrainRequest {
