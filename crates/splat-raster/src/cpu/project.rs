@@ -654,7 +654,8 @@ mod tests {
             let (sx, sy) = (log_sx.exp(), log_sy.exp());
             let (ca, cc, cb) = (sx * sx, sy * sy, rho * sx * sy);
             let det = ca * cc - cb * cb;
-            let span = |lo: u32, hi: u32, f: f32| (lo * TILE) as f32 + f * ((hi - lo + 1) * TILE) as f32;
+            let span =
+                |lo: u32, hi: u32, f: f32| (lo * TILE) as f32 + f * ((hi - lo + 1) * TILE) as f32;
             let s = Splat {
                 u: span(rect[0], rect[2], fu),
                 v: span(rect[1], rect[3], fv),
