@@ -2,9 +2,11 @@
 cropped to the figure: where the missing decibels are.
 
 usage: python3 hook_worst.py OUT.png RUN DATA FRAME...
-(RUN holds renders/train/NNNN.png from `evogs eval --split train`; DATA is the D-NeRF hook scene,
+(RUN holds renders/train/NNNN.png and eval_train.json, whose PSNR of the frame the picture shows,
+from `evogs eval --split train`; DATA is the D-NeRF hook scene,
 its RGBA training images composited on black as the runs train)
 """
+import json
 import sys
 
 import numpy as np
@@ -19,7 +21,8 @@ for f in frames:
     black = Image.new("RGBA", gt.size, (0, 0, 0, 255))
     gt = Image.alpha_composite(black, gt).convert("RGB").resize(render.size, Image.LANCZOS)
     a, b = np.asarray(render).astype(float), np.asarray(gt).astype(float)
-    psnr = 10 * np.log10(255**2 / ((a - b) ** 2).mean())
+    images = json.load(open(f"{run}/eval_train.json"))["images"]
+    psnr = next(i["psnr"] for i in images if i["name"] == f"r_{f:03d}.png")
     err = Image.fromarray(np.clip(np.abs(a - b).mean(2) * 4, 0, 255).astype(np.uint8))
     ys, xs = np.where(b.sum(2) > 15)
     w, h = render.size
