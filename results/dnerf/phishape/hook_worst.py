@@ -6,28 +6,23 @@ usage: python3 hook_worst.py OUT.png RUN DATA FRAME...
 from `evogs eval --split train`; DATA is the D-NeRF hook scene,
 its RGBA training images composited on black as the runs train)
 """
-import json
 import sys
 
 import numpy as np
 from PIL import Image, ImageDraw
 
+from frame_crops import figure_box, ground_truth, render, train_psnr
+
 out_path, run, data = sys.argv[1:4]
 frames = [int(f) for f in sys.argv[4:]]
 columns = []
 for f in frames:
-    render = Image.open(f"{run}/renders/train/{f:04d}.png").convert("RGB")
-    gt = Image.open(f"{data}/train/r_{f:03d}.png").convert("RGBA")
-    black = Image.new("RGBA", gt.size, (0, 0, 0, 255))
-    gt = Image.alpha_composite(black, gt).convert("RGB").resize(render.size, Image.LANCZOS)
-    a, b = np.asarray(render).astype(float), np.asarray(gt).astype(float)
-    images = json.load(open(f"{run}/eval_train.json"))["images"]
-    psnr = next(i["psnr"] for i in images if i["name"] == f"r_{f:03d}.png")
+    rendered = render(run, f)
+    gt = ground_truth(data, f, rendered.size)
+    a, b = np.asarray(rendered).astype(float), np.asarray(gt).astype(float)
     err = Image.fromarray(np.clip(np.abs(a - b).mean(2) * 4, 0, 255).astype(np.uint8))
-    ys, xs = np.where(b.sum(2) > 15)
-    w, h = render.size
-    box = (max(xs.min() - 20, 0), max(ys.min() - 20, 0), min(xs.max() + 20, w - 1), min(ys.max() + 20, h - 1))
-    columns.append((f, psnr, [im.crop(box) for im in (gt, render, err.convert("RGB"))]))
+    box = figure_box(gt, 20)
+    columns.append((f, train_psnr(run, f), [im.crop(box) for im in (gt, rendered, err.convert("RGB"))]))
 row_h = max(c[2][0].size[1] for c in columns)
 width = sum(c[2][0].size[0] for c in columns)
 sheet = Image.new("RGB", (width, 3 * (row_h + 16) + 20), (255, 255, 255))
