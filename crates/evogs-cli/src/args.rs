@@ -222,6 +222,15 @@ pub struct TrainArgs {
     #[arg(long, value_name = "C")]
     pub triplane_channels: Option<usize>,
 
+    /// Schedule iterations over which the deformation network's learning rate (D-3DGS's MLP, or
+    /// EvoGS's Φ, its planes and controls at `--grid-lr-scale` times it) decays from 8e-4 to
+    /// 1.6e-6, as D-3DGS's `deform_lr_max_steps`; counted on the run's schedule (after
+    /// `--iterations`), so the schedule's length decays it over the whole run, under a time
+    /// budget too [preset: paper 40000, cpu 3000, tiny 300, dnerf 40000 on its schedule of
+    /// 12000, ending at ~1.2e-4].
+    #[arg(long, value_name = "N", value_parser = clap::builder::RangedU64ValueParser::<u64>::new().range(1..))]
+    pub net_lr_decay: Option<u64>,
+
     /// Width of the deformation network (D-3DGS's MLP; EvoGS's Φ decodes at half of it)
     /// [preset: paper 256, cpu and dnerf 64, tiny 32].
     #[arg(long, value_name = "W", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(2..))]
@@ -264,7 +273,7 @@ pub struct TrainArgs {
     /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
     #[arg(
         long,
-        conflicts_with_all = ["data", "time_from", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "bspline_controls", "bspline_width", "triplane_resolutions", "triplane_combine", "triplane_channels", "net_width", "max_gaussians", "max_screen_radius", "memory_limit", "checkpoint_every", "time_budget", "budget_clock"]
+        conflicts_with_all = ["data", "time_from", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "bspline_controls", "bspline_width", "triplane_resolutions", "triplane_combine", "triplane_channels", "net_lr_decay", "net_width", "max_gaussians", "max_screen_radius", "memory_limit", "checkpoint_every", "time_budget", "budget_clock"]
     )]
     pub resume: bool,
 

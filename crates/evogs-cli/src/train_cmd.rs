@@ -79,6 +79,9 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     if let Some(v) = args.net_width {
         config.net.width = v;
     }
+    if let Some(n) = args.net_lr_decay {
+        config.lr.deform_max_steps = n;
+    }
     if let Some(v) = args.max_gaussians {
         config.densify.max_gaussians = Some(v);
         config.gaussian_view_budget = None;

@@ -169,6 +169,30 @@ fn each_switch_reaches_the_config() {
     }
     // The network's width is the run's, not EvoGS's (Φ decodes at half of it).
     assert_eq!(config(&["--net-width", "128"]).unwrap().net.width, 128);
+    // The network rate's decay is counted on the run's schedule, after `--iterations` scaled
+    // the preset's.
+    for method in ["baseline", "evogs"] {
+        let c = config(&[
+            "--method",
+            method,
+            "--preset",
+            "dnerf",
+            "--net-lr-decay",
+            "12000",
+        ]);
+        assert_eq!(c.unwrap().lr.deform_max_steps, 12_000, "{method}");
+    }
+    let c = config(&["--preset", "dnerf", "--iterations", "6000"]).unwrap();
+    assert_eq!(c.lr.deform_max_steps, 20_000);
+    let c = config(&[
+        "--preset",
+        "dnerf",
+        "--iterations",
+        "6000",
+        "--net-lr-decay",
+        "6000",
+    ]);
+    assert_eq!(c.unwrap().lr.deform_max_steps, 6_000);
     assert_eq!(
         config(&["--preset", "dnerf"]).unwrap().net.width,
         TrainConfig::preset(evogs_train::Preset::Dnerf).net.width
@@ -200,6 +224,7 @@ fn bad_switch_values_name_the_setting() {
         (&["--preset", "huge"][..], "paper, cpu, tiny or dnerf"),
         (&["--method", "evo"][..], "baseline or evogs"),
         (&["--background", "grey"][..], "white, black or random"),
+        (&["--net-lr-decay", "0"][..], "1.."),
     ] {
         let e = config(flags).unwrap_err();
         let e = e
@@ -258,6 +283,18 @@ fn bad_switch_values_name_the_setting() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("--gain"), "{e}");
+    let e = Cli::try_parse_from([
+        "evogs",
+        "train",
+        "--out",
+        "o",
+        "--resume",
+        "--net-lr-decay",
+        "9",
+    ])
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("--net-lr-decay"), "{e}");
 }
 
 #[test]
