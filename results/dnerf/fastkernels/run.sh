@@ -4,16 +4,11 @@
 # rule "2 000 000 / training frames" gives), to see what the speed-up buys in quality.
 # Training views first (no LPIPS: an empty weights directory), then val (lego) and test with LPIPS-VGG.
 set -u
+here=$(cd "$(dirname "$0")" && pwd)   # before the cd below
 O=/work/runs/fastkernels; cd $O
 B=/work/runs/evogs-c4d9021
 scene=$1; cap=$2
 id=$scene-evogs-cap$cap
 RAYON_NUM_THREADS=1 /usr/bin/time -v $B train --data /work/shared/data/dnerf-$scene --out $O/$id --preset dnerf \
     --method evogs --seed 0 --max-gaussians $cap --time-budget 50m > $O/$id.log 2> $O/$id.time
-mkdir -p /tmp/nolpips
-EVOGS_LPIPS_WEIGHTS=/tmp/nolpips RAYON_NUM_THREADS=1 $B eval --run $O/$id --split train > $O/$id-eval-train.log 2>&1
-if [ "$scene" = lego ]; then
-  RAYON_NUM_THREADS=1 $B eval --run $O/$id --split val --lpips-vgg > $O/$id-eval-val.log 2>&1
-fi
-RAYON_NUM_THREADS=1 $B eval --run $O/$id --split test --lpips-vgg > $O/$id-eval-test.log 2>&1
-echo done > $O/$id.done
+"$here"/../eval-splits.sh "$B" "$O" "$id" "$scene"

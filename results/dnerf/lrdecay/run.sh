@@ -7,6 +7,7 @@
 # (phishape/run.sh). Since 28d2f97, `evogs train ... --net-lr-decay 12000` does the same.
 # Usage: [SEED=N] [BUDGET=45m] [BIN=PATH] [DECAY=12000] [METHOD=evogs] run.sh SCENE CAP ID FLAGS...
 set -eu
+here=$(cd "$(dirname "$0")" && pwd)   # before the cd below
 O=/work/runs/lrdecay; mkdir -p $O; cd $O
 B=${BIN:-/work/runs/evogs-phiflags-pc}
 scene=$1; cap=$2; id=$scene-$3; shift 3
@@ -22,10 +23,4 @@ c["train"]["lr"]["deform_max_steps"] = decay
 json.dump(c, open(p, "w"), indent=2)
 PY
 RAYON_NUM_THREADS=1 /usr/bin/time -v $B train --out $O/$id --resume > $O/$id.log 2> $O/$id.time
-mkdir -p /tmp/nolpips
-EVOGS_LPIPS_WEIGHTS=/tmp/nolpips RAYON_NUM_THREADS=1 $B eval --run $O/$id --split train > $O/$id-eval-train.log 2>&1
-if [ "$scene" = lego ]; then
-  RAYON_NUM_THREADS=1 $B eval --run $O/$id --split val --lpips-vgg > $O/$id-eval-val.log 2>&1
-fi
-RAYON_NUM_THREADS=1 $B eval --run $O/$id --split test --lpips-vgg > $O/$id-eval-test.log 2>&1
-echo done > $O/$id.done
+"$here"/../eval-splits.sh "$B" "$O" "$id" "$scene"

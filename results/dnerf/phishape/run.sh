@@ -5,15 +5,10 @@
 # finer tri-plane resolutions. Chosen on the training views; test with LPIPS-VGG after.
 # Usage: [SEED=N] [BUDGET=50m] [BIN=PATH] run.sh SCENE CAP ID FLAGS...
 set -u
+here=$(cd "$(dirname "$0")" && pwd)   # before the cd below
 O=/work/runs/phishape; cd $O
 B=${BIN:-/work/runs/evogs-phiflags}   # BIN: another binary (A.19: 4753ae8 + --bspline-width)
 scene=$1; cap=$2; id=$scene-$3; shift 3
 RAYON_NUM_THREADS=1 /usr/bin/time -v $B train --data /work/shared/data/dnerf-$scene --out $O/$id --preset dnerf \
     --method evogs --seed ${SEED:-0} --max-gaussians $cap --time-budget ${BUDGET:-50m} "$@" > $O/$id.log 2> $O/$id.time
-mkdir -p /tmp/nolpips
-EVOGS_LPIPS_WEIGHTS=/tmp/nolpips RAYON_NUM_THREADS=1 $B eval --run $O/$id --split train > $O/$id-eval-train.log 2>&1
-if [ "$scene" = lego ]; then
-  RAYON_NUM_THREADS=1 $B eval --run $O/$id --split val --lpips-vgg > $O/$id-eval-val.log 2>&1
-fi
-RAYON_NUM_THREADS=1 $B eval --run $O/$id --split test --lpips-vgg > $O/$id-eval-test.log 2>&1
-echo done > $O/$id.done
+"$here"/../eval-splits.sh "$B" "$O" "$id" "$scene"
