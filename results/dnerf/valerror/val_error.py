@@ -25,6 +25,7 @@ from PIL import Image
 
 
 def load(run, data, split):
+    """The split's ground truth (RGBA over black, resized to the renders) and the run's renders."""
     frames = json.load(open(f"{data}/transforms_{split}.json"))["frames"]
     gts, renders = [], []
     for i, f in enumerate(frames):
@@ -38,11 +39,17 @@ def load(run, data, split):
 
 
 def dilate(mask, k):
+    """The mask grown by k pixels (a square); wraps at the image's edges, which are background."""
     out = mask.copy()
     for dy in range(-k, k + 1):
         for dx in range(-k, k + 1):
             out |= np.roll(np.roll(mask, dy, 0), dx, 1)
     return out
+
+
+def psnr(mse):
+    """The mean over frames of each frame's PSNR, as `evogs eval` averages it."""
+    return float(np.mean(-10 * np.log10(mse)))
 
 
 def main():
@@ -64,7 +71,6 @@ def main():
         se = ((rs - gts) ** 2).mean(3)
         total = se.mean((1, 2))
         in_moving = (se * moving).sum((1, 2)) / se[0].size
-        psnr = lambda mse: float(np.mean(-10 * np.log10(mse)))
         print(f"{run} {a.split}: {len(se)} frames, moving region {moving.mean() * 100:.1f} % of the pixels")
         print(f"  mean PSNR {psnr(total):.2f} dB; the moving region holds {in_moving.sum() / total.sum() * 100:.0f} % of the squared error")
         print(f"  PSNR with the moving region's error removed {psnr(total - in_moving):.2f} dB, with the rest's removed {psnr(in_moving):.2f} dB")
