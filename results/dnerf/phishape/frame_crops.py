@@ -11,11 +11,16 @@ def render(run, f):
     return Image.open(f"{run}/renders/train/{f:04d}.png").convert("RGB")
 
 
-def ground_truth(data, f, size):
-    """Frame f of the D-NeRF scene DATA: RGBA composited on black, resized to the renders' size."""
-    gt = Image.open(f"{data}/train/r_{f:03d}.png").convert("RGBA")
+def on_black(path, size):
+    """A D-NeRF image file: RGBA composited on black, resized to `size` (the renders')."""
+    gt = Image.open(path).convert("RGBA")
     black = Image.new("RGBA", gt.size, (0, 0, 0, 255))
     return Image.alpha_composite(black, gt).convert("RGB").resize(size, Image.LANCZOS)
+
+
+def ground_truth(data, f, size):
+    """Training frame f of the D-NeRF scene DATA, as the runs train on it (`on_black`)."""
+    return on_black(f"{data}/train/r_{f:03d}.png", size)
 
 
 def figure_box(gt, margin):

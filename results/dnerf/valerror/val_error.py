@@ -19,9 +19,14 @@ and Pillow.
 """
 import argparse
 import json
+import sys
+from pathlib import Path
 
 import numpy as np
 from PIL import Image
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "phishape"))
+from frame_crops import on_black  # noqa: E402  (the ground truth as every picture script reads it)
 
 
 def load(run, data, split):
@@ -30,9 +35,7 @@ def load(run, data, split):
     gts, renders = [], []
     for i, f in enumerate(frames):
         r = Image.open(f"{run}/renders/{split}/{i:04d}.png").convert("RGB")
-        gt = Image.open(f"{data}/{f['file_path']}.png").convert("RGBA")
-        black = Image.new("RGBA", gt.size, (0, 0, 0, 255))
-        gt = Image.alpha_composite(black, gt).convert("RGB").resize(r.size, Image.LANCZOS)
+        gt = on_black(f"{data}/{f['file_path']}.png", r.size)
         gts.append(np.asarray(gt, dtype=float) / 255)
         renders.append(np.asarray(r, dtype=float) / 255)
     return np.stack(gts), np.stack(renders)
