@@ -1,42 +1,23 @@
-//! The deformation-backbone interface and the D-3DGS backbone on it.
+//! The deformation-backbone interface and the helpers its backbones share.
 //!
-//! A backbone maps the canonical Gaussians and a time to per-Gaussian deformations, N × 14 rows
-//! `[position 3, rotation 4, scale 3, opacity 1, colour 3]` added to the raw mean, raw
-//! quaternion, log-scale, opacity logit and SH DC ([`DEFORM_DIM`]). The appearance columns are
-//! used only where the backbone says so ([`Backbone::appearance`]; EvoGS's optional components);
-//! D-3DGS deforms geometry only and leaves them zero. It keeps what its backward pass needs from
-//! the last forward and exposes its parameter buffers (for Adam, checkpoints and weight files):
-//! that is the whole of [`Backbone`]. When it holds per-Gaussian rows of its own (EvoGS's
-//! evolution state) it also implements [`PerGaussianState`], which hands them to densification so
-//! they stay aligned with the Gaussians.
+//! A backbone maps the canonical Gaussians and a time to per-Gaussian deformation rows in its own
+//! [`Layout`] ([`Backbone::layout`]: D-3DGS's, 4DGaussians' and Grid4D's heads give position,
+//! rotation and scale, [`Layout::GEOMETRY`]; EvoGS the components of its evolution state), which
+//! `splat_core::DeformedGeometry` adds to the raw mean, raw quaternion, log-scale, opacity logit
+//! and SH DC. It keeps what its backward pass needs from the last forward and exposes its
+//! parameter buffers (for Adam, checkpoints and weight files): that is the whole of [`Backbone`].
+//! When it holds per-Gaussian rows of its own (EvoGS's evolution state) it also implements
+//! [`PerGaussianState`], which hands them to densification so they stay aligned with the
+//! Gaussians.
 
 use std::path::Path;
 
 use densify::PerGaussian;
 use serde::{Deserialize, Serialize};
-use splat_core::GaussiansView;
-use tiny_nn::{DeformCache, DeformConfig, DeformNet, Parameters, Precision, StoreMut, StoreRef};
+use splat_core::{GaussiansView, Layout};
+use tiny_nn::{StoreMut, StoreRef};
 
 use crate::error::BackboneError;
-
-/// Width of a deformation row: position 3, rotation 4, scale 3, opacity 1, colour (SH DC) 3.
-pub const DEFORM_DIM: usize = 14;
-/// The geometric part of a row (position, rotation, scale): D-3DGS's heads.
-pub const GEOMETRY_DIM: usize = 10;
-
-/// Which appearance components a backbone deforms (geometry is always deformed).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Appearance {
-    /// Column 10 (opacity logit offset) is used.
-    pub opacity: bool,
-    /// Columns 11..14 (SH DC offset, r g b) are used.
-    pub colour: bool,
-}
-
-/// Column of the opacity-logit offset in a deformation row.
-pub const OPACITY_COLUMN: usize = 10;
-/// First column of the SH DC offset (3 columns) in a deformation row.
-pub const COLOUR_COLUMN: usize = 11;
 
 /// A deformation backbone: the core every backbone implements (forward, backward, parameters,
 /// weights). A backbone that keeps per-Gaussian state of its own (EvoGS's evolution state) also
@@ -48,43 +29,45 @@ pub trait Backbone: Send {
     /// Short name for messages and files.
     fn name(&self) -> &'static str;
 
-    /// Deformations (N × [`DEFORM_DIM`]) of the canonical Gaussians at `time`. `training` says
-    /// whether a backward pass will follow (the backbone then keeps its cache).
-    fn forward(
-        &mut self,
-        canonical: GaussiansView<'_>,
-        time: f32,
-        training: bool,
-    ) -> Result<Vec<f32>, BackboneError>;
-
-    /// Gradients of the parameter buffers (same order as [`Backbone::params`]) from dL/d(deformation)
-    /// of the last training forward. Gradients to the canonical Gaussians are not returned: the
-    /// network input is detached (D-3DGS: `deform.step(gaussians.get_xyz.detach(), t)`).
-    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, BackboneError>;
-
-    /// [`Backbone::forward`] into `out`, whatever it held, reusing its allocation where the
-    /// backbone can (the trainer keeps one buffer for every iteration). The default calls
-    /// `forward`.
+    /// Deformation rows of the canonical Gaussians at `time` into `out` (N × `layout().dim()`,
+    /// whatever it held; the backbone reuses its allocation where it can: the trainer keeps one
+    /// buffer for every iteration). `training` says whether a backward pass will follow (the
+    /// backbone then keeps its cache).
     fn forward_into(
         &mut self,
         canonical: GaussiansView<'_>,
         time: f32,
         training: bool,
         out: &mut Vec<f32>,
-    ) -> Result<(), BackboneError> {
-        *out = self.forward(canonical, time, training)?;
-        Ok(())
-    }
+    ) -> Result<(), BackboneError>;
 
-    /// [`Backbone::backward`] into `out`, whatever it held, reusing its buffers where the
-    /// backbone can. The default calls `backward`.
+    /// Gradients of the parameter buffers (same order as [`Backbone::params`]) into `out`,
+    /// whatever it held, from dL/d(deformation rows) of the last training forward (in the same
+    /// layout). Gradients to the canonical Gaussians are not returned: the network input is
+    /// detached (D-3DGS: `deform.step(gaussians.get_xyz.detach(), t)`).
     fn backward_into(
         &mut self,
         d_deform: &[f32],
         out: &mut Vec<Vec<f32>>,
-    ) -> Result<(), BackboneError> {
-        *out = self.backward(d_deform)?;
-        Ok(())
+    ) -> Result<(), BackboneError>;
+
+    /// [`Backbone::forward_into`] into a new buffer.
+    fn forward(
+        &mut self,
+        canonical: GaussiansView<'_>,
+        time: f32,
+        training: bool,
+    ) -> Result<Vec<f32>, BackboneError> {
+        let mut out = Vec::new();
+        self.forward_into(canonical, time, training, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`Backbone::backward_into`] into a new list.
+    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, BackboneError> {
+        let mut out = Vec::new();
+        self.backward_into(d_deform, &mut out)?;
+        Ok(out)
     }
 
     /// Named parameter buffers, in a fixed order.
@@ -105,9 +88,10 @@ pub trait Backbone: Send {
         None
     }
 
-    /// Which appearance columns of its rows the backbone deforms (none for D-3DGS).
-    fn appearance(&self) -> Appearance {
-        Appearance::default()
+    /// The components of its rows, in order ([`Layout::GEOMETRY`] for D-3DGS, 4DGaussians and
+    /// Grid4D; EvoGS's evolution layout).
+    fn layout(&self) -> Layout {
+        Layout::GEOMETRY
     }
 
     /// The backbone's own weighted loss terms of the last backward (EvoGS: λ1 L_sup + λ2 L_prior;
@@ -291,36 +275,6 @@ pub struct DensifyCues {
     pub theta: Option<Vec<f32>>,
 }
 
-/// How the deformation network's parameters start.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum NetInit {
-    /// D-3DGS: PyTorch's default on every layer, heads included.
-    #[default]
-    Torch,
-    /// He hidden layers (zero bias) and zero heads: the deformation starts at exactly zero and
-    /// depends on its input through all 8 layers from the first step (see [`tiny_nn::Init`]).
-    He,
-}
-
-/// The D-3DGS deformation network's shape.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct NetSettings {
-    /// Hidden width (D-3DGS: 256).
-    pub width: usize,
-    /// Hidden layers (8).
-    pub depth: usize,
-    /// Skip connection after this hidden layer (4).
-    pub skip_after: Option<usize>,
-    /// Frequencies of the position encoding (10).
-    pub xyz_freqs: usize,
-    /// Frequencies of the time encoding (6 for synthetic scenes).
-    pub t_freqs: usize,
-    /// Initialisation (runs written before it existed read as D-3DGS's).
-    #[serde(default)]
-    pub init: NetInit,
-}
-
 /// A backbone's network inputs for a forward at `time`: the canonical means, flattened (N × 3),
 /// into `positions`, and `time` once per Gaussian into `times` (both cleared first).
 pub(crate) fn fill_inputs(
@@ -335,146 +289,7 @@ pub(crate) fn fill_inputs(
     times.resize(canonical.len(), time);
 }
 
-/// Deformation rows (N × [`DEFORM_DIM`]) into `out`, every value written, from a network's output
-/// rows of `stride` values whose first [`GEOMETRY_DIM`] are position, rotation and scale; the
-/// appearance columns are zero.
-pub(crate) fn geometry_rows_into(geometry: &[f32], stride: usize, n: usize, out: &mut Vec<f32>) {
-    out.resize(n * DEFORM_DIM, 0.0);
-    for (row, g) in out
-        .chunks_exact_mut(DEFORM_DIM)
-        .zip(geometry.chunks_exact(stride))
-    {
-        row[..GEOMETRY_DIM].copy_from_slice(&g[..GEOMETRY_DIM]);
-        row[GEOMETRY_DIM..].fill(0.0);
-    }
-}
-
-/// The geometric columns (N × [`GEOMETRY_DIM`]) of the deformation rows' gradient into `out`
-/// (cleared first): what a network with geometry heads only gets back.
-pub(crate) fn geometry_gradient_into(d_deform: &[f32], out: &mut Vec<f32>) {
-    out.clear();
-    out.extend(
-        d_deform
-            .chunks_exact(DEFORM_DIM)
-            .flat_map(|r| r[..GEOMETRY_DIM].iter().copied()),
-    );
-}
-
 /// The error of a backward pass that has no training forward to go back through.
 pub(crate) fn no_training_forward() -> BackboneError {
     BackboneError::config("backbone", "backward called without a training forward")
-}
-
-/// D-3DGS's deformation network (`utils/time_utils.py` `DeformNetwork`: sinusoidal encodings of
-/// xyz (10 frequencies) and t (6 for synthetic scenes), 8 ReLU layers with the input re-joined
-/// after layer 4, linear heads for position, rotation and scale), as `tiny_nn::DeformNet`.
-pub struct D3dgsBackbone {
-    net: DeformNet,
-    cache: Option<DeformCache>,
-    positions: Vec<f32>,
-    times: Vec<f32>,
-    /// The geometric columns of the last deformation gradient, reused every backward.
-    d_geometry: Vec<f32>,
-}
-
-impl D3dgsBackbone {
-    /// The network of the given shape, initialised from `seed`.
-    pub fn new(settings: &NetSettings, seed: u64) -> Result<Self, BackboneError> {
-        let net = DeformNet::new(DeformConfig {
-            width: settings.width,
-            depth: settings.depth,
-            skip_after: settings.skip_after,
-            xyz_freqs: settings.xyz_freqs,
-            t_freqs: settings.t_freqs,
-            init: match settings.init {
-                NetInit::Torch => tiny_nn::Init::Torch,
-                NetInit::He => tiny_nn::Init::He,
-            },
-            zero_heads: settings.init == NetInit::He,
-            precision: Precision::F32,
-            seed,
-        })?;
-        Ok(Self {
-            net,
-            cache: None,
-            positions: Vec::new(),
-            times: Vec::new(),
-            d_geometry: Vec::new(),
-        })
-    }
-}
-
-impl Backbone for D3dgsBackbone {
-    fn name(&self) -> &'static str {
-        "d3dgs"
-    }
-
-    fn forward(
-        &mut self,
-        canonical: GaussiansView<'_>,
-        time: f32,
-        training: bool,
-    ) -> Result<Vec<f32>, BackboneError> {
-        let mut out = Vec::new();
-        self.forward_into(canonical, time, training, &mut out)?;
-        Ok(out)
-    }
-
-    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, BackboneError> {
-        let mut out = Vec::new();
-        self.backward_into(d_deform, &mut out)?;
-        Ok(out)
-    }
-
-    fn forward_into(
-        &mut self,
-        canonical: GaussiansView<'_>,
-        time: f32,
-        training: bool,
-        out: &mut Vec<f32>,
-    ) -> Result<(), BackboneError> {
-        let n = canonical.len();
-        fill_inputs(canonical, time, &mut self.positions, &mut self.times);
-        let mut cache = self.cache.take().unwrap_or_default();
-        let geometry = self
-            .net
-            .forward_into(&self.positions, &self.times, n, &mut cache)?;
-        if training {
-            self.cache = Some(cache);
-        }
-        geometry_rows_into(&geometry, GEOMETRY_DIM, n, out);
-        Ok(())
-    }
-
-    fn backward_into(
-        &mut self,
-        d_deform: &[f32],
-        out: &mut Vec<Vec<f32>>,
-    ) -> Result<(), BackboneError> {
-        let cache = self.cache.as_ref().ok_or_else(no_training_forward)?;
-        geometry_gradient_into(d_deform, &mut self.d_geometry);
-        let g = self.net.backward(cache, &self.d_geometry, false)?;
-        out.truncate(1);
-        match out.first_mut() {
-            Some(grads) => *grads = g.mlp,
-            None => out.push(g.mlp),
-        }
-        Ok(())
-    }
-
-    fn params(&self) -> Vec<(String, StoreRef<'_>)> {
-        self.net.named_params()
-    }
-
-    fn params_mut(&mut self) -> Vec<(String, StoreMut<'_>)> {
-        self.net.named_params_mut()
-    }
-
-    fn save(&self, path: &Path) -> Result<(), BackboneError> {
-        Ok(tiny_nn::weights::save(path, &self.net)?)
-    }
-
-    fn load(&mut self, path: &Path) -> Result<(), BackboneError> {
-        Ok(tiny_nn::weights::load(path, &mut self.net)?)
-    }
 }

@@ -22,24 +22,24 @@
 //! ([`PerGaussianState::rows_mut`]), saved and loaded whole with evo-state's safetensors format
 //! ([`PerGaussianState::save_state`]).
 //!
-//! The trainer's deformation rows are N × 14 (position, rotation, scale, opacity, colour); the
-//! evolution layout holds any subset of the components (D <= 14, only enabled ones cost
-//! anything) and [`EvoBackbone`] maps its columns into the 14.
+//! The deformation rows are the evolution state's own: its [`Layout`](splat_core::Layout) holds
+//! any subset of the components (D <= 14, only enabled ones cost anything) and
+//! [`Backbone::layout`] tells the trainer which, so the corrected d̃ is handed over as it is and
+//! the gradient comes back in the same columns (no rearranging either way).
 
 use std::path::Path;
 
 use densify::{Deformation, PerGaussian, residual_norms, thetas};
 use evo_state::{Backward, EvoConfig, EvoError, EvoState, Frames, Step};
 use rayon::prelude::*;
-use splat_core::{GaussiansView, sigmoid};
+use splat_core::{GaussiansView, Layout, sigmoid};
 use tiny_nn::{
     BSplineConfig, LrSchedule, ObservationConfig, ObservationNet, Parameters, StoreMut, StoreRef,
     TriPlaneConfig,
 };
 
 use crate::backbone::{
-    Appearance, Backbone, COLOUR_COLUMN, DEFORM_DIM, DensifyCues, GainStats, OPACITY_COLUMN,
-    PerGaussianState, fill_inputs, no_training_forward,
+    Backbone, DensifyCues, GainStats, PerGaussianState, fill_inputs, no_training_forward,
 };
 use crate::error::BackboneError;
 use crate::evo_settings::EvoSettings;
@@ -49,9 +49,6 @@ use crate::observer::Observer;
 fn evo_err(e: EvoError) -> BackboneError {
     BackboneError::config("evolution state", e.to_string())
 }
-
-/// Rows per parallel task when the deformation rows are rearranged.
-const ROWS_PER_TASK: usize = 1024;
 
 /// Φ's configuration for a run: half the baseline network's width (`net_width`), scene box
 /// `[-h, h]³` of the initial cube (`half_extent`), output D, initialised from the run's `seed`.
@@ -99,16 +96,12 @@ pub struct EvoBackbone<P: Observer = ObservationNet> {
     evo: EvoState,
     /// Whether `evo` was built for the run's frames and Gaussians (or loaded).
     ready: bool,
-    /// Column of the N × 10 deformation of each evolution column.
-    deform_from_evo: Vec<usize>,
     training: Option<Training<P::Cache>>,
     backward: Option<Backward>,
     /// Φ's own regulariser of the last backward (weighted).
     phi_regulariser: f64,
     positions: Vec<f32>,
     times: Vec<f32>,
-    /// dL/d(evolution columns) of the last backward, reused every backward.
-    dl_dd: Vec<f32>,
 }
 
 impl EvoBackbone<ObservationNet> {
@@ -149,29 +142,16 @@ impl<P: Observer> EvoBackbone<P> {
         // The extent is the scene's: `prepare` builds the state again with it.
         let evo =
             EvoState::new(settings.evo, placeholder, 0, seed ^ 0x9A1_0000).map_err(evo_err)?;
-        let mut deform_from_evo = Vec::with_capacity(layout.dim());
-        for (component, range) in layout.components() {
-            let base = match component {
-                evo_state::Component::Position => 0,
-                evo_state::Component::Rotation => 3,
-                evo_state::Component::Scale => 7,
-                evo_state::Component::Opacity => OPACITY_COLUMN,
-                evo_state::Component::Colour => COLOUR_COLUMN,
-            };
-            deform_from_evo.extend((0..range.len()).map(|j| base + j));
-        }
         Ok(Self {
             settings,
             phi,
             evo,
             ready: false,
-            deform_from_evo,
             training: None,
             backward: None,
             phi_regulariser: 0.0,
             positions: Vec::new(),
             times: Vec::new(),
-            dl_dd: Vec::new(),
         })
     }
 
@@ -247,24 +227,6 @@ impl<P: Observer> EvoBackbone<P> {
         result.map_err(evo_err)?;
         Ok(caches)
     }
-
-    /// The evolution's columns of `corrected` placed in N × [`DEFORM_DIM`] rows in `out` (every
-    /// value written: the columns the layout leaves out are zero).
-    fn widen_into(&self, corrected: &[f32], out: &mut Vec<f32>) {
-        let d = self.deform_from_evo.len();
-        let n = corrected.len() / d.max(1);
-        out.clear();
-        out.resize(n * DEFORM_DIM, 0.0);
-        let deform_from_evo = &self.deform_from_evo;
-        out.par_chunks_mut(DEFORM_DIM)
-            .zip(corrected.par_chunks_exact(d.max(1)))
-            .with_min_len(ROWS_PER_TASK)
-            .for_each(|(row, src)| {
-                for (&col, &v) in deform_from_evo.iter().zip(src) {
-                    row[col] = v;
-                }
-            });
-    }
 }
 
 impl<P: Observer> Parameters for EvoBackbone<P> {
@@ -296,23 +258,6 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
         "evogs"
     }
 
-    fn forward(
-        &mut self,
-        canonical: GaussiansView<'_>,
-        time: f32,
-        training: bool,
-    ) -> Result<Vec<f32>, BackboneError> {
-        let mut out = Vec::new();
-        self.forward_into(canonical, time, training, &mut out)?;
-        Ok(out)
-    }
-
-    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, BackboneError> {
-        let mut out = Vec::new();
-        self.backward_into(d_deform, &mut out)?;
-        Ok(out)
-    }
-
     fn forward_into(
         &mut self,
         canonical: GaussiansView<'_>,
@@ -334,7 +279,8 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
         let (mut step, mut opacity) =
             kept.map_or_else(|| (Step::empty(), Vec::new()), |t| (t.step, t.opacity));
         let history_caches = self.evolve(time, &z, &mut step, training)?;
-        self.widen_into(step.corrected(), out);
+        out.clear();
+        out.extend_from_slice(step.corrected());
         if training {
             opacity.clear();
             opacity.par_extend(canonical.opacity_logits.par_iter().map(|&o| sigmoid(o)));
@@ -362,33 +308,21 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
                 "backward called twice for one training forward",
             ));
         }
-        let d = self.deform_from_evo.len();
+        let layout = self.settings.evo.layout;
         let n = t.step.rows();
-        if d_deform.len() != n * DEFORM_DIM {
+        if d_deform.len() != n * layout.dim() {
             return Err(BackboneError::config(
                 "backbone",
                 format!(
-                    "deformation gradient has {} values, expected {n} × {DEFORM_DIM}",
-                    d_deform.len()
+                    "deformation gradient has {} values, expected {n} × {} (`{layout}`)",
+                    d_deform.len(),
+                    layout.dim()
                 ),
             ));
         }
-        let dl_dd = &mut self.dl_dd;
-        // Every value is written below.
-        dl_dd.resize(n * d, 0.0);
-        let deform_from_evo = &self.deform_from_evo;
-        dl_dd
-            .par_chunks_mut(d.max(1))
-            .zip(d_deform.par_chunks_exact(DEFORM_DIM))
-            .with_min_len(ROWS_PER_TASK)
-            .for_each(|(dst, src)| {
-                for (o, &col) in dst.iter_mut().zip(deform_from_evo) {
-                    *o = src[col];
-                }
-            });
         let mut bw = self.backward.take().unwrap_or_default();
         self.evo
-            .backward_into(&t.step, &t.z, dl_dd, &t.opacity, &mut bw)
+            .backward_into(&t.step, &t.z, d_deform, &t.opacity, &mut bw)
             .map_err(evo_err)?;
         let mut grads = self.phi.gradients(&t.cache, &bw.dz)?;
         // Re-queried history: d̂ = z(t_k1) + s (z(t_k1) - z(t_k2)) reaches Φ at those times.
@@ -450,12 +384,8 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
         })
     }
 
-    fn appearance(&self) -> Appearance {
-        let c = self.settings.evo.layout;
-        Appearance {
-            opacity: c.opacity,
-            colour: c.colour,
-        }
+    fn layout(&self) -> Layout {
+        self.settings.evo.layout
     }
 
     fn state(&self) -> Option<&dyn PerGaussianState> {

@@ -23,7 +23,7 @@
 //! 64 in `cpu` and `dnerf`; 32 in `tiny`), and the tables hold at most `2^log2_table` entries per
 //! level (19 in `paper`, as Grid4D; 15 in `cpu` and `dnerf`; 12 in `tiny`).
 //!
-//! EvoGS(Grid4D) ([`Grid4dPhi`]): Φ is this field at half the run's width with one head per
+//! EvoGS(Grid4D) ([`crate::grid4d_phi::Grid4dPhi`], its own module): Φ is this field at half the run's width with one head per
 //! evolution component (zero-initialised, so Φ's first observation is 0 as EvoGS(D-3DGS)'s Φ),
 //! its smoothness regulariser added to Φ's gradients; [`crate::EvoBackbone`] wraps it exactly as
 //! it wraps EvoGS(D-3DGS)'s tri-plane Φ.
@@ -38,13 +38,8 @@ use tiny_nn::{
     StoreMut, StoreRef, is_grid4d_table,
 };
 
-use crate::backbone::{
-    Backbone, GEOMETRY_DIM, fill_inputs, geometry_gradient_into, geometry_rows_into,
-    no_training_forward,
-};
+use crate::backbone::{Backbone, fill_inputs, no_training_forward};
 use crate::error::BackboneError;
-use crate::evo_settings::EvoSettings;
-use crate::observer::Observer;
 
 /// Grid4D's `network_lr_scale`: the decoder's initial lr is `position_lr_init` times this.
 pub const NETWORK_LR_SCALE: f32 = 5.0;
@@ -137,22 +132,22 @@ impl Grid4dRun {
 
 /// The field with what its training steps need: the seed of the regulariser's samples, the
 /// schedules and the last regulariser value. Shared by the baseline ([`Grid4dBackbone`]) and Φ
-/// ([`Grid4dPhi`]).
+/// ([`crate::grid4d_phi::Grid4dPhi`]).
 ///
 /// The regulariser's random rows and moves are drawn from a stream seeded by the run's seed and a
 /// hash of the step's inputs (every canonical mean and the time, as the encoder saw them): a pure
 /// function of the training state, so a resumed run draws what an uninterrupted one would
 /// (DESIGN §7.6), with no counter to save.
-struct Field {
-    net: Grid4dNet,
+pub(crate) struct Field {
+    pub(crate) net: Grid4dNet,
     seed: u64,
     grid: LrSchedule,
     decoder: LrSchedule,
-    regulariser: f64,
+    pub(crate) regulariser: f64,
 }
 
 impl Field {
-    fn new(net: Grid4dNet, lr: &Grid4dLr, seed: u64) -> Self {
+    pub(crate) fn new(net: Grid4dNet, lr: &Grid4dLr, seed: u64) -> Self {
         Self {
             net,
             seed,
@@ -174,7 +169,7 @@ impl Field {
     }
 
     /// Adds the smoothness regulariser of the forward `cache` to `grads`; records its value.
-    fn regularise(
+    pub(crate) fn regularise(
         &mut self,
         cache: &Grid4dCache,
         grads: &mut tiny_nn::Grid4dGrads,
@@ -205,7 +200,7 @@ impl Field {
         Ok(())
     }
 
-    fn schedule(&self, name: &str) -> LrSchedule {
+    pub(crate) fn schedule(&self, name: &str) -> LrSchedule {
         if is_grid4d_table(name) {
             self.grid
         } else {
@@ -251,12 +246,13 @@ impl Backbone for Grid4dBackbone {
         "grid4d"
     }
 
-    fn forward(
+    fn forward_into(
         &mut self,
         canonical: GaussiansView<'_>,
         time: f32,
         training: bool,
-    ) -> Result<Vec<f32>, BackboneError> {
+        out: &mut Vec<f32>,
+    ) -> Result<(), BackboneError> {
         let n = canonical.len();
         let (mut positions, mut times) = (Vec::new(), Vec::new());
         fill_inputs(canonical, time, &mut positions, &mut times);
@@ -268,19 +264,22 @@ impl Backbone for Grid4dBackbone {
         if training {
             self.cache = Some(cache);
         }
-        let mut out = Vec::new();
-        geometry_rows_into(&geometry, GEOMETRY_DIM, n, &mut out);
-        Ok(out)
+        // The field's heads are the rows: position, rotation, scale (`Layout::GEOMETRY`).
+        *out = geometry;
+        Ok(())
     }
 
-    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, BackboneError> {
+    fn backward_into(
+        &mut self,
+        d_deform: &[f32],
+        out: &mut Vec<Vec<f32>>,
+    ) -> Result<(), BackboneError> {
         let cache = self.cache.take().ok_or_else(no_training_forward)?;
-        let mut d_geometry = Vec::new();
-        geometry_gradient_into(d_deform, &mut d_geometry);
-        let mut g = self.field.net.backward(&cache, &d_geometry)?;
+        let mut g = self.field.net.backward(&cache, d_deform)?;
         self.field.regularise(&cache, &mut g)?;
         self.cache = Some(cache);
-        Ok(g.into_buffers())
+        *out = g.into_buffers();
+        Ok(())
     }
 
     fn params(&self) -> Vec<(String, StoreRef<'_>)> {
@@ -305,107 +304,5 @@ impl Backbone for Grid4dBackbone {
 
     fn load(&mut self, path: &Path) -> Result<(), BackboneError> {
         Ok(tiny_nn::weights::load(path, &mut self.field.net)?)
-    }
-}
-
-/// EvoGS(Grid4D)'s Φ: Grid4D's field at half the run's width, one zero-initialised head per
-/// evolution component (in the layout's order), with its smoothness regulariser.
-pub struct Grid4dPhi {
-    field: Field,
-}
-
-impl Grid4dPhi {
-    /// Φ for `run` and its EvoGS `settings` (the components, Φ's storage), initialised from the
-    /// run's seed.
-    pub fn new(run: &Grid4dRun, settings: &EvoSettings) -> Result<Self, BackboneError> {
-        let heads = settings
-            .evo
-            .layout
-            .components()
-            .into_iter()
-            .map(|(c, _)| match c {
-                evo_state::Component::Position => Grid4dHead::Position,
-                evo_state::Component::Rotation => Grid4dHead::Rotation,
-                evo_state::Component::Scale => Grid4dHead::Scale,
-                evo_state::Component::Opacity => Grid4dHead::Opacity,
-                evo_state::Component::Colour => Grid4dHead::Colour,
-            })
-            .collect();
-        let seed = run.seed ^ 0xE76D_4D00;
-        let mut c = run.field((run.width / 2).max(1), heads, true, seed);
-        c.precision = settings.net_precision;
-        let net = Grid4dNet::new(c)?;
-        Ok(Self {
-            field: Field::new(net, &run.lr, seed ^ 0x5EED),
-        })
-    }
-
-    /// The field.
-    pub fn net(&self) -> &Grid4dNet {
-        &self.field.net
-    }
-}
-
-impl Parameters for Grid4dPhi {
-    fn named_params(&self) -> Vec<(String, StoreRef<'_>)> {
-        self.field.net.named_params()
-    }
-    fn named_params_mut(&mut self) -> Vec<(String, StoreMut<'_>)> {
-        self.field.net.named_params_mut()
-    }
-}
-
-impl Observer for Grid4dPhi {
-    type Cache = Grid4dCache;
-
-    fn output_width(&self) -> usize {
-        self.field.net.output_width()
-    }
-
-    fn observe_into(
-        &self,
-        positions: &[f32],
-        times: &[f32],
-        rows: usize,
-        cache: &mut Grid4dCache,
-    ) -> Result<Vec<f32>, BackboneError> {
-        Ok(self.field.net.forward_into(positions, times, rows, cache)?)
-    }
-
-    fn gradients(&self, cache: &Grid4dCache, dz: &[f32]) -> Result<Vec<Vec<f32>>, BackboneError> {
-        Ok(self.field.net.backward(cache, dz)?.into_buffers())
-    }
-
-    fn regularise(
-        &mut self,
-        cache: &Grid4dCache,
-        grads: &mut [Vec<f32>],
-    ) -> Result<f64, BackboneError> {
-        let net = &self.field.net;
-        let empty = |len: usize| vec![0f32; len];
-        let buffers: Vec<usize> = net.named_params().iter().map(|(_, p)| p.len()).collect();
-        let mut g = tiny_nn::Grid4dGrads {
-            spatial: empty(buffers[0]),
-            temporal: [empty(buffers[1]), empty(buffers[2]), empty(buffers[3])],
-            attention: Vec::new(),
-            temporal_mlp: Vec::new(),
-            trunk: Vec::new(),
-            heads: Vec::new(),
-        };
-        self.field.regularise(cache, &mut g)?;
-        let [t0, t1, t2] = g.temporal;
-        let tables = [g.spatial, t0, t1, t2];
-        for (dst, src) in grads.iter_mut().zip(tables) {
-            dst.iter_mut().zip(&src).for_each(|(a, b)| *a += b);
-        }
-        Ok(self.field.regulariser)
-    }
-
-    fn lr_scale(&self, _name: &str, _grid_lr_scale: f32) -> f32 {
-        1.0
-    }
-
-    fn own_schedule(&self, name: &str) -> Option<LrSchedule> {
-        Some(self.field.schedule(name))
     }
 }

@@ -22,13 +22,9 @@
 use std::path::Path;
 
 use splat_core::GaussiansView;
-use tiny_nn::{
-    HEX_OUTPUT, HexDeformCache, HexDeformConfig, HexDeformNet, Parameters, StoreMut, StoreRef,
-};
+use tiny_nn::{HexDeformCache, HexDeformConfig, HexDeformNet, Parameters, StoreMut, StoreRef};
 
-use crate::backbone::{
-    Backbone, fill_inputs, geometry_gradient_into, geometry_rows_into, no_training_forward,
-};
+use crate::backbone::{Backbone, fill_inputs, no_training_forward};
 use crate::error::BackboneError;
 
 /// 4DGaussians' `plane_tv_weight` (D-NeRF).
@@ -66,32 +62,36 @@ impl Backbone for HexBackbone {
         "4dgs"
     }
 
-    fn forward(
+    fn forward_into(
         &mut self,
         canonical: GaussiansView<'_>,
         time: f32,
         training: bool,
-    ) -> Result<Vec<f32>, BackboneError> {
+        out: &mut Vec<f32>,
+    ) -> Result<(), BackboneError> {
         let n = canonical.len();
         let (mut positions, mut times) = (Vec::new(), Vec::new());
         fill_inputs(canonical, time, &mut positions, &mut times);
         let (geometry, cache) = self.net.forward(&positions, &times, n)?;
         self.cache = training.then_some(cache);
-        let mut out = Vec::new();
-        geometry_rows_into(&geometry, HEX_OUTPUT, n, &mut out);
-        Ok(out)
+        // The field's heads are the rows: position, rotation, scale (`Layout::GEOMETRY`).
+        *out = geometry;
+        Ok(())
     }
 
-    fn backward(&mut self, d_deform: &[f32]) -> Result<Vec<Vec<f32>>, BackboneError> {
+    fn backward_into(
+        &mut self,
+        d_deform: &[f32],
+        out: &mut Vec<Vec<f32>>,
+    ) -> Result<(), BackboneError> {
         let cache = self.cache.as_ref().ok_or_else(no_training_forward)?;
-        let mut d_geometry = Vec::new();
-        geometry_gradient_into(d_deform, &mut d_geometry);
-        let mut g = self.net.backward(cache, &d_geometry)?;
+        let mut g = self.net.backward(cache, d_deform)?;
         self.regularisers =
             self.net
                 .regularise(SPACE_SMOOTHNESS, TIME_SMOOTHNESS, TIME_L1, &mut g)?;
         let [p, r, s] = g.heads;
-        Ok(vec![g.hexplane, g.trunk, p, r, s])
+        *out = vec![g.hexplane, g.trunk, p, r, s];
+        Ok(())
     }
 
     fn params(&self) -> Vec<(String, StoreRef<'_>)> {

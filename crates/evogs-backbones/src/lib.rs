@@ -3,19 +3,24 @@
 //! What it is: the [`Backbone`] trait (forward, backward, parameters, weights) with its optional
 //! per-Gaussian part ([`PerGaussianState`]), and the backbones on it:
 //!
-//! - [`backbone`]: the traits, the deformation row (`N × 14`, [`DEFORM_DIM`]) and the D-3DGS
-//!   deformation MLP ([`D3dgsBackbone`], shaped by [`NetSettings`]);
+//! - [`backbone`]: the traits; each backbone hands back its deformation rows in its own
+//!   [`Layout`] (the row is defined once, in `splat_core::deform`);
+//! - [`d3dgs`]: the D-3DGS deformation MLP ([`D3dgsBackbone`], shaped by [`NetSettings`]);
 //! - [`hex_backbone`]: 4DGaussians' HexPlane field ([`HexBackbone`], `--backbone 4dgs`);
-//! - [`grid4d_backbone`]: Grid4D's hash-grid field ([`Grid4dBackbone`], `--backbone grid4d`) and
-//!   the same field as EvoGS's Φ ([`Grid4dPhi`]);
+//! - [`grid4d_backbone`]: Grid4D's hash-grid field ([`Grid4dBackbone`], `--backbone grid4d`);
+//!   [`grid4d_phi`]: the same field as EvoGS's Φ ([`Grid4dPhi`]);
 //! - [`evo_backbone`], [`evo_settings`]: EvoGS (Φ + evo-state + Ψ, [`EvoBackbone`]) and its
 //!   switches ([`EvoSettings`]), recorded in a run's `config.json`;
 //! - [`observer`]: what a field implements to be Φ ([`Observer`]); [`hex_phi`]: 4DGaussians'
 //!   field as Φ ([`HexPhi`]);
 //! - [`one_word`]: settings spelled by one word and the one message for an unknown word.
 //!
-//! A new backbone implements [`Backbone`] (and [`PerGaussianState`] only when it keeps rows of
-//! its own per Gaussian) here, and the trainer's `make_backbone` builds it.
+//! - [`choice`]: the method and backbone a run names ([`Method`], [`BackboneKind`]) and the one
+//!   function that builds it ([`make_backbone`], from a [`BackboneRun`]).
+//!
+//! A new backbone is a module here implementing [`Backbone`] (and [`PerGaussianState`] only when
+//! it keeps rows of its own per Gaussian), a [`BackboneKind`] variant and its arm in
+//! [`make_backbone`]; the trainer names no backbone (ARCHITECTURE.md §5).
 //!
 //! What it is not: the trainer (Gaussians, Adam, densification, the loop, checkpoints: that is
 //! `evogs-train`, which owns the run's whole config and adds the deformation rows to the
@@ -28,26 +33,29 @@
 //! everywhere; see [`evo_settings::TRAINER_MOTION_FLOOR`] for the measurement and the reasoning.
 
 pub mod backbone;
+pub mod choice;
+pub mod d3dgs;
 pub mod error;
 pub mod evo_backbone;
 pub mod evo_settings;
 pub mod grid4d_backbone;
+pub mod grid4d_phi;
 pub mod hex_backbone;
 pub mod hex_phi;
 pub mod observer;
 pub mod one_word;
 
-pub use backbone::{
-    Appearance, Backbone, COLOUR_COLUMN, D3dgsBackbone, DEFORM_DIM, DensifyCues, GEOMETRY_DIM,
-    GainStats, NetInit, NetSettings, OPACITY_COLUMN, PerGaussianState,
-};
+pub use backbone::{Backbone, DensifyCues, GainStats, PerGaussianState};
+pub use choice::{BackboneKind, BackboneRun, Method, make_backbone};
+pub use d3dgs::{D3dgsBackbone, NetInit, NetSettings};
 pub use error::BackboneError;
 pub use evo_backbone::EvoBackbone;
 pub use evo_settings::{
     DensifyPolicy, EvoConfig, EvoSettings, Gain, HistoryMode, Layout, PlaneCombine, Precision,
     Storage,
 };
-pub use grid4d_backbone::{Grid4dBackbone, Grid4dLr, Grid4dPhi, Grid4dRun};
+pub use grid4d_backbone::{Grid4dBackbone, Grid4dLr, Grid4dRun};
+pub use grid4d_phi::Grid4dPhi;
 pub use hex_backbone::HexBackbone;
 pub use hex_phi::HexPhi;
 pub use observer::Observer;

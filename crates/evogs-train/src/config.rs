@@ -39,7 +39,8 @@ use densify::{DensifyConfig, Schedule};
 use serde::{Deserialize, Serialize};
 use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 
-use evogs_backbones::{NetInit, NetSettings, OneWord, unknown_message};
+pub use evogs_backbones::{BackboneKind, Method};
+use evogs_backbones::{BackboneRun, Grid4dLr, NetInit, NetSettings, OneWord, unknown_message};
 
 use crate::error::TrainError;
 
@@ -69,51 +70,12 @@ pub(crate) fn unknown<T: OneWord>(value: &str) -> TrainError {
     TrainError::config(T::FIELD, unknown_message::<T>(value))
 }
 
-impl OneWord for Method {
-    const FIELD: &'static str = "method";
-}
-
-impl OneWord for BackboneKind {
-    const FIELD: &'static str = "backbone";
-}
-
 impl OneWord for Background {
     const FIELD: &'static str = "background";
 }
 
 impl OneWord for Preset {
     const FIELD: &'static str = "preset";
-}
-
-/// The deformation method.
-#[derive(EnumString, Display, IntoStaticStr, VariantNames)]
-#[strum(serialize_all = "lowercase", parse_err_ty = TrainError, parse_err_fn = unknown::<Self>)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Method {
-    /// D-3DGS: the deformation MLP alone.
-    Baseline,
-    /// EvoGS(backbone): Φ + evolution state + Ψ (settings in [`TrainConfig::evogs`]; Φ is the
-    /// tri-plane network for d3dgs, the backbone's own field at half width for 4dgs and grid4d).
-    Evogs,
-}
-
-/// The deformation backbone (`--backbone`).
-#[derive(EnumString, Display, IntoStaticStr, VariantNames)]
-#[strum(serialize_all = "lowercase", parse_err_ty = TrainError, parse_err_fn = unknown::<Self>)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
-pub enum BackboneKind {
-    /// Deformable-3D-Gaussians' deformation MLP ([`evogs_backbones::D3dgsBackbone`]).
-    #[default]
-    #[serde(rename = "d3dgs")]
-    D3dgs,
-    /// 4DGaussians' HexPlane field ([`evogs_backbones::HexBackbone`]).
-    #[serde(rename = "4dgs")]
-    #[strum(serialize = "4dgs")]
-    FourDgs,
-    /// Grid4D's 4D decomposed hash-grid field ([`evogs_backbones::Grid4dBackbone`]).
-    #[serde(rename = "grid4d")]
-    Grid4d,
 }
 
 /// Background colour composited behind the Gaussians and behind the images' alpha.
@@ -215,6 +177,17 @@ impl Preset {
         match (self, method) {
             (Preset::Dnerf, Method::Evogs) => Some(DNERF_GAUSSIAN_VIEW_BUDGET_EVOGS),
             _ => None,
+        }
+    }
+
+    /// `log2` of the most entries of a Grid4D table level in the preset (DESIGN §5.2c): Grid4D's
+    /// 2^19 in `paper`, 2^15 in `cpu` and `dnerf`, where a CPU step runs dense Adam over every
+    /// entry, 2^12 in `tiny`. A preset's sizes are the trainer's, as its other sizes are.
+    pub fn grid4d_log2_table(self) -> u32 {
+        match self {
+            Preset::Paper => 19,
+            Preset::Cpu | Preset::Dnerf => 15,
+            Preset::Tiny => 12,
         }
     }
 }
@@ -508,6 +481,30 @@ impl TrainConfig {
         match (self.densify.max_gaussians, per_view) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
+        }
+    }
+
+    /// What the run hands the backbone it builds (`evogs_backbones::make_backbone`): the method
+    /// and backbone, the network and EvoGS settings, the initial cube, the seed, and Grid4D's
+    /// table size ([`Preset::grid4d_log2_table`]) and schedules (the position rate and the
+    /// network's decay length and factor).
+    pub fn backbone_run(&self) -> BackboneRun<'_> {
+        let lr = &self.lr;
+        BackboneRun {
+            method: self.method,
+            kind: self.backbone,
+            net: &self.net,
+            evogs: &self.evogs,
+            half_extent: self.init_half_extent,
+            seed: self.seed,
+            grid4d_log2_table: self.preset.grid4d_log2_table(),
+            grid4d_lr: Grid4dLr {
+                position_init: lr.position_init,
+                position_final: lr.position_final,
+                delay_mult: lr.position_delay_mult,
+                max_steps: lr.deform_max_steps,
+                scale: lr.deform_scale,
+            },
         }
     }
 

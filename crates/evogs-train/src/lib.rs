@@ -7,8 +7,6 @@
 //! - [`config`]: the D-3DGS recipe and the presets (`paper`, `cpu`, `tiny`); the run's whole
 //!   config, which embeds the backbones' settings (`evogs_backbones::NetSettings`,
 //!   `evogs_backbones::EvoSettings`);
-//! - [`deformed`]: a backbone's deformation rows added to the canonical Gaussians, and the
-//!   rasterizer's gradients turned back into rows;
 //! - [`state`]: canonical Gaussians, Adam groups and statistics, aligned through densify's plans;
 //! - [`trainer`]: the training loop and [`trainer::make_backbone`] (the backbone a config asks
 //!   for); [`run`]: run directories (their layout, atomic JSON files, the config and checkpoint
@@ -35,7 +33,6 @@ pub mod budget;
 pub mod checkpoint;
 pub mod config;
 pub mod data;
-pub mod deformed;
 pub mod error;
 pub mod gain_report;
 pub mod init;

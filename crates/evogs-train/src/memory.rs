@@ -82,10 +82,10 @@ impl MemoryEstimate {
         let fixed = PROCESS_BYTES + render + network;
         // Per Gaussian: P floats of parameters, two Adam moments, the gradients (P plus the 2-D
         // means and the radius), the deformed copy of the geometry (10) and the deformation rows
-        // with their gradient (14 each).
+        // with their gradient (at most `Layout::MAX_DIM` each: an upper bound for every layout).
         let sh = 3 * (config.sh_degree as u64 + 1).pow(2);
         let p = 3 + 3 + 4 + 1 + sh;
-        let gaussian = F32 * (p + 2 * p + (p + 3) + 10 + 2 * 14);
+        let gaussian = F32 * (p + 2 * p + (p + 3) + 10 + 2 * splat_core::Layout::MAX_DIM as u64);
         // Densification statistics: 7 arrays of 4 bytes.
         let stats = 7 * 4;
         // Rasterizer: the drawn record (56 bytes), its depth rank, pair start and radius, and

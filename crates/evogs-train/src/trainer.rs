@@ -33,24 +33,21 @@ use densify::{DensifyConfig, Schedule, make_plan};
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
+use splat_core::{DeformedGeometry, deformation_gradient_into};
 use splat_raster::{
     BackendInfo, BackwardOutput, DynRasterizer, ForwardOutput, Gaussians, PixelGrads,
     RenderOptions, select_rasterizer,
 };
 
-use crate::config::{BackboneKind, Background, Method, Preset, TrainConfig};
+use crate::config::{Background, Method, TrainConfig};
 use crate::data::SplitViews;
-use crate::deformed::{DeformedGeometry, deformation_gradient_into};
 use crate::error::TrainError;
 use crate::gain_report::GainReport;
 use crate::init::random_gaussians;
 use crate::memory::{MemoryEstimate, MemoryInputs};
 use crate::state::SceneState;
 use crate::timers::{Phase, PhaseTimes};
-use evogs_backbones::{
-    Backbone, D3dgsBackbone, DensifyPolicy, EvoBackbone, Grid4dBackbone, Grid4dLr, Grid4dPhi,
-    Grid4dRun, HexBackbone, HexPhi,
-};
+use evogs_backbones::{Backbone, DensifyPolicy};
 use evogs_metrics::{ImageSize, LossWorkspace, psnr_from_mse};
 
 /// What one iteration did.
@@ -75,63 +72,10 @@ pub struct StepReport {
     pub net_grad_norm: Option<f64>,
 }
 
-/// The backbone a config asks for.
+/// The backbone a config asks for ([`evogs_backbones::make_backbone`] of
+/// [`TrainConfig::backbone_run`]).
 pub fn make_backbone(config: &TrainConfig) -> Result<Box<dyn Backbone>, TrainError> {
-    match config.method {
-        Method::Baseline => match config.backbone {
-            BackboneKind::D3dgs => Ok(Box::new(D3dgsBackbone::new(
-                &config.net,
-                config.seed ^ 0xD3D6_5000,
-            )?)),
-            BackboneKind::FourDgs => Ok(Box::new(HexBackbone::new(
-                config.init_half_extent,
-                config.seed,
-            )?)),
-            BackboneKind::Grid4d => Ok(Box::new(Grid4dBackbone::new(&grid4d_run(config))?)),
-        },
-        Method::Evogs => match config.backbone {
-            BackboneKind::D3dgs => Ok(Box::new(EvoBackbone::new(
-                &config.evogs,
-                config.net.width,
-                config.init_half_extent,
-                config.seed,
-            )?)),
-            BackboneKind::FourDgs => Ok(Box::new(EvoBackbone::with_phi(
-                &config.evogs,
-                config.seed,
-                HexPhi::new(&config.evogs, config.init_half_extent, config.seed)?,
-            )?)),
-            BackboneKind::Grid4d => Ok(Box::new(EvoBackbone::with_phi(
-                &config.evogs,
-                config.seed,
-                Grid4dPhi::new(&grid4d_run(config), &config.evogs)?,
-            )?)),
-        },
-    }
-}
-
-/// What the Grid4D backbone takes of a run (DESIGN §5.2c): the network width, the table size of
-/// the preset (Grid4D's 2^19 in `paper`, 2^15 in `cpu` and `dnerf`, where a CPU step runs dense
-/// Adam over every entry, 2^12 in `tiny`), the initial cube, the position and network rates.
-pub fn grid4d_run(config: &TrainConfig) -> Grid4dRun {
-    let lr = &config.lr;
-    Grid4dRun {
-        width: config.net.width,
-        log2_table: match config.preset {
-            Preset::Paper => 19,
-            Preset::Cpu | Preset::Dnerf => 15,
-            Preset::Tiny => 12,
-        },
-        half_extent: config.init_half_extent,
-        lr: Grid4dLr {
-            position_init: lr.position_init,
-            position_final: lr.position_final,
-            delay_mult: lr.position_delay_mult,
-            max_steps: lr.deform_max_steps,
-            scale: lr.deform_scale,
-        },
-        seed: config.seed,
-    }
+    Ok(evogs_backbones::make_backbone(&config.backbone_run())?)
 }
 
 /// Densify's configuration from the run's settings: standard 3DGS ADC for the baseline; for
@@ -466,7 +410,7 @@ impl Trainer {
         self.geometry.assign(
             self.state.gaussians(),
             deforms.then_some(self.deformation.as_slice()),
-            self.backbone.appearance(),
+            self.backbone.layout(),
         );
         let gview = self.geometry.view(self.state.gaussians());
         let view = &self.train.views[vi];
@@ -511,7 +455,8 @@ impl Trainer {
         t = self.times.lap(Phase::RasterBackward, t);
         if deforms {
             let stride = self.state.gaussians().sh_stride();
-            deformation_gradient_into(grads, stride, &mut self.deformation_grad);
+            let layout = self.backbone.layout();
+            deformation_gradient_into(grads, stride, layout, &mut self.deformation_grad);
             self.backbone
                 .backward_into(&self.deformation_grad, &mut self.net_grads)?;
         }
@@ -650,10 +595,7 @@ pub fn deformed_gaussians(
     } else {
         None
     };
-    Ok(
-        DeformedGeometry::new(canonical, d.as_deref(), backbone.appearance())
-            .into_gaussians(canonical),
-    )
+    Ok(DeformedGeometry::new(canonical, d.as_deref(), backbone.layout()).into_gaussians(canonical))
 }
 
 #[cfg(test)]

@@ -1,6 +1,8 @@
-//! The deformation layout: which per-Gaussian components a deformation vector holds (position,
-//! rotation, scale, opacity, colour) and where each sits in it. Shared by the evolution state,
-//! densification and the trainer, so that every one reads a deformation row the same way.
+//! The deformation row: which per-Gaussian components a deformation vector holds (position,
+//! rotation, scale, opacity, colour) and where each sits in it ([`Layout`]). The one definition
+//! of the row's columns: the backbones write rows in their own layout, the evolution state keeps
+//! them, densification reads them, and [`crate::deformed`] adds them to the Gaussians and turns
+//! the rasterizer's gradients back into rows, all through a [`Layout`].
 //!
 //! It is not a deformation model: nothing here computes a deformation.
 
@@ -33,7 +35,8 @@ impl Component {
         }
     }
 
-    const ALL: [Component; 5] = [
+    /// Every component, in the order of the deformation vector.
+    pub const ALL: [Component; 5] = [
         Component::Position,
         Component::Rotation,
         Component::Scale,
@@ -63,19 +66,35 @@ pub struct Layout {
 }
 
 impl Default for Layout {
-    /// Position, rotation and scale (D = 10), as D-3DGS deforms.
+    /// [`Layout::GEOMETRY`]: position, rotation and scale (D = 10), as D-3DGS deforms.
     fn default() -> Self {
-        Self {
-            position: true,
-            rotation: true,
-            scale: true,
-            opacity: false,
-            colour: false,
-        }
+        Self::GEOMETRY
     }
 }
 
 impl Layout {
+    /// Position, rotation and scale (D = 10): the geometry every backbone deforms, and what
+    /// D-3DGS's, 4DGaussians' and Grid4D's heads give; [`Layout::default`].
+    pub const GEOMETRY: Self = Self {
+        position: true,
+        rotation: true,
+        scale: true,
+        opacity: false,
+        colour: false,
+    };
+
+    /// Every component (D = [`Layout::MAX_DIM`]).
+    pub const ALL: Self = Self {
+        position: true,
+        rotation: true,
+        scale: true,
+        opacity: true,
+        colour: true,
+    };
+
+    /// The widest row: every component (position 3, rotation 4, scale 3, opacity 1, colour 3).
+    pub const MAX_DIM: usize = 14;
+
     /// Whether `component` is enabled.
     pub const fn has(&self, component: Component) -> bool {
         match component {
@@ -107,6 +126,19 @@ impl Layout {
             .filter(|c| self.has(**c))
             .map(|c| c.width())
             .sum()
+    }
+
+    /// First column of `component` in the deformation vector, if enabled (no allocation: the
+    /// widths of the enabled components before it).
+    pub fn offset(&self, component: Component) -> Option<usize> {
+        self.has(component).then(|| {
+            Component::ALL
+                .iter()
+                .take_while(|c| **c != component)
+                .filter(|c| self.has(**c))
+                .map(|c| c.width())
+                .sum()
+        })
     }
 
     /// Range of `component` in the deformation vector, if enabled.
@@ -223,5 +255,22 @@ mod tests {
             "{e}"
         );
         assert!("".parse::<Layout>().is_err());
+    }
+
+    #[test]
+    fn offsets_and_ranges_agree_for_every_layout() {
+        assert_eq!(Layout::ALL.dim(), Layout::MAX_DIM);
+        assert_eq!(Layout::GEOMETRY.dim(), 10);
+        for bits in 0..32u8 {
+            let l = Layout::from_bits(bits).unwrap();
+            for c in Component::ALL {
+                assert_eq!(l.offset(c), l.range(c).map(|r| r.start), "{l} {c:?}");
+            }
+            let widths: usize = l.components().iter().map(|(_, r)| r.len()).sum();
+            assert_eq!(widths, l.dim());
+        }
+        let all = Layout::ALL;
+        let offsets = Component::ALL.map(|c| all.offset(c).unwrap());
+        assert_eq!(offsets, [0, 3, 7, 10, 11]);
     }
 }

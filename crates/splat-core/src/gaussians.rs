@@ -140,3 +140,23 @@ impl GaussiansView<'_> {
         Ok(())
     }
 }
+
+/// Loss gradients with respect to every raw Gaussian parameter (zero for culled Gaussians), and
+/// to the projected means. Gradients only: the screen radii are the rasterizer's forward
+/// output, the count of zeroed Gaussians its backward output (`splat-raster`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GaussianGrads {
+    /// dL/d mean.
+    pub means: Vec<[f32; 3]>,
+    /// dL/d log-scale.
+    pub log_scales: Vec<[f32; 3]>,
+    /// dL/d raw (unnormalised) quaternion `w, x, y, z`.
+    pub rotations: Vec<[f32; 4]>,
+    /// dL/d opacity logit.
+    pub opacity_logits: Vec<f32>,
+    /// dL/d SH coefficients, same layout as the input (zero outside the active bands).
+    pub sh: Vec<f32>,
+    /// dL/d projected mean `(u, v)`, in pixels (densification statistic, with
+    /// the screen radii of the forward pass).
+    pub means2d: Vec<[f32; 2]>,
+}

@@ -4,7 +4,9 @@
 //! activations that give them meaning ([`sigmoid`], [`logit`]), the pinhole [`Camera`] (OpenCV
 //! axes), the spherical-harmonics constants ([`sh`]), the row plans that keep every per-Gaussian
 //! array aligned when Gaussians are pruned, cloned or split ([`RowPlan`], [`NewRows`]), and the
-//! deformation [`Layout`] (which components a deformation vector holds, in which order).
+//! deformation row: its [`Layout`] (which components a deformation vector holds, in which order),
+//! applying rows to the Gaussians and their gradient back ([`DeformedGeometry`],
+//! [`deformation_gradient_into`]), and the gradients of the raw parameters ([`GaussianGrads`]).
 //!
 //! What it is not: a renderer (`splat-raster`), a file reader (`evogs-io`), a deformation model
 //! or a trainer. It has no GPU dependency, so that the file formats, densification and the
@@ -13,6 +15,7 @@
 pub mod activation;
 pub mod camera;
 pub mod deform;
+pub mod deformed;
 pub mod gaussians;
 pub mod rows;
 pub mod sh;
@@ -20,5 +23,6 @@ pub mod sh;
 pub use activation::{logit, sigmoid};
 pub use camera::Camera;
 pub use deform::{Component, Layout, LayoutParseError};
-pub use gaussians::{Gaussians, GaussiansView, ShapeError, sh_coeff_count};
+pub use deformed::{DeformedGeometry, deformation_gradient, deformation_gradient_into};
+pub use gaussians::{GaussianGrads, Gaussians, GaussiansView, ShapeError, sh_coeff_count};
 pub use rows::{NewRows, RowPlan, RowPlanError};

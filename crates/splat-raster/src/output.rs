@@ -2,6 +2,7 @@
 //! gradients of every raw parameter.
 
 use crate::options::CullStats;
+pub use splat_core::GaussianGrads;
 
 /// A rendered image and the state its backward pass needs.
 ///
@@ -149,26 +150,6 @@ impl<'a> PixelGrads<'a> {
             ..self
         }
     }
-}
-
-/// Loss gradients with respect to every raw Gaussian parameter (zero for culled Gaussians), and
-/// to the projected means. Gradients only: the screen radii are [`ForwardOutput::radii`], the
-/// count of zeroed Gaussians is in [`BackwardOutput`].
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct GaussianGrads {
-    /// dL/d mean.
-    pub means: Vec<[f32; 3]>,
-    /// dL/d log-scale.
-    pub log_scales: Vec<[f32; 3]>,
-    /// dL/d raw (unnormalised) quaternion `w, x, y, z`.
-    pub rotations: Vec<[f32; 4]>,
-    /// dL/d opacity logit.
-    pub opacity_logits: Vec<f32>,
-    /// dL/d SH coefficients, same layout as the input (zero outside the active bands).
-    pub sh: Vec<f32>,
-    /// dL/d projected mean `(u, v)`, in pixels (densification statistic, with
-    /// [`ForwardOutput::radii`]).
-    pub means2d: Vec<[f32; 2]>,
 }
 
 /// What a backward pass returns: the gradients and what became of them.

@@ -3,11 +3,10 @@
 //! appearance columns of the rows `deformation_gradient` builds from the rasterizer's backward
 //! match central differences of L (summed in f64). The geometric columns are the rasterizer's
 //! own gradients (checked against f64 differences in splat-raster; their order in the row is
-//! checked by `deformed`'s proptest).
+//! checked by `splat_core::deformed`'s proptest, for every layout).
 
-use evogs_backbones::{Appearance, DEFORM_DIM};
-use evogs_train::deformed::{DeformedGeometry, deformation_gradient};
 use glam::Vec3;
+use splat_core::{DeformedGeometry, Layout, deformation_gradient};
 use splat_raster::{Camera, CpuRasterizer, Gaussians, PixelGrads, Rasterizer, RenderOptions};
 
 const N: usize = 4;
@@ -49,8 +48,11 @@ fn weights(pixels: usize) -> Vec<[f32; 3]> {
         .collect()
 }
 
-fn loss(g: &Gaussians, d: &[f32], appearance: Appearance) -> f64 {
-    let geometry = DeformedGeometry::new(g, Some(d), appearance);
+fn loss(g: &Gaussians, d: &[f32], layout: Layout) -> f64 {
+    loss_of(&DeformedGeometry::new(g, Some(d), layout), g)
+}
+
+fn loss_of(geometry: &DeformedGeometry, g: &Gaussians) -> f64 {
     let cam = camera();
     let opts = RenderOptions {
         background: [0.1, 0.2, 0.3],
@@ -74,14 +76,12 @@ fn loss(g: &Gaussians, d: &[f32], appearance: Appearance) -> f64 {
 #[test]
 fn appearance_columns_match_finite_differences() {
     let g = scene();
-    let appearance = Appearance {
-        opacity: true,
-        colour: true,
-    };
-    let d: Vec<f32> = (0..N * DEFORM_DIM)
+    let layout = Layout::ALL;
+    let dim = layout.dim();
+    let d: Vec<f32> = (0..N * dim)
         .map(|e| 0.02 * ((e * 7 % 11) as f32 - 5.0) / 5.0)
         .collect();
-    let geometry = DeformedGeometry::new(&g, Some(&d), appearance);
+    let geometry = DeformedGeometry::new(&g, Some(&d), layout);
     let cam = camera();
     let opts = RenderOptions {
         background: [0.1, 0.2, 0.3],
@@ -104,28 +104,28 @@ fn appearance_columns_match_finite_differences() {
         )
         .unwrap()
         .grads;
-    let rows = deformation_gradient(&grads, g.sh_stride());
-    assert_eq!(rows.len(), N * DEFORM_DIM);
-    for (i, row) in rows.chunks_exact(DEFORM_DIM).enumerate() {
+    let rows = deformation_gradient(&grads, g.sh_stride(), layout);
+    assert_eq!(rows.len(), N * dim);
+    for (i, row) in rows.chunks_exact(dim).enumerate() {
         assert_eq!(&row[..3], &grads.means[i]);
         assert_eq!(row[10], grads.opacity_logits[i]);
         assert_eq!(&row[11..], &grads.sh[i * 12..i * 12 + 3]);
     }
     let eps = 1e-3f32;
     let mut largest_appearance = 0.0f64;
-    for e in (0..N * DEFORM_DIM).filter(|e| e % DEFORM_DIM >= 10) {
-        let col = e % DEFORM_DIM;
+    let appearance = layout.offset(splat_core::Component::Opacity).unwrap();
+    for e in (0..N * dim).filter(|e| e % dim >= appearance) {
+        let col = e % dim;
         let mut plus = d.clone();
         plus[e] += eps;
         let mut minus = d.clone();
         minus[e] -= eps;
-        let fd =
-            (loss(&g, &plus, appearance) - loss(&g, &minus, appearance)) / (2.0 * f64::from(eps));
+        let fd = (loss(&g, &plus, layout) - loss(&g, &minus, layout)) / (2.0 * f64::from(eps));
         let a = f64::from(rows[e]);
         assert!(
             (a - fd).abs() <= 2e-3 + 2e-2 * a.abs().max(fd.abs()),
             "Gaussian {} column {col}: analytic {a} vs finite difference {fd}",
-            e / DEFORM_DIM
+            e / dim
         );
         largest_appearance = largest_appearance.max(a.abs());
     }
@@ -133,18 +133,27 @@ fn appearance_columns_match_finite_differences() {
 }
 
 #[test]
-fn columns_of_components_that_are_off_change_nothing() {
+fn components_a_layout_leaves_out_are_the_canonical_ones() {
     let g = scene();
-    let mut d = vec![0.0f32; N * DEFORM_DIM];
-    for row in d.chunks_exact_mut(DEFORM_DIM) {
-        row[10..].copy_from_slice(&[3.0, 1.0, -1.0, 0.5]);
+    let canonical = |layout: Layout| loss(&g, &vec![0.0f32; N * layout.dim()], layout);
+    let base = loss_of(&DeformedGeometry::new(&g, None, Layout::ALL), &g);
+    // Zero rows of any layout render the canonical Gaussians.
+    for layout in [Layout::GEOMETRY, Layout::ALL, opacity_only()] {
+        assert_eq!(canonical(layout), base, "`{layout}`");
     }
-    let zero = vec![0.0f32; N * DEFORM_DIM];
-    let off = Appearance::default();
-    assert_eq!(loss(&g, &d, off), loss(&g, &zero, off));
-    let on = Appearance {
+    // Rows of opacity alone move nothing else, yet change the render.
+    let rows = vec![3.0f32; N];
+    let deformed = DeformedGeometry::new(&g, Some(&rows), opacity_only());
+    assert_eq!(deformed.means, g.means);
+    assert_eq!(deformed.rotations, g.rotations);
+    assert_eq!(deformed.log_scales, g.log_scales);
+    assert!(deformed.sh.is_none());
+    assert_ne!(loss(&g, &rows, opacity_only()), base);
+}
+
+fn opacity_only() -> Layout {
+    Layout {
         opacity: true,
-        colour: false,
-    };
-    assert_ne!(loss(&g, &d, on), loss(&g, &zero, on));
+        ..Layout::from_bits(0).unwrap()
+    }
 }

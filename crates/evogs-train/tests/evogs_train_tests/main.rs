@@ -12,7 +12,6 @@ mod budget;
 mod common;
 mod datasets;
 mod deformation_learns;
-mod evogs_gradients;
 mod evogs_train;
 mod motion_floor;
 mod no_gaussians;

@@ -13,11 +13,10 @@
 
 use evogs_backbones::evo_backbone::observation_config;
 use evogs_backbones::{
-    Backbone, DEFORM_DIM, EvoBackbone, Gain, Grid4dLr, Grid4dPhi, Grid4dRun, HexPhi, HistoryMode,
+    Backbone, EvoBackbone, EvoSettings, Gain, Grid4dLr, Grid4dPhi, Grid4dRun, HexPhi, HistoryMode,
     Layout, Observer, PerGaussianState,
 };
-use evogs_train::{Method, Preset, TrainConfig};
-use splat_raster::Gaussians;
+use splat_core::Gaussians;
 use tiny_nn::ObservationNet;
 
 const TIMES: [f32; 5] = [0.0, 0.25, 0.5, 0.75, 1.0];
@@ -47,10 +46,19 @@ fn gaussians(rng: &mut Lcg) -> Gaussians {
     g
 }
 
+/// What a run hands the backbone: its EvoGS settings, the baseline network's width, the half
+/// extent of its initial cube and its seed (the trainer's `tiny` preset's, at width 16).
+struct RunConfig {
+    evogs: EvoSettings,
+    width: usize,
+    init_half_extent: f32,
+    seed: u64,
+}
+
 /// One Φ of EvoGS: how a test run's config makes it, and how its parameters are randomised.
 struct Case<P: Observer> {
     /// Φ for the config (also Φ's twin that evaluates its regulariser).
-    phi: fn(&TrainConfig) -> P,
+    phi: fn(&RunConfig) -> P,
     /// Centre and half-width of the uniform values Φ's buffer `name` is set to.
     init: fn(&str) -> (f32, f32),
 }
@@ -61,7 +69,7 @@ fn triplane() -> Case<ObservationNet> {
         phi: |c| {
             ObservationNet::new(observation_config(
                 &c.evogs,
-                c.net.width,
+                c.width,
                 c.init_half_extent,
                 c.seed,
             ))
@@ -76,7 +84,7 @@ fn grid4d() -> Case<Grid4dPhi> {
     Case {
         phi: |c| {
             let run = Grid4dRun {
-                width: c.net.width,
+                width: c.width,
                 log2_table: 5,
                 half_extent: c.init_half_extent,
                 lr: Grid4dLr {
@@ -113,11 +121,14 @@ fn hexplane() -> Case<HexPhi> {
     }
 }
 
-fn config(gain: Gain, components: Layout, history: HistoryMode) -> TrainConfig {
-    let mut c = TrainConfig::preset(Preset::Tiny);
+fn config(gain: Gain, components: Layout, history: HistoryMode) -> RunConfig {
+    let mut c = RunConfig {
+        evogs: EvoSettings::default(),
+        width: 16,
+        init_half_extent: 1.3,
+        seed: 0,
+    };
     c.evogs.evo.history = history;
-    c.method = Method::Evogs;
-    c.net.width = 16;
     c.evogs.evo.gain = gain;
     c.evogs.evo.layout = components;
     c.evogs.triplane_channels = 2;
@@ -128,7 +139,7 @@ fn config(gain: Gain, components: Layout, history: HistoryMode) -> TrainConfig {
     c
 }
 
-fn backbone<P: Observer>(case: &Case<P>, c: &TrainConfig) -> EvoBackbone<P> {
+fn backbone<P: Observer>(case: &Case<P>, c: &RunConfig) -> EvoBackbone<P> {
     let mut b = EvoBackbone::with_phi(&c.evogs, c.seed, (case.phi)(c)).unwrap();
     b.prepare(&TIMES, N, 2.0).unwrap();
     b
@@ -156,7 +167,7 @@ fn evolve<P: Observer>(b: &EvoBackbone<P>, g: &Gaussians, t: f32) -> (evo_state:
 /// so the same sampled rows) and given the backbone's Φ parameters.
 fn phi_regulariser<P: Observer>(
     case: &Case<P>,
-    c: &TrainConfig,
+    c: &RunConfig,
     b: &EvoBackbone<P>,
     g: &Gaussians,
     t: f32,
@@ -185,7 +196,7 @@ fn phi_regulariser<P: Observer>(
 /// finite difference that moves Φ at the history times.
 fn loss_with_prior<P: Observer>(
     case: &Case<P>,
-    c: &TrainConfig,
+    c: &RunConfig,
     b: &mut EvoBackbone<P>,
     g: &Gaussians,
     w: &[f32],
@@ -216,7 +227,7 @@ fn loss_with_prior<P: Observer>(
 /// Randomises Φ's parameters (its output layer starts at zero) and commits frames 0..3.
 fn setup<P: Observer>(
     case: &Case<P>,
-    c: &TrainConfig,
+    c: &RunConfig,
     seed: u64,
 ) -> (EvoBackbone<P>, Gaussians, Vec<f32>) {
     let mut rng = Lcg(seed);
@@ -233,10 +244,13 @@ fn setup<P: Observer>(
     let g = gaussians(&mut rng);
     for &t in &TIMES[..3] {
         b.forward(g.view(), t, true).unwrap();
-        b.backward(&[0.0; N * DEFORM_DIM]).unwrap();
+        b.backward(&vec![0.0; N * c.evogs.evo.layout.dim()])
+            .unwrap();
     }
     // Weights in [-2, 2): gradients well above the checks' absolute tolerance.
-    let w: Vec<f32> = (0..N * DEFORM_DIM).map(|_| 2.0 * rng.next()).collect();
+    let w: Vec<f32> = (0..N * c.evogs.evo.layout.dim())
+        .map(|_| 2.0 * rng.next())
+        .collect();
     (b, g, w)
 }
 
@@ -355,28 +369,26 @@ fn psi_gradients_with_opacity_and_colour_match_finite_differences() {
 }
 
 #[test]
-fn appearance_only_components_fill_their_columns_and_nothing_else() {
-    // Opacity and colour alone: D = 4; the geometric columns stay zero, the appearance ones
-    // carry Φ's output (Φ randomised by `setup`).
+fn appearance_only_components_give_rows_of_their_own_layout() {
+    // Opacity and colour alone: D = 4, rows of 4 values (opacity, then the SH DC) carrying the
+    // corrected d̃ as it is (Φ randomised by `setup`).
     let comps: Layout = "opacity,colour".parse().unwrap();
     let c = config(Gain::Fixed(0.3), comps, HistoryMode::Buffer);
     let (mut b, g, _) = setup(&triplane(), &c, 5);
     assert_eq!(b.evo().dim(), 4);
+    assert_eq!(b.layout(), comps);
     let d = b.forward(g.view(), TIMES[3], false).unwrap();
-    assert_eq!(d.len(), N * DEFORM_DIM);
-    for row in d.chunks_exact(DEFORM_DIM) {
-        assert!(row[..10].iter().all(|&v| v == 0.0), "{row:?}");
-    }
-    assert!(
-        d.chunks_exact(DEFORM_DIM)
-            .any(|r| r[10..].iter().any(|&v| v != 0.0))
-    );
-    let a = b.appearance();
-    assert!(a.opacity && a.colour);
-    // Geometry only: no appearance column is used.
+    assert_eq!(d, evolve(&b, &g, TIMES[3]).0.corrected());
+    assert_eq!(d.len(), N * 4);
+    assert!(d.iter().any(|&v| v != 0.0));
+    // A gradient of another width is refused, naming both.
+    b.forward(g.view(), TIMES[3], true).unwrap();
+    let e = b.backward(&[0.0; N * 10]).unwrap_err().to_string();
+    assert!(e.contains("50 values") && e.contains("5 × 4"), "{e}");
+    // Geometry only: position, rotation, scale.
     let c = config(Gain::Fixed(0.3), Layout::default(), HistoryMode::Buffer);
     let (b, _, _) = setup(&triplane(), &c, 5);
-    assert_eq!(b.appearance(), Default::default());
+    assert_eq!(b.layout(), Layout::GEOMETRY);
 }
 
 fn is_phi(name: &str) -> bool {

@@ -1,0 +1,209 @@
+//! The choice of backbone: the method and backbone a run names (`--method`, `--backbone`, in
+//! `config.json`) and the one function that builds it ([`make_backbone`]) from what a run hands
+//! every backbone ([`BackboneRun`]).
+//!
+//! A new backbone is a [`BackboneKind`] variant (its one-word spelling is what the command line
+//! parses), its module in this crate and its arm in [`make_backbone`]; nothing in the trainer
+//! names a backbone (ARCHITECTURE.md §5).
+
+use serde::{Deserialize, Serialize};
+use strum::{Display, EnumString, IntoStaticStr, VariantNames};
+
+use crate::backbone::Backbone;
+use crate::d3dgs::{D3dgsBackbone, NetSettings};
+use crate::error::BackboneError;
+use crate::evo_backbone::EvoBackbone;
+use crate::evo_settings::EvoSettings;
+use crate::grid4d_backbone::{Grid4dBackbone, Grid4dLr, Grid4dRun};
+use crate::grid4d_phi::Grid4dPhi;
+use crate::hex_backbone::HexBackbone;
+use crate::hex_phi::HexPhi;
+use crate::one_word::{OneWord, unknown};
+
+/// The deformation method (`--method`).
+#[derive(EnumString, Display, IntoStaticStr, VariantNames)]
+#[strum(serialize_all = "lowercase", parse_err_ty = BackboneError, parse_err_fn = unknown::<Self>)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// The backbone's own deformation network alone (D-3DGS, 4DGaussians, Grid4D).
+    Baseline,
+    /// EvoGS(backbone): Φ + evolution state + Ψ (settings in [`EvoSettings`]; Φ is the tri-plane
+    /// network for d3dgs, the backbone's own field at half width for 4dgs and grid4d).
+    Evogs,
+}
+
+impl OneWord for Method {
+    const FIELD: &'static str = "method";
+}
+
+/// The deformation backbone (`--backbone`).
+#[derive(EnumString, Display, IntoStaticStr, VariantNames)]
+#[strum(serialize_all = "lowercase", parse_err_ty = BackboneError, parse_err_fn = unknown::<Self>)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum BackboneKind {
+    /// Deformable-3D-Gaussians' deformation MLP ([`D3dgsBackbone`]).
+    #[default]
+    #[serde(rename = "d3dgs")]
+    D3dgs,
+    /// 4DGaussians' HexPlane field ([`HexBackbone`]).
+    #[serde(rename = "4dgs")]
+    #[strum(serialize = "4dgs")]
+    FourDgs,
+    /// Grid4D's 4D decomposed hash-grid field ([`Grid4dBackbone`]).
+    #[serde(rename = "grid4d")]
+    Grid4d,
+}
+
+impl OneWord for BackboneKind {
+    const FIELD: &'static str = "backbone";
+}
+
+/// What a run hands the backbone it builds: the choice, every backbone's settings, the initial
+/// cube, the seed, and Grid4D's table size and schedules (the trainer's `TrainConfig::backbone_run`
+/// fills it from the run's config).
+#[derive(Clone, Copy, Debug)]
+pub struct BackboneRun<'a> {
+    /// Baseline or EvoGS.
+    pub method: Method,
+    /// The backbone.
+    pub kind: BackboneKind,
+    /// The D-3DGS network's shape (its width also sizes Grid4D's decoder and EvoGS's Φ).
+    pub net: &'a NetSettings,
+    /// EvoGS's settings (read when `method` is EvoGS).
+    pub evogs: &'a EvoSettings,
+    /// Half extent `h` of the initial cube `[-h, h]³` (the fields' boxes).
+    pub half_extent: f32,
+    /// The run's seed.
+    pub seed: u64,
+    /// `log2` of the most entries of a Grid4D table level ([`Grid4dRun::log2_table`]).
+    pub grid4d_log2_table: u32,
+    /// Grid4D's learning rates.
+    pub grid4d_lr: Grid4dLr,
+}
+
+impl BackboneRun<'_> {
+    /// What the Grid4D backbone (and EvoGS(Grid4D)'s Φ) takes of the run.
+    pub fn grid4d(&self) -> Grid4dRun {
+        Grid4dRun {
+            width: self.net.width,
+            log2_table: self.grid4d_log2_table,
+            half_extent: self.half_extent,
+            lr: self.grid4d_lr,
+            seed: self.seed,
+        }
+    }
+}
+
+/// The backbone a run asks for, initialised from its seed.
+pub fn make_backbone(run: &BackboneRun<'_>) -> Result<Box<dyn Backbone>, BackboneError> {
+    let (evogs, h, seed) = (run.evogs, run.half_extent, run.seed);
+    Ok(match (run.method, run.kind) {
+        (Method::Baseline, BackboneKind::D3dgs) => {
+            Box::new(D3dgsBackbone::new(run.net, seed ^ 0xD3D6_5000)?)
+        }
+        (Method::Baseline, BackboneKind::FourDgs) => Box::new(HexBackbone::new(h, seed)?),
+        (Method::Baseline, BackboneKind::Grid4d) => Box::new(Grid4dBackbone::new(&run.grid4d())?),
+        (Method::Evogs, BackboneKind::D3dgs) => {
+            Box::new(EvoBackbone::new(evogs, run.net.width, h, seed)?)
+        }
+        (Method::Evogs, BackboneKind::FourDgs) => Box::new(EvoBackbone::with_phi(
+            evogs,
+            seed,
+            HexPhi::new(evogs, h, seed)?,
+        )?),
+        (Method::Evogs, BackboneKind::Grid4d) => Box::new(EvoBackbone::with_phi(
+            evogs,
+            seed,
+            Grid4dPhi::new(&run.grid4d(), evogs)?,
+        )?),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use splat_core::Layout;
+
+    fn run<'a>(
+        method: Method,
+        kind: BackboneKind,
+        net: &'a NetSettings,
+        evogs: &'a EvoSettings,
+    ) -> BackboneRun<'a> {
+        BackboneRun {
+            method,
+            kind,
+            net,
+            evogs,
+            half_extent: 1.3,
+            seed: 7,
+            grid4d_log2_table: 8,
+            grid4d_lr: Grid4dLr {
+                position_init: 1.6e-4,
+                position_final: 1.6e-6,
+                delay_mult: 0.01,
+                max_steps: 100,
+                scale: 1.0,
+            },
+        }
+    }
+
+    /// Every method with every backbone builds, with the name and row layout it stands for: a
+    /// baseline deforms geometry only, EvoGS the components of its settings (all five but with
+    /// 4DGaussians' Φ, which has geometric heads only and refuses the others).
+    #[test]
+    fn every_choice_builds_its_backbone() {
+        let net = NetSettings {
+            width: 16,
+            depth: 2,
+            skip_after: None,
+            xyz_freqs: 2,
+            t_freqs: 2,
+            init: crate::NetInit::Torch,
+        };
+        for name in BackboneKind::VARIANTS {
+            let kind: BackboneKind = name.parse().unwrap();
+            let evogs = EvoSettings::default();
+            let b = make_backbone(&run(Method::Baseline, kind, &net, &evogs)).unwrap();
+            assert_eq!(b.name(), kind.to_string());
+            assert_eq!(b.layout(), Layout::GEOMETRY, "{kind}");
+            assert!(b.state().is_none(), "{kind}");
+            for layout in [Layout::GEOMETRY, Layout::ALL] {
+                let mut evogs = EvoSettings::default();
+                evogs.evo.layout = layout;
+                match make_backbone(&run(Method::Evogs, kind, &net, &evogs)) {
+                    Ok(e) => {
+                        assert_eq!(e.name(), "evogs");
+                        assert_eq!(e.layout(), layout, "{kind}");
+                        assert!(e.state().is_some(), "{kind}");
+                    }
+                    Err(e) => {
+                        assert_eq!((kind, layout), (BackboneKind::FourDgs, Layout::ALL));
+                        assert!(e.to_string().contains("scale only"), "{e}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// The one-word spellings, and the one message for a word that spells none.
+    #[test]
+    fn methods_and_backbones_parse_from_one_word() {
+        assert_eq!(
+            "4dgs".parse::<BackboneKind>().unwrap(),
+            BackboneKind::FourDgs
+        );
+        assert_eq!("evogs".parse::<Method>().unwrap(), Method::Evogs);
+        let e = "nope".parse::<BackboneKind>().unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "invalid setting `backbone`: unknown backbone `nope`; expected d3dgs, 4dgs or grid4d"
+        );
+        let e = "x".parse::<Method>().unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "invalid setting `method`: unknown method `x`; expected baseline or evogs"
+        );
+    }
+}

@@ -1,0 +1,138 @@
+//! The D-3DGS backbone (`--backbone d3dgs`, the default): Deformable-3D-Gaussians' deformation
+//! MLP ([`D3dgsBackbone`]) and its shape ([`NetSettings`], [`NetInit`]).
+//!
+//! Its rows are the network's three heads, position, rotation and scale
+//! ([`splat_core::Layout::GEOMETRY`]), handed to the trainer as the network writes them.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+use splat_core::GaussiansView;
+use tiny_nn::{DeformCache, DeformConfig, DeformNet, Parameters, Precision, StoreMut, StoreRef};
+
+use crate::backbone::{Backbone, fill_inputs, no_training_forward};
+use crate::error::BackboneError;
+
+/// How the deformation network's parameters start.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum NetInit {
+    /// D-3DGS: PyTorch's default on every layer, heads included.
+    #[default]
+    Torch,
+    /// He hidden layers (zero bias) and zero heads: the deformation starts at exactly zero and
+    /// depends on its input through all 8 layers from the first step (see [`tiny_nn::Init`]).
+    He,
+}
+
+/// The D-3DGS deformation network's shape.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct NetSettings {
+    /// Hidden width (D-3DGS: 256).
+    pub width: usize,
+    /// Hidden layers (8).
+    pub depth: usize,
+    /// Skip connection after this hidden layer (4).
+    pub skip_after: Option<usize>,
+    /// Frequencies of the position encoding (10).
+    pub xyz_freqs: usize,
+    /// Frequencies of the time encoding (6 for synthetic scenes).
+    pub t_freqs: usize,
+    /// Initialisation (runs written before it existed read as D-3DGS's).
+    #[serde(default)]
+    pub init: NetInit,
+}
+
+/// D-3DGS's deformation network (`utils/time_utils.py` `DeformNetwork`: sinusoidal encodings of
+/// xyz (10 frequencies) and t (6 for synthetic scenes), 8 ReLU layers with the input re-joined
+/// after layer 4, linear heads for position, rotation and scale), as `tiny_nn::DeformNet`.
+pub struct D3dgsBackbone {
+    net: DeformNet,
+    cache: Option<DeformCache>,
+    positions: Vec<f32>,
+    times: Vec<f32>,
+}
+
+impl D3dgsBackbone {
+    /// The network of the given shape, initialised from `seed`.
+    pub fn new(settings: &NetSettings, seed: u64) -> Result<Self, BackboneError> {
+        let net = DeformNet::new(DeformConfig {
+            width: settings.width,
+            depth: settings.depth,
+            skip_after: settings.skip_after,
+            xyz_freqs: settings.xyz_freqs,
+            t_freqs: settings.t_freqs,
+            init: match settings.init {
+                NetInit::Torch => tiny_nn::Init::Torch,
+                NetInit::He => tiny_nn::Init::He,
+            },
+            zero_heads: settings.init == NetInit::He,
+            precision: Precision::F32,
+            seed,
+        })?;
+        Ok(Self {
+            net,
+            cache: None,
+            positions: Vec::new(),
+            times: Vec::new(),
+        })
+    }
+}
+
+impl Backbone for D3dgsBackbone {
+    fn name(&self) -> &'static str {
+        "d3dgs"
+    }
+
+    fn forward_into(
+        &mut self,
+        canonical: GaussiansView<'_>,
+        time: f32,
+        training: bool,
+        out: &mut Vec<f32>,
+    ) -> Result<(), BackboneError> {
+        let n = canonical.len();
+        fill_inputs(canonical, time, &mut self.positions, &mut self.times);
+        let mut cache = self.cache.take().unwrap_or_default();
+        let geometry = self
+            .net
+            .forward_into(&self.positions, &self.times, n, &mut cache)?;
+        if training {
+            self.cache = Some(cache);
+        }
+        // The network's heads are the rows: position, rotation, scale (`Layout::GEOMETRY`).
+        *out = geometry;
+        Ok(())
+    }
+
+    fn backward_into(
+        &mut self,
+        d_deform: &[f32],
+        out: &mut Vec<Vec<f32>>,
+    ) -> Result<(), BackboneError> {
+        let cache = self.cache.as_ref().ok_or_else(no_training_forward)?;
+        let g = self.net.backward(cache, d_deform, false)?;
+        out.truncate(1);
+        match out.first_mut() {
+            Some(grads) => *grads = g.mlp,
+            None => out.push(g.mlp),
+        }
+        Ok(())
+    }
+
+    fn params(&self) -> Vec<(String, StoreRef<'_>)> {
+        self.net.named_params()
+    }
+
+    fn params_mut(&mut self) -> Vec<(String, StoreMut<'_>)> {
+        self.net.named_params_mut()
+    }
+
+    fn save(&self, path: &Path) -> Result<(), BackboneError> {
+        Ok(tiny_nn::weights::save(path, &self.net)?)
+    }
+
+    fn load(&mut self, path: &Path) -> Result<(), BackboneError> {
+        Ok(tiny_nn::weights::load(path, &mut self.net)?)
+    }
+}
