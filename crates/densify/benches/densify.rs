@@ -86,6 +86,29 @@ fn run(rng: &mut ChaCha8Rng) -> Run {
     }
 }
 
+/// The evolution state as one of the run's arrays (as its backbone wraps it in
+/// `evogs-backbones`: densify itself does not depend on evo-state).
+struct Evolution<'a>(&'a mut EvoState);
+
+impl PerGaussian for Evolution<'_> {
+    fn label(&self) -> String {
+        "evolution state".into()
+    }
+
+    fn rows(&self) -> usize {
+        self.0.rows()
+    }
+
+    fn apply(&mut self, plan: &densify::DensifyPlan) -> Result<(), densify::DensifyError> {
+        self.0
+            .apply_rows(&plan.rows)
+            .map_err(|e| densify::DensifyError::Container {
+                array: self.label(),
+                source: Box::new(e),
+            })
+    }
+}
+
 fn apply_all(plan: &densify::DensifyPlan, run: &mut Run, with_evo: bool) {
     let Run {
         gaussians,
@@ -102,9 +125,10 @@ fn apply_all(plan: &densify::DensifyPlan, run: &mut Run, with_evo: bool) {
         adam,
         groups: &groups,
     };
+    let mut evolution = Evolution(evo);
     let mut arrays: Vec<&mut dyn PerGaussian> = vec![gaussians, stats];
     if with_evo {
-        arrays.push(evo);
+        arrays.push(&mut evolution);
     }
     arrays.push(&mut moments);
     apply_plan(plan, &mut arrays).unwrap();

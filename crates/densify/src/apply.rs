@@ -8,8 +8,8 @@
 //! - [`Moments`] (one Adam group): new rows start at zero moments (as 3DGS's
 //!   `cat_tensors_to_optimizer`); reset rows' opacity moments are zeroed (`reset_opacity` →
 //!   `replace_tensor_to_optimizer`).
-//! - [`EvoState`]: evo-state's own row maintenance (buffer rows of every frame and memory copied
-//!   from the parent).
+//! - a deformation's per-Gaussian state (EvoGS's evolution state, implemented beside its
+//!   backbone in `evogs-backbones`): its own row maintenance.
 //! - [`DensifyStats`]: zeroed after a densification step (3DGS's `densification_postfix`),
 //!   otherwise rows follow the plan.
 //! - [`Rows`]: any other array of rows, with a chosen fill for new rows.
@@ -17,7 +17,6 @@
 use crate::error::DensifyError;
 use crate::plan::DensifyPlan;
 use crate::stats::DensifyStats;
-use evo_state::EvoState;
 use rayon::prelude::*;
 use splat_core::Gaussians;
 use splat_core::{NewRows, RowPlan, RowPlanError};
@@ -279,20 +278,6 @@ impl PerGaussian for OptimiserMoments<'_> {
             one.apply(plan)?;
         }
         Ok(())
-    }
-}
-
-impl PerGaussian for EvoState {
-    fn label(&self) -> String {
-        "evolution state".into()
-    }
-
-    fn rows(&self) -> usize {
-        EvoState::rows(self)
-    }
-
-    fn apply(&mut self, plan: &DensifyPlan) -> Result<(), DensifyError> {
-        Ok(self.apply_rows(&plan.rows)?)
     }
 }
 

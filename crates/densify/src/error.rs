@@ -1,6 +1,5 @@
 //! The crate's error type.
 
-use evo_state::EvoError;
 use splat_core::RowPlanError;
 use thiserror::Error;
 
@@ -55,7 +54,14 @@ pub enum DensifyError {
         #[source]
         source: RowPlanError,
     },
-    /// The evolution state refused the row plan.
-    #[error("densify: applying the row plan to the evolution state: {0}")]
-    Evo(#[from] EvoError),
+    /// A per-Gaussian container refused the row plan for a reason of its own (e.g. EvoGS's
+    /// evolution state, whose rows its backbone maintains).
+    #[error("densify: applying the row plan to the {array}: {source}")]
+    Container {
+        /// The container's label ([`crate::PerGaussian::label`]).
+        array: String,
+        /// Its error.
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
 }

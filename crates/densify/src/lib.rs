@@ -3,18 +3,22 @@
 //!
 //! Flow per training iteration:
 //! 1. [`DensifyStats::add_view`] with the rasterizer's per-Gaussian dL/d(projected mean) and
-//!    screen radii; [`DensifyStats::add_evolution`] with [`residual_norms`] and [`thetas`] of
-//!    evo-state's step (EvoGS trigger).
+//!    screen radii; [`DensifyStats::add_evolution`] with the per-Gaussian residual norms and θ of
+//!    the deformation's step (EvoGS trigger; evo-state's `Step::residual_norms` and
+//!    `Step::thetas` compute them).
 //! 2. When [`Schedule::acts`], [`make_plan`] decides, deterministically for a seed, and returns a
 //!    [`DensifyPlan`]: a [`splat_core::RowPlan`], the new rows' parameter values, and
 //!    the rows whose opacity is reset.
 //! 3. [`apply_plan`] applies it to every per-Gaussian container through one trait,
-//!    [`PerGaussian`] (Gaussians, Adam moments, evolution state, statistics, any other rows), and
+//!    [`PerGaussian`] (Gaussians, Adam moments, statistics, any other rows: a deformation's
+//!    per-Gaussian state, such as EvoGS's evolution state, implements it beside its backbone), and
 //!    checks that all end with the same length.
 //!
 //! It is not a trainer: it renders nothing, computes no gradients and steps no optimiser; it
 //! reads plain slices from the rasterizer (`means2d`: dL/d projected mean in pixels, `radii`: px,
-//! 0 when culled) and evo-state's public step outputs, and never depends on their internals.
+//! 0 when culled) and the deformation's per-Gaussian cues and rows, and depends on neither the
+//! rasterizer nor the evolution state (gsplat's strategies are generic in the same way: what is
+//! specific to a dynamic scene sits beside them).
 //!
 //! Choices where DESIGN §6 is silent (details in each module):
 //! - Conditions and order are those of 3DGS's `train.py` / `densify_and_prune` (see
@@ -44,4 +48,4 @@ pub use error::DensifyError;
 pub use extent::scene_extent;
 pub use plan::{DensifyPlan, NewValues, PlanSummary};
 pub use planner::{Deformation, PlanInput, make_plan};
-pub use stats::{DensifyStats, residual_norms, thetas};
+pub use stats::DensifyStats;

@@ -5,13 +5,12 @@
 //!   The rasterizer gives dL/d(pixel mean); a pixel coordinate is `u = (ndc + 1) W/2 - 0.5`, so
 //!   dL/d(ndc) = dL/du · W/2 and likewise H/2 (DESIGN §6.1).
 //! - Maximum screen radius over the interval (`max_radii2D`).
-//! - EvoGS: sum and count of the per-step residual norm and of the angular deviation θ, fed from
-//!   evo-state's forward outputs ([`residual_norms`], [`thetas`]).
+//! - EvoGS: sum and count of the per-step residual norm and of the angular deviation θ, given
+//!   as plain per-Gaussian values (evo-state's `Step::residual_norms` and `Step::thetas`
+//!   compute them; densify knows nothing of the evolution state).
 
 use crate::error::DensifyError;
-use evo_state::Step;
 use rayon::prelude::*;
-use splat_core::{Component, Layout};
 
 /// Per-Gaussian statistics since the last densification step.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -130,7 +129,8 @@ impl DensifyStats {
     }
 
     /// Adds one EvoGS step's uncertainty cues: per-Gaussian residual norm (relative to the scene
-    /// extent) and θ, each when the step has them (see [`residual_norms`], [`thetas`]).
+    /// extent) and θ, each when the step has them (evo-state's `Step::residual_norms`,
+    /// `Step::thetas`).
     pub fn add_evolution(
         &mut self,
         residual_norm: Option<&[f32]>,
@@ -191,50 +191,4 @@ fn add_samples(sum: &mut [f32], count: &mut [u32], values: &[f32]) {
             *s += v;
             *c += 1;
         });
-}
-
-/// Per-Gaussian residual norm `|z - d̂|` of a step, relative to the scene extent, or `None`
-/// when the step has no prior (h < 2).
-///
-/// Only the position part is used when the layout has one: it is the only component measured
-/// in scene units, so dividing by the extent makes τ_r scene-independent. Without a position
-/// component the whole deformation vector's norm is used, unscaled (its units are raw log-scale,
-/// quaternion, logit or SH units).
-pub fn residual_norms(
-    step: &Step,
-    z: &[f32],
-    layout: &Layout,
-    extent: f32,
-) -> Result<Option<Vec<f32>>, DensifyError> {
-    let d = layout.dim();
-    let n = step.rows();
-    check_len("z", z.len(), n * d)?;
-    let Some(prior) = step.prior() else {
-        return Ok(None);
-    };
-    check_len("step.prior", prior.len(), n * d)?;
-    if !(extent.is_finite() && extent > 0.0) {
-        return Err(DensifyError::Input {
-            field: "extent",
-            problem: format!("scene extent {extent} must be finite and positive"),
-        });
-    }
-    let (range, scale) = match layout.range(Component::Position) {
-        Some(r) => (r, 1.0 / extent),
-        None => (0..d, 1.0),
-    };
-    let out = z
-        .par_chunks(d.max(1))
-        .zip(prior.par_chunks(d.max(1)))
-        .map(|(z, p)| {
-            let sq: f32 = range.clone().map(|j| (z[j] - p[j]) * (z[j] - p[j])).sum();
-            sq.sqrt() * scale
-        })
-        .collect();
-    Ok(Some(out))
-}
-
-/// Per-Gaussian angular deviation θ of a step, or `None` when it has no statistics (h < 3).
-pub fn thetas(step: &Step) -> Option<Vec<f32>> {
-    step.stats().map(|s| s.iter().map(|s| s.theta).collect())
 }

@@ -48,6 +48,9 @@ pub enum EvoError {
     /// The query time is not finite.
     #[error("query time {0} is not finite")]
     NonFiniteTime(f32),
+    /// The scene extent a residual is measured against is not a finite positive number.
+    #[error("extent: scene extent {0} must be finite and positive")]
+    Extent(f32),
     /// Only training steps (at a frame time) commit.
     #[error("time {0} is not a training frame time; only training steps commit")]
     NotAFrame(f32),

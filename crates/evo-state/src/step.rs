@@ -1,6 +1,10 @@
 //! One query's result ([`Step`]): prior, statistics, gain and corrected state, and what the
 //! backward pass returns ([`Backward`]).
 
+use rayon::prelude::*;
+use splat_core::{Component, Layout};
+
+use crate::error::EvoError;
 use crate::frames::History;
 
 /// Motion statistics of one Gaussian (h = 3), on the position part, per frame spacing.
@@ -135,6 +139,60 @@ impl Step {
     /// Ψ's inputs after normalisation, N × (D + 3) rows `[m, |v2|, |v1|, θ]` (h = 3).
     pub fn psi_inputs(&self) -> Option<&[f32]> {
         self.stats.as_ref().map(|_| self.scratch.as_slice())
+    }
+
+    /// Per-Gaussian residual norm `|z - d̂|` of the step (`z` its observations, N × D in
+    /// `layout`), relative to the scene `extent`, or `None` when the step has no prior (h < 2):
+    /// one of the densification trigger's uncertainty cues (DESIGN §6.6).
+    ///
+    /// Only the position part is used when the layout has one: it is the only component measured
+    /// in scene units, so dividing by the extent makes τ_r scene-independent. Without a position
+    /// component the whole deformation vector's norm is used, unscaled (its units are raw
+    /// log-scale, quaternion, logit or SH units).
+    pub fn residual_norms(
+        &self,
+        z: &[f32],
+        layout: Layout,
+        extent: f32,
+    ) -> Result<Option<Vec<f32>>, EvoError> {
+        let d = layout.dim();
+        let n = self.rows;
+        let length = |what, actual| EvoError::Length {
+            what,
+            expected: n * d,
+            actual,
+        };
+        if z.len() != n * d {
+            return Err(length("observation z", z.len()));
+        }
+        let Some(prior) = self.prior() else {
+            return Ok(None);
+        };
+        if prior.len() != n * d {
+            return Err(length("step prior", prior.len()));
+        }
+        if !(extent.is_finite() && extent > 0.0) {
+            return Err(EvoError::Extent(extent));
+        }
+        let (range, scale) = match layout.range(Component::Position) {
+            Some(r) => (r, 1.0 / extent),
+            None => (0..d, 1.0),
+        };
+        let out = z
+            .par_chunks(d.max(1))
+            .zip(prior.par_chunks(d.max(1)))
+            .map(|(z, p)| {
+                let sq: f32 = range.clone().map(|j| (z[j] - p[j]) * (z[j] - p[j])).sum();
+                sq.sqrt() * scale
+            })
+            .collect();
+        Ok(Some(out))
+    }
+
+    /// Per-Gaussian angular deviation θ of the step, or `None` when it has no statistics
+    /// (h < 3): the trigger's other cue (DESIGN §6.6).
+    pub fn thetas(&self) -> Option<Vec<f32>> {
+        self.stats().map(|s| s.iter().map(|s| s.theta).collect())
     }
 }
 

@@ -11,9 +11,13 @@ pub enum BackboneError {
     /// A network or optimiser error.
     #[error("network: {0}")]
     Nn(#[from] tiny_nn::NnError),
-    /// A densification error (the uncertainty cues).
+    /// A densification error.
     #[error(transparent)]
     Densify(#[from] densify::DensifyError),
+    /// The evolution state refused a setting, an input or a step (a non-finite observation
+    /// names its Gaussian and component).
+    #[error("evolution state: {0}")]
+    Evo(#[from] evo_state::EvoError),
     /// A weights or state file is unusable (the message names the field where there is one).
     #[error("{}: {problem}", path.display())]
     File {

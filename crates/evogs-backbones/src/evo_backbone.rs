@@ -29,7 +29,7 @@
 
 use std::path::Path;
 
-use densify::{Deformation, PerGaussian, residual_norms, thetas};
+use densify::{Deformation, DensifyError, DensifyPlan, PerGaussian};
 use evo_state::{Backward, EvoConfig, EvoError, EvoState, Frames, Step};
 use rayon::prelude::*;
 use splat_core::{GaussiansView, Layout, sigmoid};
@@ -45,9 +45,43 @@ use crate::error::BackboneError;
 use crate::evo_settings::EvoSettings;
 use crate::observer::Observer;
 
-/// evo-state's errors as the trainer's (the message names the Gaussian and component).
-fn evo_err(e: EvoError) -> BackboneError {
-    BackboneError::config("evolution state", e.to_string())
+/// The evolution state as one of densification's per-Gaussian arrays: a plan's row plan applied
+/// to its buffer rows of every frame and its residual memory (evo-state's
+/// [`EvoState::apply_rows`]). Kept here, beside the backbone that owns the state, so that
+/// densify knows nothing of EvoGS.
+struct Evolution(EvoState);
+
+impl std::ops::Deref for Evolution {
+    type Target = EvoState;
+
+    fn deref(&self) -> &EvoState {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for Evolution {
+    fn deref_mut(&mut self) -> &mut EvoState {
+        &mut self.0
+    }
+}
+
+impl PerGaussian for Evolution {
+    fn label(&self) -> String {
+        "evolution state".into()
+    }
+
+    fn rows(&self) -> usize {
+        self.0.rows()
+    }
+
+    fn apply(&mut self, plan: &DensifyPlan) -> Result<(), DensifyError> {
+        self.0
+            .apply_rows(&plan.rows)
+            .map_err(|e| DensifyError::Container {
+                array: self.label(),
+                source: Box::new(e),
+            })
+    }
 }
 
 /// Φ's configuration for a run: half the baseline network's width (`net_width`), scene box
@@ -93,7 +127,7 @@ struct Training<C> {
 pub struct EvoBackbone<P: Observer = ObservationNet> {
     settings: EvoSettings,
     phi: P,
-    evo: EvoState,
+    evo: Evolution,
     /// Whether `evo` was built for the run's frames and Gaussians (or loaded).
     ready: bool,
     training: Option<Training<P::Cache>>,
@@ -140,8 +174,12 @@ impl<P: Observer> EvoBackbone<P> {
         let placeholder = Frames::from_timestamps([0.0])
             .map_err(|e| BackboneError::config("frames", e.to_string()))?;
         // The extent is the scene's: `prepare` builds the state again with it.
-        let evo =
-            EvoState::new(settings.evo, placeholder, 0, seed ^ 0x9A1_0000).map_err(evo_err)?;
+        let evo = Evolution(EvoState::new(
+            settings.evo,
+            placeholder,
+            0,
+            seed ^ 0x9A1_0000,
+        )?);
         Ok(Self {
             settings,
             phi,
@@ -224,7 +262,7 @@ impl<P: Observer> EvoBackbone<P> {
                 self.evo.forward_into(time, z, Some(&mut source), step)
             }
         };
-        result.map_err(evo_err)?;
+        result?;
         Ok(caches)
     }
 }
@@ -322,8 +360,7 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
         }
         let mut bw = self.backward.take().unwrap_or_default();
         self.evo
-            .backward_into(&t.step, &t.z, d_deform, &t.opacity, &mut bw)
-            .map_err(evo_err)?;
+            .backward_into(&t.step, &t.z, d_deform, &t.opacity, &mut bw)?;
         let mut grads = self.phi.gradients(&t.cache, &bw.dz)?;
         // Re-queried history: d̂ = z(t_k1) + s (z(t_k1) - z(t_k2)) reaches Φ at those times.
         for hg in &bw.history {
@@ -346,7 +383,7 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
         let psi_len = self.evo.psi().param_count();
         grads.push(bw.dpsi.clone().unwrap_or_else(|| vec![0.0f32; psi_len]));
         *out = grads;
-        self.evo.commit(&t.step).map_err(evo_err)?;
+        self.evo.commit(&t.step)?;
         t.committed = true;
         self.backward = Some(bw);
         Ok(())
@@ -422,9 +459,9 @@ impl<P: Observer> PerGaussianState for EvoBackbone<P> {
             extent,
             ..self.settings.evo
         };
-        let mut evo = EvoState::new(config, frames, rows, 0).map_err(evo_err)?;
-        evo.psi_mut().set_params(&psi).map_err(evo_err)?;
-        self.evo = evo;
+        let mut evo = EvoState::new(config, frames, rows, 0)?;
+        evo.psi_mut().set_params(&psi)?;
+        self.evo = Evolution(evo);
         self.ready = true;
         Ok(())
     }
@@ -449,8 +486,8 @@ impl<P: Observer> PerGaussianState for EvoBackbone<P> {
         };
         let layout = self.settings.evo.layout;
         Ok(DensifyCues {
-            residual_norm: residual_norms(&t.step, &t.z, &layout, extent)?,
-            theta: thetas(&t.step),
+            residual_norm: t.step.residual_norms(&t.z, layout, extent)?,
+            theta: t.step.thetas(),
         })
     }
 
@@ -511,7 +548,7 @@ impl<P: Observer> PerGaussianState for EvoBackbone<P> {
                 "field `psi`: Ψ has another shape",
             ));
         }
-        self.evo = evo;
+        self.evo = Evolution(evo);
         self.ready = true;
         self.training = None;
         Ok(())

@@ -23,9 +23,9 @@
 //! [`make_backbone`]; the trainer names no backbone (ARCHITECTURE.md §5).
 //!
 //! What it is not: the trainer (Gaussians, Adam, densification, the loop, checkpoints: that is
-//! `evogs-train`, which owns the run's whole config and adds the deformation rows to the
-//! Gaussians), a network library (`tiny-nn`) or the evolution state (`evo-state`). It does not
-//! depend on the rasterizer.
+//! `evogs-train`, which owns the run's whole config), the deformation row and its application to
+//! Gaussians (`splat-core`'s `Layout` and `DeformedGeometry`), a network library (`tiny-nn`) or
+//! the evolution state (`evo-state`). It does not depend on the rasterizer.
 //!
 //! Deliberate deviation from the paper (DESIGN §4.7): EvoGS's motion floor is 1e-3 of the scene
 //! extent per frame spacing, not 1e-6 (evo-state keeps 1e-6; the trainer sets its own,

@@ -11,6 +11,8 @@ use densify::{
 };
 use evo_state::{EvoConfig, EvoState, Frames, Storage};
 use proptest::prelude::*;
+
+use crate::common::Evolution;
 use splat_core::Gaussians;
 use splat_core::logit;
 use splat_core::{Layout, NewRows};
@@ -166,7 +168,7 @@ proptest! {
         {
             let mut moments = Moments { group: adam.group_mut(id), opacity_column: Some(10) };
             let mut tag_rows = Rows { label: "tags", data: &mut tags, stride: 1, fill: NewRows::CopyParent };
-            apply_plan(&plan, &mut [&mut after, &mut moments, &mut evo, &mut after_stats, &mut tag_rows]).unwrap();
+            apply_plan(&plan, &mut [&mut after, &mut moments, &mut Evolution(&mut evo), &mut after_stats, &mut tag_rows]).unwrap();
         }
 
         let m = plan.new_len();

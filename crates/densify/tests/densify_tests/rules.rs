@@ -577,7 +577,6 @@ fn bad_inputs_name_the_field_and_change_nothing() {
 
 #[test]
 fn evolution_cues_come_from_evo_state_steps() {
-    use densify::{residual_norms, thetas};
     use evo_state::{EvoConfig, EvoState, Frames, Gain};
     let config = EvoConfig {
         gain: Gain::Fixed(0.5),
@@ -599,8 +598,8 @@ fn evolution_cues_come_from_evo_state_steps() {
     for k in 0..4 {
         let z = z_at(k);
         let step = evo.forward(evo.frames().times()[k], &z).unwrap();
-        let r = residual_norms(&step, &z, &layout, 2.0).unwrap();
-        let t = thetas(&step);
+        let r = step.residual_norms(&z, layout, 2.0).unwrap();
+        let t = step.thetas();
         match k {
             0 | 1 => assert!(r.is_none() && t.is_none(), "no prior before h = 2"),
             _ => {

@@ -263,3 +263,61 @@ fn zero_and_one_gaussian() {
     let step = train(&mut st, 4, &[]);
     assert_eq!(step.history().len, 3);
 }
+
+/// The densification cues of a step: none before there is a prior (residual) or statistics
+/// (θ); a residual measured on the position part relative to the extent, or on the whole
+/// vector unscaled without a position component; wrong lengths and unusable extents refused.
+#[test]
+fn residual_cues_need_a_prior_and_refuse_bad_inputs() {
+    let rotation_only = evo_state::Layout {
+        rotation: true,
+        ..evo_state::Layout::from_bits(0).unwrap()
+    };
+    for (layout, scale) in [(position_only(), 0.5), (rotation_only, 1.0)] {
+        let config = EvoConfig {
+            layout,
+            gain: Gain::Fixed(0.5),
+            ..EvoConfig::default()
+        };
+        let mut st = state(config, uniform_frames(4), 1);
+        let d = layout.dim();
+        let first = train(&mut st, 0, &vec![0.0; d]);
+        assert_eq!(
+            first.residual_norms(&vec![0.0; d], layout, 2.0).unwrap(),
+            None
+        );
+        assert_eq!(first.thetas(), None);
+        train(&mut st, 1, &vec![0.1; d]);
+        let z = vec![1.0; d];
+        let step = st.forward(st.frames().times()[2], &z).unwrap();
+        let prior = step.prior().unwrap();
+        let want = z
+            .iter()
+            .zip(prior)
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum::<f32>()
+            .sqrt()
+            * scale;
+        let got = step.residual_norms(&z, layout, 2.0).unwrap().unwrap();
+        assert!(
+            (got[0] - want).abs() < 1e-6,
+            "`{layout}`: {got:?} vs {want}"
+        );
+        assert_eq!(step.thetas(), None, "θ needs three frames of history");
+        let e = step.residual_norms(&z[1..], layout, 2.0).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                EvoError::Length {
+                    what: "observation z",
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        for extent in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+            let e = step.residual_norms(&z, layout, extent).unwrap_err();
+            assert!(matches!(e, EvoError::Extent(_)), "{e}");
+        }
+    }
+}

@@ -4,7 +4,7 @@
 //! default floor (1e-6 of the extent) the same jitter blocks the still Gaussian, which is the
 //! failure the trainer's floor fixes.
 
-use densify::{DensifyStats, PlanInput, make_plan, residual_norms, thetas};
+use densify::{DensifyStats, PlanInput, make_plan};
 use evo_state::EvoState;
 use evogs_backbones::evo_settings::TRAINER_MOTION_FLOOR;
 use evogs_backbones::{EvoConfig, EvoSettings};
@@ -65,14 +65,14 @@ fn trigger(
         ..defaults
     };
     let (_, step) = step_at_frame_3(&settings, positions);
-    let theta = thetas(&step).expect("three history frames give statistics");
+    let theta = step.thetas().expect("three history frames give statistics");
     let n = positions.len();
     let layout = settings.evo.layout;
     let z = {
         // The same z the step was made with: the prior, so every residual is zero.
         step.prior().unwrap().to_vec()
     };
-    let residual = residual_norms(&step, &z, &layout, EXTENT).unwrap();
+    let residual = step.residual_norms(&z, layout, EXTENT).unwrap();
 
     let mut config = TrainConfig::preset(Preset::Tiny);
     config.method = Method::Evogs;
