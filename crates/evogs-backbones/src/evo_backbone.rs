@@ -2,7 +2,7 @@
 //! [`EvoState`] with its gain network Ψ. Φ is any [`Observer`]: EvoGS(D-3DGS)'s tri-plane +
 //! cubic B-spline + MLP at half the baseline's width ([`ObservationNet`], the default),
 //! EvoGS(4DGS)'s HexPlane field ([`crate::hex_phi::HexPhi`]) or EvoGS(Grid4D)'s hash-grid field
-//! ([`crate::grid4d_backbone::Grid4dPhi`]), each at half its width.
+//! ([`crate::grid4d_phi::Grid4dPhi`]), each at half its width.
 //!
 //! - Training forward (`training = true`): z = Φ(canonical means, t), then evo-state's forward at
 //!   t; the corrected d̃ is the deformation. The step, z, Φ's cache and the stop-gradient
@@ -22,7 +22,7 @@
 //! ([`PerGaussianState::rows_mut`]), saved and loaded whole with evo-state's safetensors format
 //! ([`PerGaussianState::save_state`]).
 //!
-//! The deformation rows are the evolution state's own: its [`Layout`](splat_core::Layout) holds
+//! The deformation rows are the evolution state's own: its [`Layout`] holds
 //! any subset of the components (D <= 14, only enabled ones cost anything) and
 //! [`Backbone::layout`] tells the trainer which, so the corrected d̃ is handed over as it is and
 //! the gradient comes back in the same columns (no rearranging either way).

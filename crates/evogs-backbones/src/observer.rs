@@ -3,7 +3,7 @@
 //!
 //! Two implementations: EvoGS(D-3DGS)'s tri-plane + B-spline + MLP ([`tiny_nn::ObservationNet`],
 //! the paper's Φ) and EvoGS(Grid4D)'s hash-grid field
-//! ([`crate::grid4d_backbone::Grid4dPhi`]). Parameter buffers are Φ's [`Parameters`]; the
+//! ([`crate::grid4d_phi::Grid4dPhi`]). Parameter buffers are Φ's [`Parameters`]; the
 //! evolution backbone prefixes them with `phi.`.
 
 use tiny_nn::{LrSchedule, ObservationCache, ObservationNet, Parameters};

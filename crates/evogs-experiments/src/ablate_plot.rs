@@ -7,7 +7,7 @@ use crate::plotting::{draw_with_fallback, padded_range, tick_label};
 use image::RgbImage;
 use plotters::prelude::*;
 
-use crate::ablate::AblationResult;
+use crate::ablate_data::AblationResult;
 
 const WIDTH: u32 = 800;
 const HEIGHT: u32 = 600;

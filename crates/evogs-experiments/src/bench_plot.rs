@@ -7,7 +7,7 @@ use crate::plotting::{draw_with_fallback, finite_bounds, tick_label};
 use image::RgbImage;
 use plotters::prelude::*;
 
-use crate::bench::{BenchRun, published_for};
+use crate::bench_data::{BenchRun, published_for};
 
 const PANEL_WIDTH: u32 = 480;
 const PANEL_HEIGHT: u32 = 360;

@@ -16,8 +16,10 @@
 //! and `evogs-metrics`; this crate only composes them into experiments.
 
 pub mod ablate;
+mod ablate_data;
 pub mod ablate_plot;
 pub mod bench;
+mod bench_data;
 pub mod bench_plot;
 pub mod error;
 pub mod gain_table;

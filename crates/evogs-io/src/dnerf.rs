@@ -7,6 +7,7 @@
 
 use glam::{Mat3, Vec3};
 use splat_core::Camera;
+use splat_core::one_word::{OneWord, unknown_message};
 use std::path::{Path, PathBuf};
 
 use crate::IoError;
@@ -20,7 +21,7 @@ pub use write::{DnerfImage, dnerf_camera_angle_x, opengl_c2w, write_dnerf_split}
 /// A dataset split, spelled `train`, `test` or `val` (its [`Display`](std::fmt::Display) and
 /// [`FromStr`](std::str::FromStr)).
 #[derive(strum::Display, strum::EnumString, strum::IntoStaticStr, strum::VariantNames)]
-#[strum(serialize_all = "lowercase", parse_err_ty = String, parse_err_fn = unknown_split)]
+#[strum(serialize_all = "lowercase", parse_err_ty = String, parse_err_fn = unknown_message::<Self>)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Split {
     /// `transforms_train.json`.
@@ -46,9 +47,9 @@ impl Split {
     }
 }
 
-/// The error of [`Split`]'s `from_str`.
-fn unknown_split(s: &str) -> String {
-    crate::names::unknown("split", s, <Split as strum::VariantNames>::VARIANTS)
+/// [`Split`]'s `from_str` error: "unknown split `x`; expected train, test or val".
+impl OneWord for Split {
+    const FIELD: &'static str = "split";
 }
 
 /// One frame: an image, its time and its camera.
@@ -181,4 +182,25 @@ pub fn read_transforms(path: &Path) -> Result<Vec<DnerfFrame>, IoError> {
 /// Reads a split of a D-NeRF dataset directory (`root/transforms_<split>.json`).
 pub fn read_dnerf_split(root: &Path, split: Split) -> Result<Vec<DnerfFrame>, IoError> {
     read_transforms(&split.transforms_path(root))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Split;
+
+    #[test]
+    fn messages_list_every_spelling() {
+        assert_eq!(
+            "x".parse::<Split>().unwrap_err(),
+            "unknown split `x`; expected train, test or val"
+        );
+    }
+
+    #[test]
+    fn spellings_round_trip() {
+        for split in Split::ALL {
+            assert_eq!(split.to_string().parse::<Split>(), Ok(split));
+            assert_eq!(split.name(), split.to_string());
+        }
+    }
 }

@@ -18,11 +18,12 @@
 //! 3; `frame0120_cam03.png` reads 120).
 
 use serde::{Deserialize, Serialize};
+use splat_core::one_word::{OneWord, unknown_message};
 
 /// Where a frame's time comes from when the dataset stores none, spelled `order`, `name` or
 /// `none` on the command line and in files.
 #[derive(strum::Display, strum::EnumString, strum::IntoStaticStr, strum::VariantNames)]
-#[strum(serialize_all = "lowercase", parse_err_ty = String, parse_err_fn = unknown_time_rule)]
+#[strum(serialize_all = "lowercase", parse_err_ty = String, parse_err_fn = unknown_message::<Self>)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum TimeFrom {
@@ -61,9 +62,10 @@ impl TimeFrom {
     }
 }
 
-/// The error of [`TimeFrom`]'s `from_str`.
-fn unknown_time_rule(s: &str) -> String {
-    crate::names::unknown("time rule", s, <TimeFrom as strum::VariantNames>::VARIANTS)
+/// [`TimeFrom`]'s `from_str` error: "unknown time rule `x`; expected order, name or none".
+impl OneWord for TimeFrom {
+    const FIELD: &'static str = "time-from";
+    const NOUN: &'static str = "time rule";
 }
 
 /// The frame number in an image name (see the [module docs](self)), `None` when it has none or
@@ -141,6 +143,22 @@ pub fn times_from_names(names: &[&str], from: TimeFrom) -> Result<Vec<f32>, (usi
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn messages_list_every_spelling() {
+        assert_eq!(
+            "Order".parse::<TimeFrom>().unwrap_err(),
+            "unknown time rule `Order`; expected order, name or none"
+        );
+    }
+
+    #[test]
+    fn spellings_round_trip() {
+        for rule in TimeFrom::ALL {
+            assert_eq!(rule.to_string().parse::<TimeFrom>(), Ok(rule));
+            assert_eq!(rule.name(), rule.to_string());
+        }
+    }
 
     #[test]
     fn frame_numbers_follow_the_documented_patterns() {

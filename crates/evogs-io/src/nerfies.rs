@@ -29,7 +29,7 @@ use glam::Vec3;
 use serde_json::Value;
 
 use crate::camera_info::CameraInfo;
-use crate::dataset::{
+use crate::dataset_types::{
     Dataset, Format, Frame, LoadOptions, NerfiesSplit, Normalisation, PointCloud,
 };
 use crate::json_fields::{Fields, load_json};

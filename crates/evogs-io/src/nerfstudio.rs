@@ -42,7 +42,7 @@ use crate::IoError;
 use crate::camera_info::{CameraInfo, Distortion};
 use crate::camera_json::image_side;
 use crate::colmap;
-use crate::dataset::{Dataset, Format, Frame, PointCloud};
+use crate::dataset_types::{Dataset, Format, Frame, PointCloud};
 use crate::dnerf::camera_from_opengl_c2w;
 use crate::frame_time::{TimeFrom, times_from_names};
 use crate::json_fields::{Fields, ROTATION_TOLERANCE, load_json, rotation_error};

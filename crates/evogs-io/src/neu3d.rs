@@ -35,19 +35,10 @@ use splat_core::Camera;
 
 use crate::IoError;
 use crate::camera_info::CameraInfo;
-use crate::dataset::{Dataset, Format, Frame};
+pub use crate::dataset_types::TimeDenominator;
+use crate::dataset_types::{Dataset, Format, Frame};
 use crate::json_fields::{ROTATION_TOLERANCE, rotation_error};
 use crate::npy::read_npy;
-
-/// How frame indices become times.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum TimeDenominator {
-    /// `frame / count` (4DGaussians; last frame below 1).
-    #[default]
-    Count,
-    /// `frame / (count − 1)` (Deformable-3D-Gaussians; last frame at 1; a single frame is 0).
-    CountMinusOne,
-}
 
 /// One row of `poses_bounds.npy`, decoded.
 #[derive(Clone, Copy, Debug, PartialEq)]

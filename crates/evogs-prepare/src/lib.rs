@@ -27,6 +27,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use serde::Serialize;
+use splat_core::one_word::{OneWord, unknown_message};
 
 pub use error::PrepareError;
 
@@ -50,7 +51,7 @@ impl Source {
 
 /// Which frame pairs COLMAP matches, spelled `sequential` or `exhaustive`.
 #[derive(strum::Display, strum::EnumString, strum::IntoStaticStr, strum::VariantNames)]
-#[strum(serialize_all = "lowercase", parse_err_ty = String, parse_err_fn = unknown_matcher)]
+#[strum(serialize_all = "lowercase", parse_err_ty = String, parse_err_fn = unknown_message::<Self>)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Matcher {
@@ -87,10 +88,9 @@ impl Matcher {
     }
 }
 
-/// The error of [`Matcher`]'s `from_str`.
-fn unknown_matcher(s: &str) -> String {
-    let names: &[&str] = <Matcher as strum::VariantNames>::VARIANTS;
-    format!("unknown matcher `{s}`; expected {}", names.join(" or "))
+/// [`Matcher`]'s `from_str` error: "unknown matcher `x`; expected sequential or exhaustive".
+impl OneWord for Matcher {
+    const FIELD: &'static str = "matcher";
 }
 
 /// What `prepare` is asked to do.

@@ -33,8 +33,7 @@ use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 
 use evogs_backbones::OneWord;
 
-use crate::config::unknown;
-use crate::error::TrainError;
+use crate::error::{TrainError, unknown};
 
 /// The clock a time budget is measured on (`--budget-clock`).
 #[derive(EnumString, Display, IntoStaticStr, VariantNames)]

@@ -40,9 +40,9 @@ use serde::{Deserialize, Serialize};
 use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 
 pub use evogs_backbones::{BackboneKind, Method};
-use evogs_backbones::{BackboneRun, Grid4dLr, NetInit, NetSettings, OneWord, unknown_message};
+use evogs_backbones::{BackboneRun, Grid4dLr, NetInit, NetSettings, OneWord};
 
-use crate::error::TrainError;
+use crate::error::{TrainError, unknown};
 
 /// The `dnerf` preset's cap on the Gaussian count (densify's `max_gaussians`) for the baseline:
 /// the initial point count, which densification may refill after pruning but not exceed.
@@ -64,11 +64,6 @@ pub const DNERF_MAX_GAUSSIANS_EVOGS: usize = 40_000;
 /// gave the best cap tried on lego, jumpingjacks and mutant and the second best on hook
 /// (0.16 dB below 10 000, one seed; issue Q, `results/dnerf/` A.10–A.13).
 pub const DNERF_GAUSSIAN_VIEW_BUDGET_EVOGS: u64 = 2_000_000;
-
-/// [`unknown_message`] as the error of the setting [`OneWord::FIELD`].
-pub(crate) fn unknown<T: OneWord>(value: &str) -> TrainError {
-    TrainError::config(T::FIELD, unknown_message::<T>(value))
-}
 
 impl OneWord for Background {
     const FIELD: &'static str = "background";

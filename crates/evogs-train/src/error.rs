@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use splat_core::one_word::{OneWord, unknown_message};
 use thiserror::Error;
 
 /// An error of training, evaluation, rendering or export.
@@ -121,4 +122,10 @@ impl TrainError {
             problem: cause.to_string(),
         }
     }
+}
+
+/// [`unknown_message`] as the error of the setting [`OneWord::FIELD`] (the `parse_err_fn` of the
+/// trainer's one-word settings).
+pub(crate) fn unknown<T: OneWord>(value: &str) -> TrainError {
+    TrainError::config(T::FIELD, unknown_message::<T>(value))
 }

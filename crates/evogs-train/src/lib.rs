@@ -38,6 +38,7 @@ pub mod gain_report;
 pub mod init;
 pub mod memory;
 pub mod run;
+mod run_files;
 pub mod state;
 pub mod timers;
 pub mod train_log;

@@ -33,6 +33,7 @@ use crate::checkpoint::{CheckpointMeta, load_checkpoint, save_checkpoint};
 use crate::config::TrainConfig;
 use crate::data::{load_dataset_split, load_split, open_dataset};
 use crate::error::TrainError;
+pub use crate::run_files::{read_json, write_json, write_text};
 use crate::state::SceneState;
 use crate::timers::PhaseTimes;
 use crate::train_log::TrainLog;
@@ -149,33 +150,6 @@ impl TrainSummary {
             .as_ref()
             .map_or(self.iteration, |b| b.schedule_iteration)
     }
-}
-
-/// Writes `value` as pretty JSON to `path`, atomically (a run directory's JSON files).
-pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), TrainError> {
-    let text = serde_json::to_string_pretty(value)
-        .map_err(|e| TrainError::file(path, format!("cannot encode JSON: {e}")))?;
-    write_text(path, &text)
-}
-
-/// Writes `text` to `path`, atomically (a run directory's text files).
-pub fn write_text(path: &Path, text: &str) -> Result<(), TrainError> {
-    evogs_io::atomic::write_atomically(path, |w| {
-        use std::io::Write;
-        w.write_all(text.as_bytes())
-            .map_err(|cause| evogs_io::IoError::Io {
-                path: path.to_path_buf(),
-                cause,
-            })
-    })?;
-    Ok(())
-}
-
-/// Reads the JSON file `path` (a run directory's `config.json`, `train_metrics.json`, …); the
-/// error names the file.
-pub fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T, TrainError> {
-    let text = std::fs::read_to_string(path).map_err(|e| TrainError::io(path, e))?;
-    serde_json::from_str(&text).map_err(|e| TrainError::file(path, format!("invalid JSON: {e}")))
 }
 
 /// What `train` is asked to do.

@@ -557,7 +557,7 @@ mod tests {
         c.method = Method::Evogs;
         c.evogs.grid_lr_scale = 10.0;
         c.evogs.psi_lr = Some(3e-3);
-        let backbone = crate::trainer::make_backbone(&c).unwrap();
+        let backbone = evogs_backbones::make_backbone(&c.backbone_run()).unwrap();
         let g = crate::init::random_gaussians(4, 1.0, 0, 0);
         let s = SceneState::new(g, backbone.as_ref(), &c.lr).unwrap();
         let base = network_schedule(&c.lr);
@@ -581,7 +581,7 @@ mod tests {
         assert!(seen[0] > 0 && seen[1] > 0, "{names:?}");
         // Runs recorded before `psi_lr` existed (None) train Ψ on the network schedule.
         c.evogs.psi_lr = None;
-        let backbone = crate::trainer::make_backbone(&c).unwrap();
+        let backbone = evogs_backbones::make_backbone(&c.backbone_run()).unwrap();
         let g = crate::init::random_gaussians(4, 1.0, 0, 0);
         let s = SceneState::new(g, backbone.as_ref(), &c.lr).unwrap();
         let psi = *s.net_groups.last().unwrap();

@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 use evogs_backbones::GainStats;
 
 use crate::error::TrainError;
-use crate::run::write_text;
+use crate::run_files::write_text;
 
 /// One line of `train_log.jsonl`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

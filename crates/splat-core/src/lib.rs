@@ -6,7 +6,8 @@
 //! array aligned when Gaussians are pruned, cloned or split ([`RowPlan`], [`NewRows`]), and the
 //! deformation row: its [`Layout`] (which components a deformation vector holds, in which order),
 //! applying rows to the Gaussians and their gradient back ([`DeformedGeometry`],
-//! [`deformation_gradient_into`]), and the gradients of the raw parameters ([`GaussianGrads`]).
+//! [`deformation_gradient_into`]), the gradients of the raw parameters ([`GaussianGrads`]), and
+//! the one message for a setting spelled by a word that names no value ([`one_word`]).
 //!
 //! What it is not: a renderer (`splat-raster`), a file reader (`evogs-io`), a deformation model
 //! or a trainer. It has no GPU dependency, so that the file formats, densification and the
@@ -17,6 +18,7 @@ pub mod camera;
 pub mod deform;
 pub mod deformed;
 pub mod gaussians;
+pub mod one_word;
 pub mod rows;
 pub mod sh;
 
@@ -25,4 +27,5 @@ pub use camera::Camera;
 pub use deform::{Component, Layout, LayoutParseError};
 pub use deformed::{DeformedGeometry, deformation_gradient, deformation_gradient_into};
 pub use gaussians::{GaussianGrads, Gaussians, GaussiansView, ShapeError, sh_coeff_count};
+pub use one_word::{OneWord, unknown_message};
 pub use rows::{NewRows, RowPlan, RowPlanError};

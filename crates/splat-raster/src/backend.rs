@@ -8,6 +8,7 @@
 use std::fmt;
 
 use serde::{Deserialize, Serialize};
+use splat_core::one_word::OneWord;
 
 use crate::Rasterizer;
 use crate::cpu::CpuRasterizer;
@@ -17,7 +18,7 @@ use crate::error::RasterError;
 pub type DynRasterizer = Box<dyn Rasterizer + Send + Sync>;
 
 /// The backend a user asks for, spelled `cpu`, `wgpu` or `auto`.
-#[derive(strum::Display, strum::EnumString, strum::IntoStaticStr)]
+#[derive(strum::Display, strum::EnumString, strum::IntoStaticStr, strum::VariantNames)]
 #[strum(serialize_all = "lowercase", parse_err_ty = RasterError, parse_err_fn = RasterError::unknown_backend)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -29,6 +30,11 @@ pub enum BackendChoice {
     Wgpu,
     /// wgpu on a hardware adapter, the CPU otherwise.
     Auto,
+}
+
+/// The noun of [`RasterError::UnknownBackend`]'s message.
+impl OneWord for BackendChoice {
+    const FIELD: &'static str = "backend";
 }
 
 impl BackendChoice {

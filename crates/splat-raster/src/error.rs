@@ -1,5 +1,6 @@
 //! The rasterizer's error type: bad input is reported with the field it came from, never a panic.
 
+use splat_core::one_word::unknown_message;
 use thiserror::Error;
 
 /// Why a forward or backward pass refused its input.
@@ -83,8 +84,9 @@ pub enum RasterError {
         /// What went wrong.
         message: String,
     },
-    /// A backend name that is not `cpu`, `wgpu` or `auto`.
-    #[error("unknown backend `{0}`; expected cpu, wgpu or auto")]
+    /// A backend name that is not `cpu`, `wgpu` or `auto` ("unknown backend `x`; expected cpu,
+    /// wgpu or auto").
+    #[error("{}", unknown_message::<crate::BackendChoice>(.0))]
     UnknownBackend(String),
     /// A thread pool could not be built.
     #[error("could not build a thread pool of {threads} threads: {message}")]

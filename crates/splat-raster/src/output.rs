@@ -1,6 +1,10 @@
 //! What the passes return: the rendered images with the state the backward pass needs, and the
-//! gradients of every raw parameter.
+//! gradients of every raw parameter. The backends' own parts of that state are defined with
+//! their backends (`cpu::state`, `gpu::state`) and only held here.
 
+use crate::cpu::state::{BackwardScratch, CpuState};
+#[cfg(feature = "wgpu")]
+use crate::gpu::state::GpuState;
 use crate::options::CullStats;
 pub use splat_core::GaussianGrads;
 
@@ -72,9 +76,9 @@ pub(crate) struct BackwardState {
 #[derive(Clone, Debug)]
 pub(crate) enum BackendState {
     /// Boxed: the CPU state (with its reused buffers) is far larger than the GPU's handle.
-    Cpu(Box<crate::cpu::CpuState>),
+    Cpu(Box<CpuState>),
     #[cfg(feature = "wgpu")]
-    Gpu(Box<crate::gpu::GpuState>),
+    Gpu(Box<GpuState>),
 }
 
 /// Work counters of a forward pass.
@@ -166,18 +170,4 @@ pub struct BackwardOutput {
     /// [`Rasterizer::backward_into`](crate::Rasterizer::backward_into) (empty after
     /// [`Rasterizer::backward`](crate::Rasterizer::backward)).
     pub(crate) scratch: BackwardScratch,
-}
-
-/// The CPU backward pass's own buffers (only their capacity outlives a pass).
-#[derive(Clone, Debug, Default)]
-pub(crate) struct BackwardScratch {
-    /// Per tile-list entry, its gradient (tile-major, as the lists).
-    pub entries: Vec<crate::cpu::SplatGrads>,
-}
-
-impl PartialEq for BackwardScratch {
-    /// Scratch holds no result: any two are equal.
-    fn eq(&self, _: &Self) -> bool {
-        true
-    }
 }

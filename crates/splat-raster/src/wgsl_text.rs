@@ -1,6 +1,6 @@
 //! Reading declarations out of the WGSL sources as text, for the tests that check the kernels
-//! against the Rust side (constants in `constants.rs`, uniform layouts in `gpu/layout.rs`): no
-//! GPU and no `wgpu` feature needed.
+//! against the Rust side (constants in `constants.rs`, uniform layouts in `gpu/layout_tests.rs`):
+//! no GPU and no `wgpu` feature needed.
 //!
 //! What it is not: a WGSL parser. It reads `const NAME: T = EXPR;` lines (EXPR a literal or
 //! `a / b`) and `struct Name { field: type, ... }` declarations of scalars, vectors and

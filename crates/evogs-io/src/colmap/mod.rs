@@ -41,7 +41,7 @@ pub use text::{
 };
 
 use crate::IoError;
-use crate::dataset::{Dataset, Format, Frame, PointCloud};
+use crate::dataset_types::{Dataset, Format, Frame, PointCloud};
 use crate::frame_time::{TimeFrom, times_from_names};
 
 /// The folder of a dataset directory that holds the sparse model: `sparse/0/` when it exists,

@@ -10,7 +10,7 @@ use glam::Vec3;
 use super::header::ScalarType;
 use super::read::{Prelude, Rows, plan_columns};
 use crate::IoError;
-use crate::dataset::PointCloud;
+use crate::dataset_types::PointCloud;
 
 /// Record slots: position, then colour.
 const NAMES: [&str; 6] = ["x", "y", "z", "red", "green", "blue"];

@@ -3,7 +3,10 @@
 //! - `project`: per-Gaussian projection (f64) and its backward pass;
 //! - `tiles`: binning of drawn Gaussians into depth-ordered tile lists;
 //! - `composite`: per-tile front-to-back compositing and its backward, as plain reference kernels
-//!   (`scalar`) and eight-pixel SIMD kernels (`lanes`) over the lane builds of `simd`.
+//!   (`scalar`) and eight-pixel SIMD kernels (`lanes`) over the lane builds of `simd`, and the
+//!   choice between them ([`CpuKernel`]);
+//! - `state`: what a forward pass keeps for its backward pass, and the buffers the passes reuse
+//!   (held by [`ForwardOutput`] and [`BackwardOutput`]).
 //!
 //! Determinism: the forward image does not depend on the thread count (each tile is composited
 //! by one thread in a fixed order), and neither do the gradients: each tile writes its per-entry
@@ -12,16 +15,17 @@
 mod composite;
 mod project;
 mod simd;
+pub(crate) mod state;
 mod tiles;
 
 use std::sync::Arc;
 
 use rayon::prelude::*;
 
-use self::composite::{LANES, TileOut, lanes, scalar};
-pub(crate) use self::project::SplatGrads;
-use self::project::{CullReason, Splat};
-use self::simd::Isa;
+pub use self::composite::CpuKernel;
+use self::composite::{Kernels, LANES, TileOut, lanes, scalar};
+use self::project::{CullReason, Splat, SplatGrads};
+use self::state::{BackwardScratch, CpuState, Scratch};
 use self::tiles::TileLists;
 use crate::Rasterizer;
 use crate::camera::Camera;
@@ -30,39 +34,8 @@ use crate::error::RasterError;
 use crate::frame::Frame;
 use crate::gaussians::GaussiansView;
 use crate::options::{CullStats, RenderOptions};
-use crate::output::{
-    BackendState, BackwardOutput, BackwardScratch, Counters, ForwardOutput, PixelGrads,
-};
+use crate::output::{BackendState, BackwardOutput, Counters, ForwardOutput, PixelGrads};
 use crate::validate::{validate, validate_backward};
-
-/// Which compositing kernels [`CpuRasterizer`] runs.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub enum CpuKernel {
-    /// Eight pixels at a time with a vectorised `exp`, compiled for AVX2 + FMA when the CPU has
-    /// them (chosen at run time) and for the baseline target otherwise, with identical results.
-    #[default]
-    Simd,
-    /// The plain reference kernels, one pixel at a time with the standard library's `exp`: the
-    /// CPU backend's kernels before the SIMD ones, kept to check and to measure those against.
-    Scalar,
-}
-
-/// The kernels that run: the scalar ones with an `exp`, or the SIMD ones built for an
-/// instruction set.
-#[derive(Clone, Copy, Debug)]
-pub(crate) enum Kernels {
-    Scalar { exp: fn(f32) -> f32 },
-    Lanes(Isa),
-}
-
-impl Kernels {
-    fn of(kernel: CpuKernel) -> Self {
-        match kernel {
-            CpuKernel::Simd => Kernels::Lanes(Isa::best()),
-            CpuKernel::Scalar => Kernels::Scalar { exp: f32::exp },
-        }
-    }
-}
 
 /// The CPU rasterizer. By default it runs the SIMD kernels on rayon's global pool.
 #[derive(Clone, Debug)]
@@ -123,52 +96,6 @@ impl CpuRasterizer {
             None => f(),
         }
     }
-}
-
-/// The CPU backend's backward state, and the buffers a forward pass reuses.
-#[derive(Clone, Debug)]
-pub(crate) struct CpuState {
-    /// The kernels the forward pass ran (the backward pass runs the same).
-    pub kernels: Kernels,
-    /// The drawn Gaussians' records in depth order (indexed by the lists' ranks).
-    pub splats: Vec<Splat>,
-    pub lists: TileLists,
-    /// Tile-major (tile, lane) final transmittance.
-    pub final_t: Vec<f32>,
-    /// Tile-major one-past-last contributor position in the tile list.
-    pub last: Vec<u32>,
-    /// Buffers only the forward pass uses, kept for the next one by
-    /// [`Rasterizer::forward_into`] (empty after [`Rasterizer::forward`]).
-    pub scratch: Scratch,
-}
-
-impl Default for CpuState {
-    fn default() -> Self {
-        Self {
-            kernels: Kernels::of(CpuKernel::Simd),
-            splats: Vec::new(),
-            lists: TileLists::default(),
-            final_t: Vec::new(),
-            last: Vec::new(),
-            scratch: Scratch::default(),
-        }
-    }
-}
-
-/// The forward pass's own buffers (only their capacity outlives a pass).
-#[derive(Clone, Debug, Default)]
-pub(crate) struct Scratch {
-    /// Per Gaussian (by index), its record (default when culled).
-    splats: Vec<Splat>,
-    /// Per Gaussian, its tile rectangle (None when culled).
-    rects: Vec<Option<[u32; 4]>>,
-    /// Per Gaussian, its camera z (0 when culled).
-    depth: Vec<f32>,
-    /// Tile-major (tile, lane) colour and un-normalised depth.
-    color_t: Vec<[f32; 3]>,
-    depth_t: Vec<f32>,
-    /// The binning's buffers.
-    bin: tiles::BinScratch,
 }
 
 /// Gaussians per task of the projection (fixed, so the work split does not depend on the
@@ -626,7 +553,7 @@ mod tests {
     use glam::{Mat3, Vec3};
     use proptest::prelude::*;
 
-    use super::simd::{F8, Portable, Simd, dispatch};
+    use super::simd::{F8, Isa, Portable, Simd, dispatch};
     use super::*;
     use crate::gaussians::Gaussians;
     use crate::output::GaussianGrads;

@@ -10,17 +10,18 @@ use crate::options::{CullStats, RenderOptions};
 use crate::output::{BackendState, BackwardState, Counters, ForwardOutput};
 use crate::validate::validate;
 
+use super::WgpuRasterizer;
 use super::buffers::{read_back, storage, storage_init, uniform};
 use super::frame::{FrameUniform, pack_params};
 use super::pipelines::{bind, dispatch, groups_1d};
 use super::scan::level_lengths;
-use super::{GpuState, WgpuRasterizer};
+use super::state::GpuState;
 
 /// Bytes of one WGSL `Splat` record.
 pub(crate) const SPLAT_BYTES: u64 = 64;
 
 /// Index of each outcome in the projection's cull counts: the `CULL_*` codes of common.wgsl (0:
-/// drawn). A test in `gpu/layout.rs` checks them against the WGSL constants.
+/// drawn). A test in `gpu/layout_tests.rs` checks them against the WGSL constants.
 pub(crate) mod cull {
     /// Drawn (no cull reason).
     pub(crate) const DRAWN: usize = 0;

@@ -62,9 +62,12 @@ mod context;
 mod forward;
 mod frame;
 mod layout;
+#[cfg(test)]
+mod layout_tests;
 mod pipelines;
 mod scan;
 pub(crate) mod sort;
+pub(crate) mod state;
 
 use std::sync::Arc;
 
@@ -78,22 +81,8 @@ use crate::gaussians::GaussiansView;
 use crate::options::RenderOptions;
 use crate::output::{BackwardOutput, ForwardOutput, PixelGrads};
 
-use frame::FrameUniform;
 use pipelines::Pipelines;
 use sort::RadixSorter;
-
-/// Device buffers a GPU forward pass keeps for its backward pass.
-#[derive(Clone, Debug)]
-pub(crate) struct GpuState {
-    pub context_id: u64,
-    pub frame: FrameUniform,
-    pub params: wgpu::Buffer,
-    pub splats: wgpu::Buffer,
-    pub isect_ids: wgpu::Buffer,
-    pub ranges: wgpu::Buffer,
-    pub final_t: wgpu::Buffer,
-    pub last: wgpu::Buffer,
-}
 
 /// The GPU rasterizer (wgpu compute kernels). Same interface and results as
 /// [`crate::CpuRasterizer`].

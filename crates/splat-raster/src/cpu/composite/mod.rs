@@ -5,13 +5,48 @@
 //!   the fast kernels are tested against);
 //! - [`lanes`]: the fast kernels, eight pixels of a tile row at a time (see [`crate::cpu::simd`]).
 //!
+//! Which of the two a pass runs is chosen here too: [`CpuKernel`] (the user's choice) and
+//! [`Kernels`] (the kernels that run, kept in the forward pass's state so that its backward pass
+//! runs the same).
+//!
 //! What it is not: projection, binning or the per-Gaussian backward (see `project`, `tiles`).
 
 pub(crate) mod lanes;
 pub(crate) mod scalar;
 
+use super::simd::Isa;
 use crate::constants::TILE;
 use crate::frame::Frame;
+
+/// Which compositing kernels [`CpuRasterizer`](crate::CpuRasterizer) runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum CpuKernel {
+    /// Eight pixels at a time with a vectorised `exp`, compiled for AVX2 + FMA when the CPU has
+    /// them (chosen at run time) and for the baseline target otherwise, with identical results.
+    #[default]
+    Simd,
+    /// The plain reference kernels, one pixel at a time with the standard library's `exp`: the
+    /// CPU backend's kernels before the SIMD ones, kept to check and to measure those against.
+    Scalar,
+}
+
+/// The kernels that run: the scalar ones with an `exp`, or the SIMD ones built for an
+/// instruction set.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Kernels {
+    Scalar { exp: fn(f32) -> f32 },
+    Lanes(Isa),
+}
+
+impl Kernels {
+    /// The kernels that run for `kernel` ([`CpuKernel::Simd`]: the best build this CPU runs).
+    pub(crate) fn of(kernel: CpuKernel) -> Self {
+        match kernel {
+            CpuKernel::Simd => Kernels::Lanes(Isa::best()),
+            CpuKernel::Scalar => Kernels::Scalar { exp: f32::exp },
+        }
+    }
+}
 
 /// Pixels per tile.
 pub(crate) const LANES: usize = (TILE * TILE) as usize;

@@ -1,4 +1,6 @@
-//! The GPU radix sort against `slice::sort_by_key` (stable) on the low `key_bits` bits.
+//! The GPU radix sort against `slice::sort_by_key` (stable) on the low `key_bits` bits, and the
+//! prefix sum it runs (the backend's one scan, `gpu/scan.rs`) against the CPU's, both through
+//! [`SortHarness`].
 //!
 //! These tests need a wgpu adapter (lavapipe in CI); a missing one fails them with the reason.
 
@@ -172,6 +174,32 @@ fn scan_levels() {
     assert_eq!(level_lengths(1024 * 64 + 1), vec![1040, 2, 1]);
     assert_eq!(level_lengths(1 << 24), vec![1 << 18, 256, 1]);
     assert_eq!(level_lengths(u32::MAX), vec![1 << 26, 1 << 16, 64, 1]);
+}
+
+/// The exclusive prefix sum on the CPU, and the total.
+fn scan_reference(data: &[u32]) -> (Vec<u32>, u32) {
+    let mut run = 0u32;
+    let scanned = data
+        .iter()
+        .map(|&v| {
+            let before = run;
+            run += v;
+            before
+        })
+        .collect();
+    (scanned, run)
+}
+
+#[test]
+fn matches_the_cpu_scan_at_chunk_edges_and_on_a_2d_grid() {
+    // A grid at most 3 wide: 70 000 values are 69 chunks, 3 x 23 workgroups, two levels.
+    let narrow = SortHarness::with_max_groups_per_dim(3)
+        .unwrap_or_else(|e| panic!("GPU scan tests need a wgpu adapter: {e}"));
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    for n in [0, 1, 2, 255, 1023, 1024, 1025, 4097, 70_000, (1 << 20) + 1] {
+        let data: Vec<u32> = (0..n).map(|_| rng.random_range(0..300u32)).collect();
+        assert_eq!(narrow.prefix_sum(&data), scan_reference(&data), "n = {n}");
+    }
 }
 
 #[test]
