@@ -13,7 +13,9 @@
 //!   switches ([`EvoSettings`]), recorded in a run's `config.json`;
 //! - [`observer`]: what a field implements to be Φ ([`Observer`]); [`hex_phi`]: 4DGaussians'
 //!   field as Φ ([`HexPhi`]);
-//! - [`one_word`]: settings spelled by one word and the one message for an unknown word.
+//! - [`one_word`]: settings spelled by one word and the one message for an unknown word;
+//! - `cli` (cargo feature `clap`): EvoGS's switches as command-line flags (`EvoArgs`), each
+//!   default read from [`EvoSettings::default`], and the parser of one-word settings.
 //!
 //! - [`choice`]: the method and backbone a run names ([`Method`], [`BackboneKind`]) and the one
 //!   function that builds it ([`make_backbone`], from a [`BackboneRun`]).
@@ -34,6 +36,8 @@
 
 pub mod backbone;
 pub mod choice;
+#[cfg(feature = "clap")]
+pub mod cli;
 pub mod d3dgs;
 pub mod error;
 pub mod evo_backbone;

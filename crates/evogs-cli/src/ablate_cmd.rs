@@ -27,7 +27,7 @@ pub struct AblateArgs {
     pub out: PathBuf,
 
     /// Training preset for every row.
-    #[arg(long, default_value = "cpu", value_name = "cpu|tiny|paper")]
+    #[arg(long, default_value = "cpu", value_parser = evogs_backbones::cli::words::<Preset>())]
     pub preset: Preset,
 
     /// Iterations per row (scales the preset's schedule).
@@ -36,11 +36,11 @@ pub struct AblateArgs {
 
     /// Every run's time budget.
     #[command(flatten)]
-    pub budget: crate::args::BudgetArgs,
+    pub budget: crate::shared_args::BudgetArgs,
 
     /// Deformation backbone of every row: the baseline rows train it, the EvoGS rows use Φ built
     /// from its field (4dgs, grid4d; d3dgs: the tri-plane Φ).
-    #[arg(long, default_value = "d3dgs", value_name = "d3dgs|4dgs|grid4d")]
+    #[arg(long, default_value_t = evogs_train::BackboneKind::default(), value_parser = evogs_backbones::cli::words::<evogs_train::BackboneKind>())]
     pub backbone: evogs_train::BackboneKind,
 
     /// Random seed for every row (the first seed with --seeds) [default: the preset's].

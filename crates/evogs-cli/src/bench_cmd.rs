@@ -40,7 +40,7 @@ pub struct BenchArgs {
     pub methods: Vec<Method>,
 
     /// Training preset of every run.
-    #[arg(long, default_value = "dnerf", value_name = "dnerf|cpu|tiny|paper")]
+    #[arg(long, default_value = "dnerf", value_parser = evogs_backbones::cli::words::<Preset>())]
     pub preset: Preset,
 
     /// Iterations per run (scales the preset's schedule) [default: the preset's].
@@ -49,7 +49,7 @@ pub struct BenchArgs {
 
     /// Every run's time budget.
     #[command(flatten)]
-    pub budget: crate::args::BudgetArgs,
+    pub budget: crate::shared_args::BudgetArgs,
 
     /// Curve points (PSNR on the headline split) every this many iterations.
     #[arg(long, default_value_t = 1000, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
@@ -57,7 +57,7 @@ pub struct BenchArgs {
 
     /// Deformation backbone of every run (EvoGS runs use Φ built from its field; d3dgs: the
     /// tri-plane Φ).
-    #[arg(long, default_value = "d3dgs", value_name = "d3dgs|4dgs|grid4d")]
+    #[arg(long, default_value_t = evogs_train::BackboneKind::default(), value_parser = evogs_backbones::cli::words::<evogs_train::BackboneKind>())]
     pub backbone: evogs_train::BackboneKind,
 
     /// Seed of every run.

@@ -15,10 +15,9 @@ use evogs_io::Split;
 use evogs_synth::{embedded_scene, write_dnerf};
 use evogs_train::data::load_split;
 use evogs_train::{Method, Preset, TrainConfig};
-use splat_raster::BackendChoice;
 
-use crate::args::RenderArgs;
-use crate::render_run::render_run;
+use crate::render::{RenderArgs, render_run};
+use crate::shared_args::RasterArgs;
 
 /// Arguments of `evogs demo`.
 #[derive(Debug, Args)]
@@ -31,10 +30,9 @@ pub struct DemoArgs {
     #[arg(long, value_name = "DIR", default_value = "evogs-demo")]
     pub out: PathBuf,
 
-    /// Rasterizer backend for training, evaluation and the sweeps: cpu, wgpu (any adapter; an
-    /// error without one) or auto (wgpu on a hardware GPU, cpu otherwise).
-    #[arg(long, value_name = "cpu|wgpu|auto", default_value = "cpu", value_parser = crate::args::parse_backend)]
-    pub backend: BackendChoice,
+    /// The rasterizer backend of training, evaluation and the sweeps.
+    #[command(flatten)]
+    pub raster: RasterArgs,
 
     /// Iterations per method (overrides --quick).
     #[arg(long, value_name = "N", hide = true, value_parser = clap::value_parser!(u64).range(1..))]
@@ -102,13 +100,13 @@ pub fn run_demo(args: &DemoArgs) -> Result<(u64, Vec<DemoRow>)> {
     evogs_io::write_nerfies_camera(&camera, &evogs_io::CameraInfo::pinhole(first.camera))?;
     // Say once which backend runs (and why), on stderr beside the progress: stdout is the
     // table. Training, evaluation and the sweeps then open their own.
-    let (_, info) = splat_raster::select_rasterizer(args.backend)?;
+    let (_, info) = splat_raster::select_rasterizer(args.raster.backend)?;
     eprintln!("evogs demo: {info}");
     let mut rows = Vec::new();
     for method in [Method::Baseline, Method::Evogs] {
         let mut config = TrainConfig::preset(Preset::Tiny).with_iterations(iterations);
         config = config.with_method(method);
-        config.backend = args.backend;
+        config.backend = args.raster.backend;
         let out = args.out.join(method.to_string());
         let scores = train_and_evaluate(&data, &out, config, false, &EvalLpips::default())?;
         rows.push(DemoRow {
@@ -133,7 +131,7 @@ pub fn run_demo(args: &DemoArgs) -> Result<(u64, Vec<DemoRow>)> {
                 background: [0.0; 3],
                 width: None,
                 height: None,
-                backend: args.backend,
+                raster: args.raster,
             },
         )?;
     }

@@ -5,7 +5,46 @@ use anyhow::Result;
 use evogs_eval::LoadedRun;
 use evogs_eval::render::{export_frame_as, export_sequence};
 
-use crate::args::ExportArgs;
+use std::path::PathBuf;
+
+use clap::Args;
+
+/// Arguments of `evogs export`.
+#[derive(Debug, Args)]
+pub struct ExportArgs {
+    /// Run directory written by `evogs train`.
+    #[arg(long, value_name = "RUN")]
+    pub run: PathBuf,
+
+    /// Time of one frame: training times lie in [0, 1]; any finite time is accepted (between
+    /// frames, or beyond them: Φ's B-spline clamps to [0, 1], EvoGS's prior extrapolates the
+    /// last frames).
+    #[arg(
+        long,
+        value_name = "T",
+        allow_negative_numbers = true,
+        required_unless_present = "frames",
+        conflicts_with = "frames"
+    )]
+    pub time: Option<f32>,
+
+    /// A sequence of N frames at times evenly spaced over [0, 1] into the folder --out
+    /// (frame_0000.ply or .compressed.ply or .splat, ... and sequence.json: format, count, files, times, Gaussians, the
+    /// canonical bounds).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub frames: Option<u32>,
+
+    /// File format: ply (INRIA 3DGS, every SH band, f32), compressed-ply (PlayCanvas/SuperSplat's
+    /// .compressed.ply: about 16 bytes a Gaussian plus 1 per higher SH coefficient, quantised in
+    /// chunks of 256 in Morton order) or splat (32 bytes a Gaussian: DC colour only, 8-bit colour,
+    /// opacity and rotation; sorted by volume x opacity, largest first).
+    #[arg(long, default_value = "ply", value_name = "ply|compressed-ply|splat")]
+    pub format: evogs_eval::render::ExportFormat,
+
+    /// Output file (with --time) or folder (with --frames), each file written atomically.
+    #[arg(long, value_name = "OUT")]
+    pub out: PathBuf,
+}
 
 /// Runs `evogs export`; returns the number of files and of Gaussians in the first.
 pub fn run_export(args: &ExportArgs) -> Result<(usize, usize)> {

@@ -12,7 +12,231 @@ use evogs_train::run::checkpoint_follows;
 use evogs_train::{TrainConfig, TrainRequest, TrainSummary, train};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::args::TrainArgs;
+use clap::Args;
+use splat_raster::BackendChoice;
+
+use crate::shared_args::{BudgetArgs, TimeFromArg, parse_backend};
+
+/// Arguments of `evogs train`.
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// Dataset directory: D-NeRF, nerfies, Neu3D, COLMAP (`evogs prepare` writes one) or
+    /// nerfstudio; the layout is detected.
+    #[arg(long, value_name = "DIR", required_unless_present = "resume")]
+    pub data: Option<PathBuf>,
+
+    /// Times of frames whose dataset stores none (COLMAP, nerfstudio without `time`); see the
+    /// README's Datasets section for the names `name` accepts [default: order].
+    #[arg(long, value_name = "RULE")]
+    pub time_from: Option<TimeFromArg>,
+
+    /// Run directory to write (config, checkpoint, PLY, weights, metrics).
+    #[arg(long, value_name = "RUN")]
+    pub out: PathBuf,
+
+    /// Deformation method: baseline (D-3DGS) or evogs (EvoGS(D-3DGS): observation network Φ
+    /// at half the width, evolution state, gain network Ψ).
+    #[arg(long, default_value = "baseline", value_parser = evogs_backbones::cli::words::<evogs_train::Method>())]
+    pub method: evogs_train::Method,
+
+    /// Deformation backbone: d3dgs (Deformable-3D-Gaussians' MLP), 4dgs (4DGaussians'
+    /// HexPlane field with its regularisers) or grid4d (Grid4D's 4D decomposed hash grids with
+    /// directional attention). With --method evogs, 4dgs's and grid4d's fields become Φ at half
+    /// their width.
+    #[arg(long, default_value_t = evogs_train::BackboneKind::default(), value_parser = evogs_backbones::cli::words::<evogs_train::BackboneKind>())]
+    pub backbone: evogs_train::BackboneKind,
+
+    /// EvoGS's switches, each defaulting to `EvoSettings::default()`'s value.
+    #[command(flatten)]
+    pub evo: evogs_backbones::cli::EvoArgs,
+
+    /// Schedule iterations over which the deformation network's learning rate (D-3DGS's MLP, or
+    /// EvoGS's Φ, its planes and controls at `--grid-lr-scale` times it) decays from 8e-4 to
+    /// 1.6e-6, as D-3DGS's `deform_lr_max_steps`; counted on the run's schedule (after
+    /// `--iterations`), so the schedule's length decays it over the whole run, under a time
+    /// budget too (the dnerf preset decays it over more steps than its schedule has, so it ends
+    /// above 1.6e-6) [preset values: see --help].
+    #[arg(
+        long,
+        value_name = "N",
+        value_parser = clap::builder::RangedU64ValueParser::<u64>::new().range(1..),
+        help = by_preset(
+            "Schedule iterations over which the deformation network's learning rate (D-3DGS's MLP, \
+             or EvoGS's Φ, its planes and controls at `--grid-lr-scale` times it) decays from 8e-4 \
+             to 1.6e-6, as D-3DGS's `deform_lr_max_steps`; counted on the run's schedule (after \
+             `--iterations`), so the schedule's length decays it over the whole run, under a time \
+             budget too (the dnerf preset decays it over more steps than its schedule has, so it \
+             ends above 1.6e-6)",
+            |c| c.lr.deform_max_steps,
+        )
+    )]
+    pub net_lr_decay: Option<u64>,
+
+    /// Width of the deformation network (D-3DGS's MLP; EvoGS's Φ decodes at half of it)
+    /// [preset values: see --help].
+    #[arg(
+        long,
+        value_name = "W",
+        value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(2..),
+        help = by_preset(
+            "Width of the deformation network (D-3DGS's MLP; EvoGS's Φ decodes at half of it)",
+            |c| c.net.width,
+        )
+    )]
+    pub net_width: Option<usize>,
+
+    /// Print, with each progress line, EvoGS's motion statistics since the last line: samples
+    /// per decade of speed / extent with their mean θ (a diagnostic of the uncertainty trigger).
+    #[arg(long)]
+    pub motion_report: bool,
+
+    /// Print, at the end, EvoGS's gain K over the last quarter of the iterations: mean, std and
+    /// percentiles over all, moving and still Gaussians and per frame (also recorded as `gain`
+    /// in train_metrics.json by every run).
+    #[arg(long)]
+    pub gain_report: bool,
+
+    /// Settings preset: paper (D-3DGS's reference), cpu (2 cores), tiny (CI), dnerf (the
+    /// D-NeRF benchmark, network lr decay not compressed), each with its iterations, network
+    /// width and image scale [values: see --help].
+    #[arg(
+        long,
+        default_value = "cpu",
+        value_parser = evogs_backbones::cli::words::<evogs_train::Preset>(),
+        help = by_preset(
+            "Settings preset: paper (D-3DGS's reference), cpu (2 cores), tiny (CI), dnerf (the \
+             D-NeRF benchmark, network lr decay not compressed); iterations, network width, \
+             image scale",
+            |c| format!("{} it, width {}, 1/{}", c.iterations, c.net.width, 1.0 / c.downscale),
+        )
+    )]
+    pub preset: evogs_train::Preset,
+
+    /// Iterations; the preset's schedule is scaled to this count (with --time-budget: the
+    /// schedule's length, which the budget is mapped onto).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub iterations: Option<u64>,
+
+    /// The time budget.
+    #[command(flatten)]
+    pub budget: BudgetArgs,
+
+    /// Image resize factor, e.g. 2 trains lego at 400×400 [preset values: see --help].
+    #[arg(
+        long,
+        value_name = "F",
+        help = by_preset("Image resize factor, e.g. 2 trains lego at 400×400", |c| 1.0 / c.downscale)
+    )]
+    pub downscale: Option<f32>,
+
+    /// Seed of everything random.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+
+    /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
+    #[arg(
+        long,
+        conflicts_with_all = ["data", "time_from", "method", "backbone", "preset", "iterations", "downscale", "seed", "background", "gain", "history", "densify", "buffer", "net_precision", "components", "motion_floor", "grid_lr_scale", "psi_lr", "bspline_controls", "bspline_width", "triplane_resolutions", "triplane_combine", "triplane_channels", "net_lr_decay", "net_width", "max_gaussians", "max_screen_radius", "memory_limit", "checkpoint_every", "time_budget", "budget_clock"]
+    )]
+    pub resume: bool,
+
+    /// Background behind the Gaussians and the images' alpha [D-3DGS default for D-NeRF: black];
+    /// random: a new uniform colour each training iteration behind both (so transparency cannot
+    /// pass for the background's colour), black for evaluation and renders.
+    #[arg(long, value_parser = evogs_backbones::cli::words::<evogs_train::Background>())]
+    pub background: Option<evogs_train::Background>,
+
+    /// Rasterizer backend: cpu, wgpu (the GPU through wgpu, any adapter; an error without
+    /// one) or auto (wgpu on a hardware GPU, cpu otherwise). Recorded in the run; --resume keeps
+    /// the run's unless given [default: cpu].
+    #[arg(long, value_name = "cpu|wgpu|auto", value_parser = parse_backend)]
+    pub backend: Option<BackendChoice>,
+
+    /// Densification never grows the Gaussians past this count (the largest gradients are
+    /// densified first) [preset values: see --help].
+    #[arg(long, value_name = "N", help = max_gaussians_help())]
+    pub max_gaussians: Option<usize>,
+
+    /// Prune Gaussians whose screen radius exceeded this many pixels since the last
+    /// densification, after the first opacity reset (the 3DGS paper's 20) [default: no
+    /// screen-size prune, as 3DGS's and D-3DGS's code; see docs/DESIGN.md].
+    #[arg(long, value_name = "PX")]
+    pub max_screen_radius: Option<f32>,
+
+    /// Peak memory the run may use, e.g. 8G or 512M: the run refuses to start when its estimate
+    /// (printed at the start) already exceeds it, and densification stops growing the Gaussians
+    /// before the estimate would [default: no limit].
+    #[arg(long, value_name = "BYTES", value_parser = parse_memory)]
+    pub memory_limit: Option<u64>,
+
+    /// Let glibc's allocator keep freed memory for reuse (its own default) instead of returning
+    /// it after loading, densification and before each checkpoint: the peak resident memory was
+    /// up to a quarter above the printed estimate on lego, at the same CPU time
+    /// (results/memory.md). Not with a memory limit.
+    #[arg(long, conflicts_with = "memory_limit")]
+    pub keep_freed_memory: bool,
+
+    /// Write the checkpoint (what --resume continues from) every N iterations [the preset's,
+    /// scaled with --iterations].
+    #[arg(
+        long,
+        value_name = "N",
+        value_parser = clap::value_parser!(u64).range(1..),
+        help = by_preset(
+            "Write the checkpoint (what --resume continues from) every N iterations, scaled \
+             with --iterations",
+            |c| c.checkpoint_every,
+        )
+    )]
+    pub checkpoint_every: Option<u64>,
+
+    /// Stop after this many iterations in total (the run stays resumable).
+    #[arg(long, value_name = "N", hide = true)]
+    pub stop_after: Option<u64>,
+}
+
+/// `text` and the value `value` reads from each preset's settings, in [`Preset::ALL`]'s order
+/// ("[preset: paper 256; cpu 64; tiny 32; dnerf 64]"): the help's defaults come from the presets.
+fn by_preset<T: std::fmt::Display>(text: &str, value: impl Fn(&TrainConfig) -> T) -> String {
+    let values: Vec<String> = evogs_train::Preset::ALL
+        .iter()
+        .map(|&p| format!("{p} {}", value(&TrainConfig::preset(p))))
+        .collect();
+    format!("{text} [preset: {}]", values.join("; "))
+}
+
+/// `--max-gaussians`' help, its values read from the presets' caps and budgets.
+fn max_gaussians_help() -> String {
+    use evogs_train::{Method, Preset};
+    let caps: Vec<String> = Preset::ALL
+        .iter()
+        .filter_map(|&p| {
+            let c = TrainConfig::preset(p);
+            let baseline = p.max_gaussians(Method::Baseline)?;
+            let evogs = match (
+                p.gaussian_view_budget(Method::Evogs),
+                p.max_gaussians(Method::Evogs),
+            ) {
+                (Some(b), Some(m)) => format!(
+                    "for evogs {b} / training views within {}..={m}",
+                    c.init_points
+                ),
+                (_, m) => format!("for evogs {m:?}"),
+            };
+            Some(format!("{p} {baseline} for baseline, {evogs}"))
+        })
+        .collect();
+    format!(
+        "Densification never grows the Gaussians past this count (the largest gradients are \
+         densified first) [preset: {}; the others no limit]",
+        caps.join("; ")
+    )
+}
+
+/// `--memory-limit`: a byte count with an optional K, M, G or T suffix.
+fn parse_memory(text: &str) -> Result<u64, String> {
+    evogs_train::memory::parse_bytes(text)
+}
 
 /// The settings the flags ask for.
 pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
@@ -33,49 +257,7 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     }
     config = config.with_method(args.method);
     config.backbone = args.backbone;
-    let e = &mut config.evogs;
-    if let Some(v) = args.gain {
-        e.evo.gain = v;
-    }
-    if let Some(v) = args.history {
-        e.evo.history = v;
-    }
-    if let Some(v) = args.densify {
-        e.densify = v;
-    }
-    if let Some(v) = args.buffer {
-        e.evo.storage = v;
-    }
-    if let Some(v) = args.net_precision {
-        e.net_precision = v;
-    }
-    if let Some(v) = args.components {
-        e.evo.layout = v;
-    }
-    if let Some(v) = args.motion_floor {
-        e.evo.motion_floor = v;
-    }
-    if let Some(v) = args.grid_lr_scale {
-        e.grid_lr_scale = v;
-    }
-    if let Some(v) = args.psi_lr {
-        e.psi_lr = Some(v);
-    }
-    if let Some(v) = args.bspline_controls {
-        e.bspline_controls = v;
-    }
-    if let Some(v) = args.bspline_width {
-        e.bspline_width = v;
-    }
-    if let Some(v) = &args.triplane_resolutions {
-        e.triplane_resolutions.clone_from(v);
-    }
-    if let Some(v) = args.triplane_combine {
-        e.triplane_combine = v;
-    }
-    if let Some(v) = args.triplane_channels {
-        e.triplane_channels = v;
-    }
+    args.evo.apply(&mut config.evogs);
     if let Some(v) = args.net_width {
         config.net.width = v;
     }

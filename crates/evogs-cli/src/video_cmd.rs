@@ -11,10 +11,9 @@ use evogs_eval::render::render_at;
 use evogs_io::VideoWriter;
 use evogs_video::video::{PathSpec, TimeSpec, plan_frames, side_by_side};
 use indicatif::{ProgressBar, ProgressStyle};
-use splat_raster::BackendChoice;
 
-use crate::args::parse_backend;
 use crate::render::{MAX_PIXELS, resize_camera};
+use crate::shared_args::RasterArgs;
 
 /// Arguments of `evogs video`.
 #[derive(Debug, Args)]
@@ -67,10 +66,9 @@ pub struct VideoArgs {
     #[arg(long, value_name = "RUN_B")]
     pub compare: Option<PathBuf>,
 
-    /// Rasterizer backend: cpu, wgpu (any adapter; an error without one) or auto (wgpu on a
-    /// hardware GPU, cpu otherwise).
-    #[arg(long, value_name = "cpu|wgpu|auto", default_value = "cpu", value_parser = parse_backend)]
-    pub backend: BackendChoice,
+    /// The rasterizer backend.
+    #[command(flatten)]
+    pub raster: RasterArgs,
 }
 
 /// Parses `WxH` with both sides in 1..=16384.
@@ -112,11 +110,11 @@ fn label(run: &Path) -> String {
 /// Runs `evogs video`.
 pub fn run_video(args: &VideoArgs) -> Result<VideoReport> {
     let mut run = LoadedRun::open(&args.run)?;
-    let backend = run.use_backend(args.backend)?;
+    let backend = run.use_backend(args.raster.backend)?;
     let mut other = match &args.compare {
         Some(path) => {
             let mut b = LoadedRun::open(path)?;
-            b.use_backend(args.backend)?;
+            b.use_backend(args.raster.backend)?;
             Some(b)
         }
         None => None,

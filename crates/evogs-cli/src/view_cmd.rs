@@ -7,9 +7,8 @@ use anyhow::Result;
 use clap::Args;
 use evogs_view::http::Limits;
 use evogs_view::{RunningViewer, ViewOptions};
-use splat_raster::BackendChoice;
 
-use crate::args::parse_backend;
+use crate::shared_args::RasterArgs;
 
 /// Arguments of `evogs view`.
 #[derive(Debug, Args)]
@@ -31,10 +30,9 @@ pub struct ViewArgs {
     #[arg(long, default_value = "127.0.0.1")]
     pub host: IpAddr,
 
-    /// Rasterizer backend: cpu, wgpu (any adapter; an error without one) or auto (wgpu on a
-    /// hardware GPU, cpu otherwise).
-    #[arg(long, value_name = "cpu|wgpu|auto", default_value = "cpu", value_parser = parse_backend)]
-    pub backend: BackendChoice,
+    /// The rasterizer backend.
+    #[command(flatten)]
+    pub raster: RasterArgs,
 
     /// Reload a run when its files change: watch a training run (loaded from its checkpoint
     /// while it trains, from its end-of-run files once they are written).
@@ -60,7 +58,7 @@ pub fn start_view(args: &ViewArgs) -> Result<RunningViewer> {
             .collect(),
         host: args.host,
         port: args.port,
-        backend: args.backend,
+        backend: args.raster.backend,
         watch: args.watch,
         limits: Limits::default(),
     };

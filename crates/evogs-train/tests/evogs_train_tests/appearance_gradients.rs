@@ -6,7 +6,7 @@
 //! checked by `splat_core::deformed`'s proptest, for every layout).
 
 use glam::Vec3;
-use splat_core::{DeformedGeometry, Layout, deformation_gradient};
+use splat_core::{Component, DeformedGeometry, Layout, deformation_gradient};
 use splat_raster::{Camera, CpuRasterizer, Gaussians, PixelGrads, Rasterizer, RenderOptions};
 
 const N: usize = 4;
@@ -106,14 +106,18 @@ fn appearance_columns_match_finite_differences() {
         .grads;
     let rows = deformation_gradient(&grads, g.sh_stride(), layout);
     assert_eq!(rows.len(), N * dim);
+    let range = |c| layout.range(c).unwrap();
     for (i, row) in rows.chunks_exact(dim).enumerate() {
-        assert_eq!(&row[..3], &grads.means[i]);
-        assert_eq!(row[10], grads.opacity_logits[i]);
-        assert_eq!(&row[11..], &grads.sh[i * 12..i * 12 + 3]);
+        assert_eq!(&row[range(Component::Position)], &grads.means[i]);
+        assert_eq!(row[range(Component::Opacity)], [grads.opacity_logits[i]]);
+        assert_eq!(
+            &row[range(Component::Colour)],
+            &grads.sh[i * 12..i * 12 + 3]
+        );
     }
     let eps = 1e-3f32;
     let mut largest_appearance = 0.0f64;
-    let appearance = layout.offset(splat_core::Component::Opacity).unwrap();
+    let appearance = layout.offset(Component::Opacity).unwrap();
     for e in (0..N * dim).filter(|e| e % dim >= appearance) {
         let col = e % dim;
         let mut plus = d.clone();

@@ -1,0 +1,122 @@
+//! Flags several subcommands share, each declared once and flattened where it is used: the
+//! rasterizer backend ([`RasterArgs`]), a time budget ([`BudgetArgs`]), the rule for frame times
+//! ([`TimeFromArg`]), and the parsers of values the libraries do not parse themselves. The
+//! subcommands' own flags are in their modules (`train_cmd`, `eval_cmd`, …); this module imports
+//! none of them.
+
+use clap::Args;
+use clap::ValueEnum;
+use clap::builder::PossibleValue;
+use evogs_io::TimeFrom;
+use splat_raster::BackendChoice;
+
+/// A time rule as a command-line value; names and help come from the library.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TimeFromArg(pub TimeFrom);
+
+/// Every rule, as [`TimeFrom::ALL`] lists them.
+const TIME_FROM_ARGS: [TimeFromArg; TimeFrom::ALL.len()] = {
+    let mut args = [TimeFromArg(TimeFrom::ALL[0]); TimeFrom::ALL.len()];
+    let mut i = 1;
+    while i < args.len() {
+        args[i] = TimeFromArg(TimeFrom::ALL[i]);
+        i += 1;
+    }
+    args
+};
+
+impl ValueEnum for TimeFromArg {
+    fn value_variants<'a>() -> &'a [Self] {
+        &TIME_FROM_ARGS
+    }
+
+    fn to_possible_value(&self) -> Option<PossibleValue> {
+        Some(PossibleValue::new(self.0.name()).help(self.0.help()))
+    }
+}
+
+/// `--backend` of the commands that render a trained run or a scene (`evogs train` has its own:
+/// there it is optional, since `--resume` keeps the run's).
+#[derive(Clone, Copy, Debug, Args)]
+pub struct RasterArgs {
+    /// Rasterizer backend: cpu, wgpu (any adapter; an error without one) or auto (wgpu on a
+    /// hardware GPU, cpu otherwise).
+    #[arg(long, value_name = "cpu|wgpu|auto", default_value = "cpu", value_parser = parse_backend)]
+    pub backend: BackendChoice,
+}
+
+/// A time budget on the command line (`evogs train`, `bench`, `ablate`).
+#[derive(Debug, Args)]
+pub struct BudgetArgs {
+    /// Train for this much time instead of a number of iterations (180s, 3m, 2m30s, 1h): the
+    /// schedule (warm-up, SH steps, lr decays, densification, opacity resets) is the preset's,
+    /// or --iterations', mapped onto the share of the budget spent, so it ends when the budget
+    /// is spent. Counts the training loop, not the loading or evaluations; recorded in
+    /// config.json and train_metrics.json with the iterations reached [default: no budget].
+    #[arg(long, value_name = "DURATION", value_parser = parse_time_budget, allow_hyphen_values = true)]
+    pub time_budget: Option<f64>,
+
+    /// The clock --time-budget is measured on: cpu (the process's CPU time, all threads summed:
+    /// fair on a machine shared with other jobs; with T threads a budget lasts about 1/T of it
+    /// in wall time) or wall (wall-clock time) [default: cpu].
+    #[arg(long, value_parser = evogs_backbones::cli::words::<evogs_train::budget::BudgetClock>(), requires = "time_budget")]
+    pub budget_clock: Option<evogs_train::budget::BudgetClock>,
+}
+
+impl BudgetArgs {
+    /// The budget the flags ask for.
+    pub fn budget(&self) -> Option<evogs_train::budget::TimeBudget> {
+        self.time_budget
+            .map(|seconds| evogs_train::budget::TimeBudget {
+                seconds,
+                clock: self.budget_clock.unwrap_or_default(),
+            })
+    }
+}
+
+/// `--time-budget`: a duration ([`evogs_train::budget::parse_duration`]).
+fn parse_time_budget(text: &str) -> Result<f64, String> {
+    evogs_train::budget::parse_duration(text)
+}
+
+/// Parses `cpu`, `wgpu` or `auto`.
+pub fn parse_backend(text: &str) -> Result<BackendChoice, String> {
+    text.parse()
+        .map_err(|e: splat_raster::RasterError| e.to_string())
+}
+
+/// Parses `R,G,B` with each channel a number in [0, 1].
+pub fn parse_background(text: &str) -> Result<[f32; 3], String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        return Err(format!(
+            "expected three comma-separated numbers R,G,B, found {} part(s)",
+            parts.len()
+        ));
+    }
+    let mut colour = [0f32; 3];
+    for (channel, (slot, part)) in colour.iter_mut().zip(&parts).enumerate() {
+        let value: f32 = part
+            .parse()
+            .map_err(|_| format!("channel {channel} `{part}` is not a number"))?;
+        if !(0.0..=1.0).contains(&value) {
+            return Err(format!("channel {channel} is {value}, outside [0, 1]"));
+        }
+        *slot = value;
+    }
+    Ok(colour)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn background_parsing() {
+        assert_eq!(parse_background("0,0.5, 1").unwrap(), [0.0, 0.5, 1.0]);
+        assert!(parse_background("1,1").unwrap_err().contains("three"));
+        assert!(parse_background("1,x,1").unwrap_err().contains("channel 1"));
+        assert!(parse_background("1,1,1.5").unwrap_err().contains("outside"));
+        assert!(parse_background("NaN,0,0").unwrap_err().contains("outside"));
+    }
+}
