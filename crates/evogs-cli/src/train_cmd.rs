@@ -129,9 +129,9 @@ pub struct TrainArgs {
     )]
     pub downscale: Option<f32>,
 
-    /// Seed of everything random.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
+    /// Seed of everything random [the preset's: see --help].
+    #[arg(long, value_name = "SEED", help = by_preset("Seed of everything random", |c| c.seed))]
+    pub seed: Option<u64>,
 
     /// Continue the run in --out from its last checkpoint (its config.json decides the rest).
     #[arg(
@@ -148,8 +148,18 @@ pub struct TrainArgs {
 
     /// Rasterizer backend: cpu, wgpu (the GPU through wgpu, any adapter; an error without
     /// one) or auto (wgpu on a hardware GPU, cpu otherwise). Recorded in the run; --resume keeps
-    /// the run's unless given [default: cpu].
-    #[arg(long, value_name = "cpu|wgpu|auto", value_parser = parse_backend)]
+    /// the run's unless given [default: `BackendChoice::default()`].
+    #[arg(
+        long,
+        value_name = "cpu|wgpu|auto",
+        value_parser = parse_backend,
+        help = format!(
+            "Rasterizer backend: cpu, wgpu (the GPU through wgpu, any adapter; an error without \
+             one) or auto (wgpu on a hardware GPU, cpu otherwise). Recorded in the run; --resume \
+             keeps the run's unless given [default: {}]",
+            BackendChoice::default()
+        )
+    )]
     pub backend: Option<BackendChoice>,
 
     /// Densification never grows the Gaussians past this count (the largest gradients are
@@ -278,7 +288,9 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     if let Some(t) = args.time_from {
         config.time_from = t.0;
     }
-    config.seed = args.seed;
+    if let Some(seed) = args.seed {
+        config.seed = seed;
+    }
     config.backend = args.backend.unwrap_or_default();
     config.validate()?;
     Ok(config)
