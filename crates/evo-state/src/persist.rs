@@ -167,6 +167,7 @@ impl EvoState {
             .map_err(io)?;
         // Through the plain file: the temporary file's own writer adds its random name to errors.
         tmp.as_file_mut().write_all(&bytes).map_err(io)?;
+        tiny_nn::weights::set_output_mode(tmp.as_file(), path).map_err(io)?;
         tmp.as_file().sync_all().map_err(io)?;
         tmp.persist(path).map_err(|e| io(e.error))?;
         Ok(())

@@ -61,6 +61,21 @@ impl std::io::Write for AtomicFile {
     }
 }
 
+/// Temporary files are created private (0600): gives `file`, about to be renamed over
+/// `target`, the mode an existing `target` has, or the usual 0644 for a new one (a no-op off
+/// Unix).
+pub(crate) fn set_output_mode(file: &File, target: &Path) -> std::io::Result<()> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = std::fs::metadata(target).map_or(0o644, |m| m.permissions().mode() & 0o7777);
+        file.set_permissions(std::fs::Permissions::from_mode(mode))?;
+    }
+    #[cfg(not(unix))]
+    let _ = (file, target);
+    Ok(())
+}
+
 /// The directory a path is in (`.` for a bare file name).
 pub(crate) fn parent_dir(path: &Path) -> &Path {
     match path.parent() {
@@ -104,15 +119,7 @@ impl AtomicFile {
         let file = writer
             .into_inner()
             .map_err(|e| IoError::io(&path, e.into_error()))?;
-        // Temporary files are created private (0600); give the output the mode an existing file had,
-        // or the usual 0644 for a new one.
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            let mode = std::fs::metadata(&path).map_or(0o644, |m| m.permissions().mode() & 0o7777);
-            file.set_permissions(std::fs::Permissions::from_mode(mode))
-                .map_err(|e| IoError::io(&path, e))?;
-        }
+        set_output_mode(&file, &path).map_err(|e| IoError::io(&path, e))?;
         file.sync_all().map_err(|e| IoError::io(&path, e))?;
         drop(file);
         temp_path

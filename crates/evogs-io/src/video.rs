@@ -21,7 +21,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, Command, Stdio};
 
 use crate::IoError;
-use crate::atomic::{AtomicFile, parent_dir};
+use crate::atomic::{AtomicFile, parent_dir, set_output_mode};
 use crate::image_io::{ImageRgb, save_png, to_u8};
 
 /// The environment variable naming the ffmpeg executable (default `ffmpeg` on `PATH`).
@@ -209,10 +209,10 @@ impl VideoWriter {
             } => {
                 drop(stdin.take());
                 wait_ffmpeg(child, &out)?;
-                temp.take()
-                    .ok_or_else(|| invalid(&out, "finished twice"))?
-                    .persist(&out)
-                    .map_err(|e| IoError::io(&out, e.error))?;
+                let temp = temp.take().ok_or_else(|| invalid(&out, "finished twice"))?;
+                let file = std::fs::File::open(&temp).map_err(|e| IoError::io(&out, e))?;
+                set_output_mode(&file, &out).map_err(|e| IoError::io(&out, e))?;
+                temp.persist(&out).map_err(|e| IoError::io(&out, e.error))?;
             }
             Sink::Frames { temp } => {
                 let dir = temp.take().ok_or_else(|| invalid(&out, "finished twice"))?;

@@ -73,8 +73,25 @@ pub fn save(path: &Path, module: &impl Parameters) -> Result<(), NnError> {
         .map_err(io_err)?;
     // Through the plain file: the temporary file's own writer adds its random name to errors.
     tmp.as_file_mut().write_all(&data).map_err(io_err)?;
+    set_output_mode(tmp.as_file(), path).map_err(io_err)?;
     tmp.as_file().sync_all().map_err(io_err)?;
     tmp.persist(path).map_err(|e| io_err(e.error))?;
+    Ok(())
+}
+
+/// Temporary files are created private (0600): gives `file`, about to be renamed over `target`,
+/// the mode an existing `target` has, or the usual 0644 for a new one (a no-op off Unix). The
+/// same rule as evogs-io's atomic writes (`evogs_io::atomic`), for the files written here and by
+/// evo-state (which sits below evogs-io).
+pub fn set_output_mode(file: &std::fs::File, target: &Path) -> std::io::Result<()> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = std::fs::metadata(target).map_or(0o644, |m| m.permissions().mode() & 0o7777);
+        file.set_permissions(std::fs::Permissions::from_mode(mode))?;
+    }
+    #[cfg(not(unix))]
+    let _ = (file, target);
     Ok(())
 }
 

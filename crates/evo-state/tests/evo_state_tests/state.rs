@@ -123,6 +123,13 @@ fn save_and_load_are_bit_exact() {
         .unwrap();
         let path = dir.path().join(format!("state{i}.safetensors"));
         st.save(&path).unwrap();
+        // Readable as every other output: the temporary file's private 0600 does not survive.
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
+            assert_eq!(mode, 0o644, "{mode:o}");
+        }
         let loaded = EvoState::load(&path).unwrap();
         assert_eq!(loaded, st, "config {i}");
         // Bit-exact, including -0.0 and every float of Ψ, the memory and the input RMS.

@@ -354,3 +354,19 @@ fn phi_grads_do_not_depend_on_threads(net: &ObservationNet, p: &[f32], t: &[f32]
         }
     }
 }
+
+/// A new weights file gets the usual 0644 (the temporary file's private 0600 does not survive
+/// the rename); a replaced one keeps the mode it had.
+#[cfg(unix)]
+#[test]
+fn weights_files_get_0644_and_replaced_ones_keep_their_mode() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    let mode = |p: &std::path::Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+    let fresh = dir.path().join("fresh.safetensors");
+    save(&fresh, &phi(Precision::F32)).unwrap();
+    assert_eq!(mode(&fresh), 0o644);
+    std::fs::set_permissions(&fresh, std::fs::Permissions::from_mode(0o600)).unwrap();
+    save(&fresh, &phi(Precision::F32)).unwrap();
+    assert_eq!(mode(&fresh), 0o600);
+}
