@@ -3,7 +3,7 @@
 
 use anyhow::Result;
 use evogs_eval::LoadedRun;
-use evogs_eval::render::{export_frame_as, export_sequence};
+use evogs_eval::render::{ExportFormat, export_frame_as, export_sequence};
 
 use std::path::PathBuf;
 
@@ -37,9 +37,10 @@ pub struct ExportArgs {
     /// File format: ply (INRIA 3DGS, every SH band, f32), compressed-ply (PlayCanvas/SuperSplat's
     /// .compressed.ply: about 16 bytes a Gaussian plus 1 per higher SH coefficient, quantised in
     /// chunks of 256 in Morton order) or splat (32 bytes a Gaussian: DC colour only, 8-bit colour,
-    /// opacity and rotation; sorted by volume x opacity, largest first).
-    #[arg(long, default_value = "ply", value_name = "ply|compressed-ply|splat")]
-    pub format: evogs_eval::render::ExportFormat,
+    /// opacity and rotation; sorted by volume x opacity, largest first) [default: the one --out's
+    /// extension names (.ply, .compressed.ply, .splat), else ply; a contradiction is refused].
+    #[arg(long, value_parser = evogs_backbones::cli::words::<evogs_eval::render::ExportFormat>())]
+    pub format: Option<evogs_eval::render::ExportFormat>,
 
     /// Output file (with --time) or folder (with --frames), each file written atomically.
     #[arg(long, value_name = "OUT")]
@@ -48,15 +49,35 @@ pub struct ExportArgs {
 
 /// Runs `evogs export`; returns the number of files and of Gaussians in the first.
 pub fn run_export(args: &ExportArgs) -> Result<(usize, usize)> {
+    let format = format_of(args)?;
     let mut run = LoadedRun::open(&args.run)?;
     match (args.frames, args.time) {
         (Some(n), _) => {
-            let seq = export_sequence(&mut run, n as usize, args.format, &args.out)?;
+            let seq = export_sequence(&mut run, n as usize, format, &args.out)?;
             Ok((seq.count, seq.gaussians[0]))
         }
         (None, time) => {
-            let n = export_frame_as(&mut run, time.unwrap_or(0.0), args.format, &args.out)?;
+            let n = export_frame_as(&mut run, time.unwrap_or(0.0), format, &args.out)?;
             Ok((1, n))
         }
+    }
+}
+
+/// The format to write: `--format`, else the one the file name of `--out` says (one file; a
+/// sequence's `--out` is a folder), else ply. A `--format` the file name contradicts is refused
+/// (a PLY written into `x.splat` reads back as nothing).
+fn format_of(args: &ExportArgs) -> Result<ExportFormat> {
+    let named = args
+        .frames
+        .is_none()
+        .then(|| ExportFormat::of_path(&args.out))
+        .flatten();
+    match (args.format, named) {
+        (Some(given), Some(named)) if given != named => anyhow::bail!(
+            "{}: --format {given} contradicts the file name, which says {named}",
+            args.out.display()
+        ),
+        (Some(format), _) | (None, Some(format)) => Ok(format),
+        (None, None) => Ok(ExportFormat::Ply),
     }
 }

@@ -141,6 +141,14 @@ impl ExportFormat {
             Self::Splat => "splat",
         }
     }
+
+    /// The format a file name says (`.ply`, `.compressed.ply`, `.splat`, any case), if any.
+    pub fn of_path(path: &Path) -> Option<Self> {
+        let name = path.file_name()?.to_str()?.to_ascii_lowercase();
+        [Self::CompressedPly, Self::Ply, Self::Splat]
+            .into_iter()
+            .find(|f| name.ends_with(&format!(".{}", f.extension())))
+    }
 }
 
 impl OneWord for ExportFormat {

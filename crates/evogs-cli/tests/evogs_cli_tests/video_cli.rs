@@ -274,6 +274,13 @@ fn videos_equal_renders_at_their_cameras_and_times() {
         "--out",
         s(&mp4),
     ]));
+    // Readable as every other output (the temporary file's private mode does not survive).
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = std::fs::metadata(&mp4).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o644, "{mode:o}");
+    }
     let decoded_dir = f.dir.path().join("decoded");
     std::fs::create_dir(&decoded_dir).unwrap();
     let o = Command::new("ffmpeg")
@@ -429,12 +436,55 @@ fn bad_input_gives_one_line_errors_and_writes_nothing() {
         s(&dir.join("missing/f.compressed.ply")),
     ]));
     assert!(e.contains("missing/f.compressed.ply"), "{e}");
+    // A --format the file name contradicts.
+    let e = one_line_error(&export(&[
+        "--time",
+        "0.5",
+        "--format",
+        "ply",
+        "--out",
+        s(&dir.join("f.splat")),
+    ]));
+    assert!(e.contains("f.splat") && e.contains("contradicts"), "{e}");
     // Nothing half-written anywhere.
     assert_eq!(
         names(dir),
         ["old.mp4", "scene", "trained", "untrained"],
         "leftovers"
     );
+}
+
+/// Without --format, one file takes the format its name says.
+#[test]
+fn an_exported_file_takes_the_format_its_name_says() {
+    let f = fixture();
+    let n = LoadedRun::open(&f.run)
+        .unwrap()
+        .deformed(0.5)
+        .unwrap()
+        .len();
+    let out = f.dir.path().join("frame.splat");
+    ok(&evogs(&[
+        "export",
+        "--run",
+        s(&f.run),
+        "--time",
+        "0.5",
+        "--out",
+        s(&out),
+    ]));
+    assert_eq!(evogs_io::read_splat(&out).unwrap().len(), n);
+    let out = f.dir.path().join("frame.compressed.ply");
+    ok(&evogs(&[
+        "export",
+        "--run",
+        s(&f.run),
+        "--time",
+        "0.5",
+        "--out",
+        s(&out),
+    ]));
+    assert_eq!(evogs_io::read_compressed_ply(&out).unwrap().len(), n);
 }
 
 #[test]
