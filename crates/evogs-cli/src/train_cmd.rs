@@ -140,6 +140,12 @@ pub struct TrainArgs {
     )]
     pub resume: bool,
 
+    /// Replace the run already in --out: its files (config, checkpoint, PLY, weights,
+    /// evolution state, log, metrics, evaluations, renders) are removed first. Without it,
+    /// training into a directory that holds a run is refused.
+    #[arg(long, conflicts_with = "resume")]
+    pub force: bool,
+
     /// Background behind the Gaussians and the images' alpha [D-3DGS default for D-NeRF: black];
     /// random: a new uniform colour each training iteration behind both (so transparency cannot
     /// pass for the background's colour), black for evaluation and renders.
@@ -164,7 +170,12 @@ pub struct TrainArgs {
 
     /// Densification never grows the Gaussians past this count (the largest gradients are
     /// densified first) [preset values: see --help].
-    #[arg(long, value_name = "N", help = max_gaussians_help())]
+    #[arg(
+        long,
+        value_name = "N",
+        value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..),
+        help = max_gaussians_help()
+    )]
     pub max_gaussians: Option<usize>,
 
     /// Prune Gaussians whose screen radius exceeded this many pixels since the last
@@ -296,6 +307,34 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     Ok(config)
 }
 
+/// Refuses a directory that holds a run (naming `--resume` and `--force`), or with `force`
+/// removes that run's files first (`RunPaths::clear_run`), so that two runs never mix.
+fn make_room(out: &std::path::Path, force: bool) -> Result<()> {
+    let paths = evogs_train::run::RunPaths::new(out);
+    if !paths.holds_run() {
+        return Ok(());
+    }
+    if !force {
+        let held = [paths.config(), paths.checkpoint()]
+            .into_iter()
+            .find(|p| p.is_file())
+            .unwrap_or_else(|| paths.config());
+        anyhow::bail!(
+            "{}: --out already holds a run ({}); continue it with --resume, or replace it with \
+             --force",
+            out.display(),
+            held.file_name().unwrap_or_default().to_string_lossy()
+        );
+    }
+    let removed = paths.clear_run()?;
+    eprintln!(
+        "evogs train: --force: removed the previous run in {} ({} files and folders)",
+        out.display(),
+        removed.len()
+    );
+    Ok(())
+}
+
 /// How `evogs train` keeps glibc's allocator from holding freed memory (unless
 /// `--keep-freed-memory`): glibc keeps freed buffers for reuse, so a run's peak resident memory
 /// rose above what it ever holds at once, beyond the estimate that `--memory-limit` checks
@@ -397,6 +436,7 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
         if let Some(warning) = dataset.camera_warning() {
             eprintln!("warning: {warning}");
         }
+        make_room(&request.out, args.force)?;
     }
     let terminal = std::io::stderr().is_terminal();
     let bar = if terminal {

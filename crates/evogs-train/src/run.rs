@@ -98,6 +98,64 @@ impl RunPaths {
     pub fn renders(&self, split: Split) -> PathBuf {
         self.root.join("renders").join(split.name())
     }
+
+    /// Whether the directory holds a run: its `config.json` or its checkpoint.
+    pub fn holds_run(&self) -> bool {
+        self.config().is_file() || self.checkpoint().is_file()
+    }
+
+    /// Removes the run's own files, so that a new run in the directory cannot be mixed with
+    /// an old one (`evogs train --force`): every file named here (configuration, checkpoint,
+    /// PLY, weights, evolution state and its pending copies, log, metrics, the evaluations of
+    /// every split), the renders, `evogs plot`'s `train_log.png` and the demo's `sweep/`.
+    /// Anything else in the directory is left. Returns what it removed, in order.
+    pub fn clear_run(&self) -> Result<Vec<PathBuf>, TrainError> {
+        let mut removed = Vec::new();
+        let entries = match std::fs::read_dir(&self.root) {
+            Ok(entries) => entries,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(removed),
+            Err(e) => return Err(TrainError::io(&self.root, e)),
+        };
+        let fixed = [
+            self.config(),
+            self.checkpoint(),
+            self.canonical(),
+            self.weights(),
+            self.evo_state(),
+            self.train_log(),
+            self.train_metrics(),
+            self.root.join("train_log.png"),
+        ];
+        let mut paths: Vec<PathBuf> = entries
+            .map(|e| {
+                e.map(|e| e.path())
+                    .map_err(|e| TrainError::io(&self.root, e))
+            })
+            .collect::<Result<_, _>>()?;
+        paths.sort();
+        for path in paths {
+            let name = path
+                .file_name()
+                .and_then(|n| n.to_str())
+                .unwrap_or_default();
+            let own_dir = matches!(name, "renders" | "sweep") && path.is_dir();
+            let own_file = path.is_file()
+                && (fixed.contains(&path)
+                    || (name.starts_with(PENDING_EVO_STATE_PREFIX)
+                        && name.ends_with(".safetensors"))
+                    || (name.starts_with("eval_")
+                        && (name.ends_with(".json") || name.ends_with(".md"))));
+            if own_dir {
+                std::fs::remove_dir_all(&path).map_err(|e| TrainError::io(&path, e))?;
+            } else if own_file {
+                std::fs::remove_file(&path).map_err(|e| TrainError::io(&path, e))?;
+            } else {
+                continue;
+            }
+            removed.push(path);
+        }
+        Ok(removed)
+    }
 }
 
 /// `config.json`: where the data is and how the run trains.

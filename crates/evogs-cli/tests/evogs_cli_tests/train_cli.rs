@@ -305,3 +305,77 @@ fn bad_time_budgets_are_one_line_errors_naming_the_flag() {
     }
     assert!(!out.exists());
 }
+
+/// Training into a directory that holds a run is refused (naming `--resume` and `--force`) and
+/// changes nothing; `--force` removes the old run's own files first (an EvoGS run's evolution
+/// state, its evaluations and renders do not survive into a baseline run) and leaves the
+/// user's other files.
+#[test]
+fn training_into_a_run_is_refused_unless_forced() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = rigid_scene(dir.path(), 16, 8);
+    let run = dir.path().join("run");
+    ok(&train_tiny(
+        &data,
+        &run,
+        &["--iterations", "60", "--method", "evogs"],
+    ));
+    assert!(run.join("evo_state.safetensors").is_file());
+    std::fs::create_dir_all(run.join("renders/test")).unwrap();
+    std::fs::write(run.join("renders/test/0000.png"), b"old").unwrap();
+    std::fs::write(run.join("eval_test.json"), b"{}").unwrap();
+    std::fs::write(run.join("notes.txt"), b"mine").unwrap();
+    let config = std::fs::read(run.join("config.json")).unwrap();
+
+    let e = one_line_error(&train_tiny(&data, &run, &["--iterations", "2"]));
+    assert!(
+        e.contains("--out already holds a run (config.json)")
+            && e.contains("--resume")
+            && e.contains("--force")
+            && e.contains(s(&run)),
+        "{e}"
+    );
+    assert_eq!(std::fs::read(run.join("config.json")).unwrap(), config);
+    assert!(run.join("evo_state.safetensors").is_file());
+
+    let o = train_tiny(&data, &run, &["--iterations", "2", "--force"]);
+    ok(&o);
+    assert!(
+        stderr(&o).contains("--force: removed the previous run"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!run.join("evo_state.safetensors").exists());
+    assert!(!run.join("renders").exists());
+    assert!(!run.join("eval_test.json").exists());
+    assert_eq!(std::fs::read(run.join("notes.txt")).unwrap(), b"mine");
+    assert_eq!(
+        json(&run.join("config.json"))["train"]["method"],
+        "baseline"
+    );
+
+    // --force and --resume contradict each other.
+    let o = evogs(&["train", "--out", s(&run), "--resume", "--force"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("--force"), "{}", stderr(&o));
+}
+
+/// A cap of no Gaussians is refused by the parser, naming the flag and the accepted range.
+#[test]
+fn a_zero_gaussian_cap_is_refused_naming_the_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let o = evogs(&[
+        "train",
+        "--data",
+        "d",
+        "--out",
+        s(&out),
+        "--max-gaussians",
+        "0",
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(e.contains("--max-gaussians") && e.contains("1.."), "{e}");
+    assert!(!out.exists());
+}
