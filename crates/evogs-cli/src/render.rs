@@ -8,7 +8,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use evogs_eval::LoadedRun;
 use evogs_eval::render::{render_at, sweep};
-use evogs_io::{ImageRgb, read_nerfies_camera, read_ply, save_png};
+use evogs_io::{ImageRgb, read_gaussians, read_nerfies_camera, save_png};
 use splat_raster::{Camera, Gaussians, RenderOptions, select_rasterizer};
 
 use evogs_video::camera_path::{CameraSpec, dataset_camera};
@@ -61,7 +61,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderReport> {
                 bail!("--camera dataset:SPLIT:INDEX needs --run (the run's dataset)")
             }
             (Some(ply), Some(CameraSpec::File(camera_path))) => {
-                let loaded = read_ply(ply)?;
+                let loaded = read_gaussians(ply)?;
                 if loaded.nonfinite_rows > 0 {
                     warnings.push(format!(
                         "{}: {} Gaussian(s) hold non-finite values; they are culled",
@@ -134,7 +134,8 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderReport> {
                         (a torus, spheres and a ground disc) from a default camera."
 )]
 pub struct RenderArgs {
-    /// Gaussians to render: a PLY file in the 3DGS layout. Needs --camera.
+    /// Gaussians to render: a 3DGS PLY, a compressed PLY or a `.splat` (what `evogs export`
+    /// writes). Needs --camera.
     #[arg(long, value_name = "FILE", requires = "camera", conflicts_with = "run")]
     pub ply: Option<PathBuf>,
 

@@ -1,7 +1,8 @@
 //! `evogs-io`: the file formats of evogs.
 //!
 //! What it is: readers and writers for 3DGS PLY files ([`ply`]), the web viewers' `.splat`
-//! ([`splat`]) and PlayCanvas/SuperSplat's compressed PLY ([`compressed_ply`]), nerfies camera
+//! ([`splat`]) and PlayCanvas/SuperSplat's compressed PLY ([`compressed_ply`]), any of the three
+//! told apart on reading ([`gaussians_file`]), nerfies camera
 //! JSON and D-NeRF `transforms_*.json` cameras ([`camera_json`], [`dnerf`]; D-NeRF splits are
 //! written too, [`write_dnerf_split`]), PNG/JPEG images as
 //! f32 RGB ([`image_io`]), and datasets: D-NeRF, nerfies (HyperNeRF, NeRF-DS, [`nerfies`]), Neu3D
@@ -25,6 +26,7 @@ mod dataset_types;
 pub mod dnerf;
 pub mod error;
 pub mod frame_time;
+pub mod gaussians_file;
 pub mod image_io;
 mod json_fields;
 pub mod nerfies;
@@ -50,6 +52,7 @@ pub use dnerf::{
 };
 pub use error::IoError;
 pub use frame_time::TimeFrom;
+pub use gaussians_file::{GaussiansFormat, LoadedGaussians, read_gaussians};
 pub use image_io::{ImageRgb, load_image, load_transmittance, load_view, resize_image, save_png};
 pub use json_fields::{ROTATION_TOLERANCE, rotation_error};
 pub use ply::{LoadedPly, read_ply, read_ply_bytes, write_ply, write_ply_to};

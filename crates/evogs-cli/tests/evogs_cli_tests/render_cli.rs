@@ -324,3 +324,36 @@ fn bad_inputs_fail_with_one_line_naming_the_file_and_keep_the_output() {
     let count = std::fs::read_dir(f.dir.path()).unwrap().count();
     assert_eq!(count, 8);
 }
+
+/// `--ply` reads every layout `evogs export` writes: the compressed PLY (whatever its name) and
+/// the `.splat`, each drawing the same scene.
+#[test]
+fn renders_the_compressed_ply_and_splat_layouts() {
+    let f = fixture();
+    let g = small_scene(40);
+    let compressed = f.dir.path().join("scene.compressed.ply");
+    evogs_io::write_compressed_ply(&compressed, g.view()).unwrap();
+    let splat = f.dir.path().join("scene.splat");
+    evogs_io::write_splat(&splat, g.view()).unwrap();
+    for file in [&compressed, &splat] {
+        let out = evogs(&[
+            "render",
+            "--ply",
+            s(file),
+            "--camera",
+            s(&f.camera),
+            "--out",
+            s(&f.out),
+        ]);
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{}: {}",
+            file.display(),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(stdout.contains("of 40 Gaussians"), "{stdout}");
+        let img = image::open(&f.out).unwrap().to_rgb8();
+        assert!(img.pixels().any(|p| p.0 != [0, 0, 0]), "image is all black");
+    }
+}
