@@ -325,9 +325,23 @@ pub fn read_run_file(root: &Path) -> Result<(RunPaths, RunFile), TrainError> {
     if !root.is_dir() {
         return Err(TrainError::file(root, "not a run directory"));
     }
-    let run: RunFile = read_json(&paths.config())?;
-    run.train.validate()?;
+    let run = read_run_config(&paths)?;
     Ok((paths, run))
+}
+
+/// A run's `config.json`, read and checked as a new run's settings are (every range), so that a
+/// file edited by hand cannot run (or be resumed) with settings the flags would refuse; an
+/// error names the file, then the setting.
+fn read_run_config(paths: &RunPaths) -> Result<RunFile, TrainError> {
+    let path = paths.config();
+    let run: RunFile = read_json(&path)?;
+    run.train.validate().map_err(|e| match e {
+        TrainError::Config { field, problem } => {
+            TrainError::field(&path, format!("train.{field}"), problem)
+        }
+        e => TrainError::file(&path, e.to_string()),
+    })?;
+    Ok(run)
 }
 
 /// Trains (or resumes) a run, calling `progress` after every iteration, and writes the run
@@ -352,7 +366,7 @@ pub fn train_with_clock(
     let paths = RunPaths::new(&request.out);
     let mut resumed_budget = None;
     let mut trainer = if request.resume {
-        let mut run: RunFile = read_json(&paths.config())?;
+        let mut run = read_run_config(&paths)?;
         let recorded_backend = run.train.backend;
         if let Some(backend) = request.resume_backend {
             run.train.backend = backend;

@@ -379,3 +379,27 @@ fn a_zero_gaussian_cap_is_refused_naming_the_flag() {
     assert!(e.contains("--max-gaussians") && e.contains("1.."), "{e}");
     assert!(!out.exists());
 }
+
+/// A `config.json` edited out of range is refused wherever the run is read, resume included
+/// (which trained on before), naming the file, the field and the range.
+#[test]
+fn an_out_of_range_run_config_is_refused_on_resume_and_eval() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = rigid_scene(dir.path(), 16, 8);
+    let run = dir.path().join("run");
+    ok(&train_tiny(&data, &run, &["--iterations", "2"]));
+    let path = run.join("config.json");
+    let mut config = json(&path);
+    config["train"]["downscale"] = serde_json::json!(2.0);
+    std::fs::write(&path, serde_json::to_string_pretty(&config).unwrap()).unwrap();
+    for o in [
+        evogs(&["train", "--out", s(&run), "--resume"]),
+        evogs(&["eval", "--run", s(&run)]),
+    ] {
+        let e = one_line_error(&o);
+        assert!(
+            e.contains("config.json") && e.contains("train.downscale") && e.contains("(0, 1]"),
+            "{e}"
+        );
+    }
+}
