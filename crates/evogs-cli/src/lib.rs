@@ -22,6 +22,7 @@ pub mod args;
 pub mod bench_cmd;
 pub mod demo_cmd;
 pub mod demo_scene;
+pub mod error_line;
 pub mod eval_cmd;
 pub mod export_cmd;
 pub mod prepare_cmd;

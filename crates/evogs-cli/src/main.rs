@@ -4,16 +4,12 @@ use std::process::ExitCode;
 
 use clap::Parser;
 use clap::error::ErrorKind;
+use evogs_cli::error_line::one_line;
 use evogs_cli::eval_cmd::run_eval;
 use evogs_cli::export_cmd::run_export;
 use evogs_cli::render::run_render;
 use evogs_cli::train_cmd::run_train;
 use evogs_cli::{Cli, Command};
-
-/// One line: line breaks in a message become spaces.
-fn one_line(text: &str) -> String {
-    text.trim().replace(['\n', '\r'], " ")
-}
 
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
@@ -45,7 +41,7 @@ fn main() -> ExitCode {
                 .strip_prefix("error: ")
                 .unwrap_or(message.trim());
             let words: Vec<&str> = message.split_whitespace().collect();
-            eprintln!("evogs: {} (see --help)", words.join(" "));
+            eprintln!("evogs: {} (see --help)", one_line(&words.join(" ")));
             return ExitCode::from(2);
         }
     };

@@ -357,3 +357,30 @@ fn renders_the_compressed_ply_and_splat_layouts() {
         assert!(img.pixels().any(|p| p.0 != [0, 0, 0]), "image is all black");
     }
 }
+
+/// Text a file puts into an error line cannot drive the terminal: its control characters are
+/// escaped (a PLY header with an escape sequence that would clear the screen).
+#[test]
+fn control_characters_from_a_file_are_escaped_in_the_error_line() {
+    let f = fixture();
+    let ply = f.dir.path().join("evil.ply");
+    std::fs::write(
+        &ply,
+        b"ply\nformat \x1b[2J\x1b]0;owned\x07 1.0\nelement vertex 1\nend_header\n",
+    )
+    .unwrap();
+    let o = evogs(&[
+        "render",
+        "--ply",
+        s(&ply),
+        "--camera",
+        s(&f.camera),
+        "--out",
+        s(&f.out),
+    ]);
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(e.trim_end().lines().count(), 1, "{e}");
+    assert!(e.contains("evil.ply"), "{e}");
+    assert!(!e.trim_end().chars().any(char::is_control), "{e:?}");
+}
