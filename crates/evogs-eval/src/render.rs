@@ -222,14 +222,31 @@ pub fn export_sequence(
             0.0
         };
         let name = format!("frame_{k:04}.{}", format.extension());
-        let n = export_frame_as(run, t, format, &staged.stage(&name))?;
+        let path = staged.stage(&name);
+        let n = export_frame_as(run, t, format, &path).map_err(|e| target_named(&staged, e))?;
         seq.files.push(name);
         seq.times.push(t);
         seq.gaussians.push(n);
     }
-    write_json(&staged.stage("sequence.json"), &seq)?;
+    let index = staged.stage("sequence.json");
+    write_json(&index, &seq).map_err(|e| target_named(&staged, e))?;
     staged.commit()?;
     Ok(seq)
+}
+
+/// A file error about a staged file of `staged`, naming the file it was to become.
+fn target_named(staged: &evogs_io::atomic::StagedFiles, e: TrainError) -> TrainError {
+    match e {
+        TrainError::Io(io) => TrainError::Io(staged.named_as_target(io)),
+        TrainError::File { path, problem } => match staged.target_of(&path) {
+            Some(target) => TrainError::File {
+                path: target,
+                problem,
+            },
+            None => TrainError::File { path, problem },
+        },
+        e => e,
+    }
 }
 
 fn bounds(means: &[[f32; 3]]) -> [[f32; 3]; 2] {

@@ -167,6 +167,22 @@ impl StagedFiles {
         self.temp_dir().join(name)
     }
 
+    /// `e`, an error about a staged file, as an error about the file it is to become: a message
+    /// names what was asked for, not the hidden temporary folder. Other errors are unchanged.
+    pub fn named_as_target(&self, e: IoError) -> IoError {
+        match self.target_of(e.path()) {
+            Some(target) => e.with_path(target),
+            None => e,
+        }
+    }
+
+    /// The file a staged `path` is to become (`None` for a path that is not staged here).
+    pub fn target_of(&self, path: &Path) -> Option<PathBuf> {
+        let temp = self.temp.as_ref()?;
+        let name = path.strip_prefix(temp.path()).ok()?;
+        Some(self.dir.join(name))
+    }
+
     fn temp_dir(&self) -> &Path {
         self.temp.as_ref().map_or(&self.dir, |t| t.path())
     }
@@ -202,6 +218,27 @@ impl Drop for StagedFiles {
 mod tests {
     use super::*;
     use std::io::Write;
+
+    /// An error about a staged file names the file it was to become, never the hidden folder;
+    /// an error about any other file is left as it was.
+    #[test]
+    fn staged_errors_name_their_target() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("seq");
+        let mut staged = StagedFiles::create(&out).unwrap();
+        let path = staged.stage("frame_0000.splat");
+        let cause = || std::io::Error::other("disk full");
+        let e = staged.named_as_target(IoError::io(&path, cause()));
+        assert_eq!(e.path(), out.join("frame_0000.splat"));
+        assert_eq!(
+            e.to_string(),
+            format!("{}: disk full", out.join("frame_0000.splat").display())
+        );
+        let elsewhere = dir.path().join("other.ply");
+        let e = staged.named_as_target(IoError::io(&elsewhere, cause()));
+        assert_eq!(e.path(), elsewhere);
+        assert_eq!(staged.target_of(&elsewhere), None);
+    }
 
     #[test]
     fn failed_fill_leaves_existing_file_and_no_temp_files() {

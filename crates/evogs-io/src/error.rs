@@ -82,6 +82,20 @@ impl IoError {
         }
     }
 
+    /// The same error about `path` instead (a staged file's error as one about its target).
+    #[must_use]
+    pub fn with_path(mut self, new: impl Into<PathBuf>) -> Self {
+        match &mut self {
+            Self::Io { path, .. }
+            | Self::Ply { path, .. }
+            | Self::Json { path, .. }
+            | Self::Field { path, .. }
+            | Self::Image { path, .. }
+            | Self::InvalidData { path, .. } => *path = new.into(),
+        }
+        self
+    }
+
     /// The file the error is about.
     pub fn path(&self) -> &std::path::Path {
         match self {
