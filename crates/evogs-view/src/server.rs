@@ -136,15 +136,32 @@ pub struct Routes {
     loopback_only: bool,
 }
 
-/// Whether a `Host` header names this machine's loopback interface (any port).
+/// Whether a `Host` header names this machine's loopback interface, with no port or a port in
+/// 1..=65535 written in digits (`127.0.0.1:80@evil.com` and `127.0.0.1:99999999` are not).
 fn loopback_host(host: &str) -> bool {
-    let name = if let Some(rest) = host.strip_prefix('[') {
-        rest.split(']').next().unwrap_or("")
+    let (name, port) = if let Some(rest) = host.strip_prefix('[') {
+        let Some((name, tail)) = rest.split_once(']') else {
+            return false;
+        };
+        match tail.strip_prefix(':') {
+            Some(port) => (name, Some(port)),
+            None if tail.is_empty() => (name, None),
+            None => return false,
+        }
     } else {
-        host.rsplit_once(':').map_or(host, |(h, _)| h)
+        match host.rsplit_once(':') {
+            Some((name, port)) => (name, Some(port)),
+            None => (host, None),
+        }
     };
-    name.eq_ignore_ascii_case("localhost")
-        || name.parse::<IpAddr>().is_ok_and(|ip| ip.is_loopback())
+    let port_ok = port.is_none_or(|p| {
+        !p.is_empty()
+            && p.bytes().all(|b| b.is_ascii_digit())
+            && p.parse::<u16>().is_ok_and(|p| p > 0)
+    });
+    port_ok
+        && (name.eq_ignore_ascii_case("localhost")
+            || name.parse::<IpAddr>().is_ok_and(|ip| ip.is_loopback()))
 }
 
 fn bad(e: BadRequest) -> Response {
@@ -303,6 +320,14 @@ mod tests {
             "10.0.0.1:80",
             "",
             "[::2]:1",
+            "127.0.0.1:80@evil.com",
+            "127.0.0.1:99999999",
+            "127.0.0.1:0",
+            "127.0.0.1:",
+            "localhost:+80",
+            "[::1]x",
+            "[::1]:80@evil.com",
+            "[::1",
         ] {
             assert!(!loopback_host(no), "{no}");
         }
