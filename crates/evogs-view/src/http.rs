@@ -5,9 +5,10 @@
 //! `503` at once and closed, so the number of open connections and threads stays bounded
 //! whatever arrives. (`tiny_http`, the usual small synchronous server, starts a thread per
 //! connection without a limit, its issue #221; owning the accept loop is what bounds it here.)
-//! A worker reads one request head (at most [`Limits::max_head`] bytes, within
-//! [`Limits::timeout`]), parses it with `httparse`, refuses bodies, calls the handler and writes
-//! the response with `Connection: close`.
+//! A worker reads one request head (at most [`Limits::max_head`] bytes, all of it within
+//! [`Limits::head_timeout`]: one deadline for the whole head, so a client trickling a byte at a
+//! time cannot hold a worker longer), parses it with `httparse`, refuses bodies, calls the
+//! handler and writes the response with `Connection: close` (within [`Limits::timeout`]).
 
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
@@ -15,7 +16,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Bounds of the connection layer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -24,8 +25,11 @@ pub struct Limits {
     pub workers: usize,
     /// Connections waiting for a worker; more are answered 503.
     pub backlog: usize,
-    /// Reading a request head and writing a response each time out after this.
+    /// Writing a response times out after this.
     pub timeout: Duration,
+    /// The whole request head must arrive within this, however it is split (a browser sends it
+    /// at once; on loopback it takes well under a millisecond).
+    pub head_timeout: Duration,
     /// Longest accepted request head in bytes (request line and headers).
     pub max_head: usize,
 }
@@ -36,6 +40,7 @@ impl Default for Limits {
             workers: 6,
             backlog: 16,
             timeout: Duration::from_secs(10),
+            head_timeout: Duration::from_secs(3),
             max_head: 16 * 1024,
         }
     }
@@ -147,16 +152,17 @@ fn write_response(stream: &mut TcpStream, response: &Response, head_only: bool) 
 fn read_request(stream: &mut TcpStream, limits: &Limits) -> Result<Request, Response> {
     let mut buf = vec![0u8; 0];
     let mut chunk = [0u8; 4096];
+    let late = || Response::text(400, "the request head did not arrive in time");
+    let deadline = Instant::now() + limits.head_timeout;
     loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() || stream.set_read_timeout(Some(left)).is_err() {
+            return Err(late());
+        }
         let n = match stream.read(&mut chunk) {
             Ok(0) => return Err(Response::text(400, "the connection closed mid-request")),
             Ok(n) => n,
-            Err(_) => {
-                return Err(Response::text(
-                    400,
-                    "the request head did not arrive in time",
-                ));
-            }
+            Err(_) => return Err(late()),
         };
         buf.extend_from_slice(&chunk[..n]);
         let mut headers = [httparse::EMPTY_HEADER; 64];
@@ -264,7 +270,6 @@ fn accept(listener: &TcpListener, tx: &SyncSender<TcpStream>, stop: &AtomicBool,
             break;
         }
         let Ok(stream) = stream else { continue };
-        let _ = stream.set_read_timeout(Some(limits.timeout));
         let _ = stream.set_write_timeout(Some(limits.timeout));
         match tx.try_send(stream) {
             Ok(()) => {}
@@ -303,5 +308,50 @@ fn worker(rx: &Mutex<Receiver<TcpStream>>, handler: &Handler, limits: &Limits) {
             Err(response) => (response, false),
         };
         write_response(&mut stream, &response, head_only);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A client that trickles its head a byte at a time (each byte well within any per-read
+    /// timeout) gets its answer at the head deadline, while it is still sending: it cannot hold
+    /// the worker for longer.
+    #[test]
+    fn a_trickled_head_is_answered_at_the_deadline() {
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let limits = Limits {
+            workers: 1,
+            head_timeout: Duration::from_millis(300),
+            ..Limits::default()
+        };
+        let handler: Handler = Arc::new(|_| Response::text(200, "ok"));
+        let server = Listener::spawn(listener, handler, limits).unwrap();
+        let mut client = TcpStream::connect(server.addr()).unwrap();
+        client
+            .set_read_timeout(Some(Duration::from_millis(50)))
+            .unwrap();
+        let head = b"GET / HTTP/1.1\r\nHost: localhost\r\nX-Slow: ";
+        let mut answer = Vec::new();
+        // 200 bytes at one per 50 ms is 10 s: far past the 0.3 s deadline.
+        for k in 0..200 {
+            let byte = head.get(k).copied().unwrap_or(b'a');
+            if client.write_all(&[byte]).is_err() {
+                break;
+            }
+            let mut got = [0u8; 256];
+            match client.read(&mut got) {
+                Ok(0) => break,
+                Ok(n) => {
+                    answer.extend_from_slice(&got[..n]);
+                    break;
+                }
+                Err(_) => {}
+            }
+        }
+        let answer = String::from_utf8_lossy(&answer);
+        assert!(answer.starts_with("HTTP/1.1 400"), "{answer:?}");
+        server.stop();
     }
 }
