@@ -126,6 +126,22 @@ pub const TRAINER_GRID_LR_SCALE: f32 = 10.0;
 /// small MLP, not yet chosen by a sweep on training views.
 pub const TRAINER_PSI_LR: f32 = 1e-3;
 
+/// The most channels per plane of Φ's tri-plane (8 by default; 16 the most any result used).
+/// With [`MAX_TRIPLANE_LEVELS`] levels of [`MAX_TRIPLANE_RESOLUTION`]² this bounds the planes
+/// at 8 × 3 × 1024² × 128 f32 = 12.9 GB: the bounds stop absurd values (2^31 overflowed an
+/// allocation size), the memory estimate (`--memory-limit`) the merely large ones.
+pub const MAX_TRIPLANE_CHANNELS: usize = 128;
+/// The most tri-plane resolutions (2 by default).
+pub const MAX_TRIPLANE_LEVELS: usize = 8;
+/// The largest tri-plane resolution (64 by default; 128 the largest any result used).
+pub const MAX_TRIPLANE_RESOLUTION: usize = 1024;
+/// The most B-spline control vectors (16 by default; 48 the most any result used).
+pub const MAX_BSPLINE_CONTROLS: usize = 1024;
+/// The longest B-spline control vector (8 by default; 32 the longest any result used).
+pub const MAX_BSPLINE_WIDTH: usize = 256;
+/// The most hidden layers of Φ's decoder (2 by default).
+pub const MAX_HIDDEN_LAYERS: usize = 16;
+
 /// serde's default of [`EvoSettings::triplane_combine`].
 fn concat() -> PlaneCombine {
     PlaneCombine::Concat
@@ -199,6 +215,39 @@ impl EvoSettings {
                 "evogs.gain",
                 format!("{k}: must lie in [0, 1]"),
             ));
+        }
+        // Upper bounds: a size read from a file must not reach an allocator unchecked (a
+        // `config.json` with `triplane_channels = 65536` allocated 1.1 GB before dying).
+        for (field, value, max) in [
+            (
+                "evogs.triplane_channels",
+                self.triplane_channels,
+                MAX_TRIPLANE_CHANNELS,
+            ),
+            (
+                "evogs.triplane_resolutions",
+                self.triplane_resolutions.len(),
+                MAX_TRIPLANE_LEVELS,
+            ),
+            (
+                "evogs.triplane_resolutions",
+                self.triplane_resolutions.iter().copied().max().unwrap_or(0),
+                MAX_TRIPLANE_RESOLUTION,
+            ),
+            (
+                "evogs.bspline_controls",
+                self.bspline_controls,
+                MAX_BSPLINE_CONTROLS,
+            ),
+            ("evogs.bspline_width", self.bspline_width, MAX_BSPLINE_WIDTH),
+            ("evogs.hidden_layers", self.hidden_layers, MAX_HIDDEN_LAYERS),
+        ] {
+            if value > max {
+                return Err(BackboneError::config(
+                    field,
+                    format!("{value}: must be at most {max}"),
+                ));
+            }
         }
         if self.triplane_channels == 0 || self.triplane_resolutions.is_empty() {
             return Err(BackboneError::config(
@@ -363,5 +412,62 @@ mod tests {
         assert_eq!(m["buffer"], serde_json::json!("f16"));
         let back: EvoSettings = serde_json::from_value(serde_json::Value::Object(m)).unwrap();
         assert_eq!(back, s);
+    }
+}
+
+#[cfg(test)]
+mod bounds {
+    use super::*;
+
+    /// Every size has an upper bound, named with the value and the bound; the bound itself is
+    /// accepted.
+    #[test]
+    fn sizes_above_their_bound_are_refused_naming_the_field() {
+        type Set = fn(&mut EvoSettings, usize);
+        let cases: [(&str, usize, Set); 6] = [
+            ("evogs.triplane_channels", MAX_TRIPLANE_CHANNELS, |s, v| {
+                s.triplane_channels = v;
+            }),
+            (
+                "evogs.triplane_resolutions",
+                MAX_TRIPLANE_RESOLUTION,
+                |s, v| {
+                    s.triplane_resolutions = vec![32, v];
+                },
+            ),
+            ("evogs.triplane_resolutions", MAX_TRIPLANE_LEVELS, |s, v| {
+                s.triplane_resolutions = vec![16; v];
+            }),
+            ("evogs.bspline_controls", MAX_BSPLINE_CONTROLS, |s, v| {
+                s.bspline_controls = v;
+            }),
+            ("evogs.bspline_width", MAX_BSPLINE_WIDTH, |s, v| {
+                s.bspline_width = v;
+            }),
+            ("evogs.hidden_layers", MAX_HIDDEN_LAYERS, |s, v| {
+                s.hidden_layers = v;
+            }),
+        ];
+        for (field, max, set) in cases {
+            let mut s = EvoSettings::default();
+            set(&mut s, max);
+            assert!(s.validate().is_ok(), "{field} = {max}");
+            // 2^31 overflowed allocation sizes; the level count is a vector's length, so it is
+            // checked just above its bound only (a vector of 2^31 levels is 16 GB itself).
+            let huge = if max == MAX_TRIPLANE_LEVELS {
+                max + 2
+            } else {
+                1 << 31
+            };
+            for value in [max + 1, huge] {
+                let mut s = EvoSettings::default();
+                set(&mut s, value);
+                let e = s.validate().unwrap_err().to_string();
+                assert!(
+                    e.contains(field) && e.contains(&format!("{value}: must be at most {max}")),
+                    "{e}"
+                );
+            }
+        }
     }
 }

@@ -65,6 +65,17 @@ pub const DNERF_MAX_GAUSSIANS_EVOGS: usize = 40_000;
 /// (0.16 dB below 10 000, one seed; issue Q, `results/dnerf/` A.10–A.13).
 pub const DNERF_GAUSSIAN_VIEW_BUDGET_EVOGS: u64 = 2_000_000;
 
+/// The widest deformation network (D-3DGS's 256; 128 the widest any result here used). The
+/// bounds on sizes stop absurd values read from a file or a flag (65 535 asked for 51 GB and
+/// aborted); the memory estimate (`--memory-limit`) the merely large ones.
+pub const MAX_NET_WIDTH: usize = 2048;
+/// The deepest deformation network (D-3DGS's 8).
+pub const MAX_NET_DEPTH: usize = 64;
+/// The most sinusoidal frequencies of an input (D-3DGS's 10 for positions, 6 for time).
+pub const MAX_FREQUENCIES: usize = 32;
+/// The most initial points (the presets use 2 000 to 100 000).
+pub const MAX_INIT_POINTS: usize = 10_000_000;
+
 impl OneWord for Background {
     const FIELD: &'static str = "background";
 }
@@ -584,6 +595,22 @@ impl TrainConfig {
         }
         if self.net.width == 0 || self.net.depth == 0 {
             return bad("net", "width and depth must be at least 1");
+        }
+        // Upper bounds: a size read from a file must not reach an allocator unchecked
+        // (`net.width = 65535` asked for 51 GB and aborted).
+        for (field, value, max) in [
+            ("net.width", self.net.width, MAX_NET_WIDTH),
+            ("net.depth", self.net.depth, MAX_NET_DEPTH),
+            ("net.xyz_freqs", self.net.xyz_freqs, MAX_FREQUENCIES),
+            ("net.t_freqs", self.net.t_freqs, MAX_FREQUENCIES),
+            ("init_points", self.init_points, MAX_INIT_POINTS),
+        ] {
+            if value > max {
+                return Err(TrainError::config(
+                    field,
+                    format!("{value}: must be at most {max}"),
+                ));
+            }
         }
         if self.method == Method::Evogs {
             self.evogs.validate()?;

@@ -403,3 +403,41 @@ fn an_out_of_range_run_config_is_refused_on_resume_and_eval() {
         );
     }
 }
+
+/// Sizes have upper bounds, from a flag or from a run's `config.json` alike: refused in one
+/// line naming the field, the value and the bound, before anything is allocated or written.
+#[test]
+fn absurd_sizes_are_refused_before_any_allocation() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = rigid_scene(dir.path(), 16, 8);
+    let run = dir.path().join("wide");
+    let e = one_line_error(&train_tiny(&data, &run, &["--net-width", "99999"]));
+    assert!(
+        e.contains("net.width") && e.contains("99999: must be at most 2048"),
+        "{e}"
+    );
+    assert!(!run.join("config.json").exists());
+
+    let run = dir.path().join("run");
+    ok(&train_tiny(
+        &data,
+        &run,
+        &["--iterations", "2", "--method", "evogs"],
+    ));
+    let path = run.join("config.json");
+    let mut config = json(&path);
+    config["train"]["evogs"]["triplane_channels"] = serde_json::json!(65536);
+    std::fs::write(&path, serde_json::to_string_pretty(&config).unwrap()).unwrap();
+    for o in [
+        evogs(&["eval", "--run", s(&run)]),
+        evogs(&["train", "--out", s(&run), "--resume"]),
+    ] {
+        let e = one_line_error(&o);
+        assert!(
+            e.contains("config.json")
+                && e.contains("evogs.triplane_channels")
+                && e.contains("65536"),
+            "{e}"
+        );
+    }
+}
