@@ -41,7 +41,12 @@ impl ValueEnum for TimeFromArg {
 pub struct RasterArgs {
     /// Rasterizer backend: cpu, wgpu (any adapter; an error without one) or auto (wgpu on a
     /// hardware GPU, cpu otherwise).
-    #[arg(long, value_name = "cpu|wgpu|auto", default_value = "cpu", value_parser = parse_backend)]
+    #[arg(
+        long,
+        value_name = "cpu|wgpu|auto",
+        default_value_t = BackendChoice::default(),
+        value_parser = parse_backend
+    )]
     pub backend: BackendChoice,
 }
 
@@ -58,8 +63,18 @@ pub struct BudgetArgs {
 
     /// The clock --time-budget is measured on: cpu (the process's CPU time, all threads summed:
     /// fair on a machine shared with other jobs; with T threads a budget lasts about 1/T of it
-    /// in wall time) or wall (wall-clock time) [default: cpu].
-    #[arg(long, value_parser = evogs_backbones::cli::words::<evogs_train::budget::BudgetClock>(), requires = "time_budget")]
+    /// in wall time) or wall (wall-clock time) [default: `BudgetClock::default()`].
+    #[arg(
+        long,
+        value_parser = evogs_backbones::cli::words::<evogs_train::budget::BudgetClock>(),
+        requires = "time_budget",
+        help = format!(
+            "The clock --time-budget is measured on: cpu (the process's CPU time, all threads \
+             summed: fair on a machine shared with other jobs; with T threads a budget lasts \
+             about 1/T of it in wall time) or wall (wall-clock time) [default: {}]",
+            evogs_train::budget::BudgetClock::default()
+        )
+    )]
     pub budget_clock: Option<evogs_train::budget::BudgetClock>,
 }
 
