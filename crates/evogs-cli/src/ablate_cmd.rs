@@ -31,7 +31,7 @@ pub struct AblateArgs {
     pub preset: Preset,
 
     /// Iterations per row (scales the preset's schedule).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, allow_negative_numbers = true, value_name = "N", value_parser = crate::shared_args::whole::<u64>(1))]
     pub iterations: Option<u64>,
 
     /// Every run's time budget.
@@ -49,8 +49,8 @@ pub struct AblateArgs {
 
     /// Runs every row with N training seeds (S, S+1, …; the scene stays the same) and reports
     /// mean ± sample standard deviation; run directories become `OUT/<row>/seed<S>`.
-    #[arg(long, value_name = "N", default_value_t = 1,
-          value_parser = clap::value_parser!(u64).range(1..=100))]
+    #[arg(long, allow_negative_numbers = true, value_name = "N", default_value_t = 1,
+          value_parser = crate::shared_args::whole::<u64>(1).to(100))]
     pub seeds: u64,
 
     /// Rows to run, comma-separated, in the ladder's order whatever the order given [default:

@@ -44,7 +44,7 @@ pub struct BenchArgs {
     pub preset: Preset,
 
     /// Iterations per run (scales the preset's schedule) [default: the preset's].
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, allow_negative_numbers = true, value_name = "N", value_parser = crate::shared_args::whole::<u64>(1))]
     pub iterations: Option<u64>,
 
     /// Every run's time budget.
@@ -52,7 +52,7 @@ pub struct BenchArgs {
     pub budget: crate::shared_args::BudgetArgs,
 
     /// Curve points (PSNR on the headline split) every this many iterations.
-    #[arg(long, default_value_t = 1000, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1000, value_name = "N", value_parser = crate::shared_args::whole::<u64>(1))]
     pub eval_every: u64,
 
     /// Deformation backbone of every run (EvoGS runs use Φ built from its field; d3dgs: the
@@ -78,7 +78,7 @@ pub struct BenchArgs {
     /// threads / N (at least 1), so each run's peak memory and CPU-time budget are its own: on
     /// 2 cores `--jobs 2` trains the two methods side by side, one thread each. The table, plot
     /// and pictures gather every run once all have finished.
-    #[arg(long, default_value_t = 1, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1, value_name = "N", value_parser = crate::shared_args::whole::<u64>(1))]
     pub jobs: u64,
 
     /// (Internal, for --jobs) train and evaluate the runs and write each run's record, but not

@@ -35,7 +35,7 @@ pub struct DemoArgs {
     pub raster: RasterArgs,
 
     /// Iterations per method (overrides --quick).
-    #[arg(long, value_name = "N", hide = true, value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, allow_negative_numbers = true, value_name = "N", hide = true, value_parser = crate::shared_args::whole::<u64>(1))]
     pub iterations: Option<u64>,
 }
 

@@ -31,7 +31,7 @@ pub struct ExportArgs {
     /// A sequence of N frames at times evenly spaced over [0, 1] into the folder --out
     /// (frame_0000.ply or .compressed.ply or .splat, ... and sequence.json: format, count, files, times, Gaussians, the
     /// canonical bounds).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    #[arg(long, allow_negative_numbers = true, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
     pub frames: Option<u32>,
 
     /// File format: ply (INRIA 3DGS, every SH band, f32), compressed-ply (PlayCanvas/SuperSplat's

@@ -61,7 +61,7 @@ pub struct PrepareArgs {
     pub fps: Option<f64>,
 
     /// At most this many frames (spread over the whole clip; the first of an image folder).
-    #[arg(long, value_name = "N", default_value_t = 150,
+    #[arg(long, allow_negative_numbers = true, value_name = "N", default_value_t = 150,
           value_parser = clap::value_parser!(u32).range(3..=100_000))]
     pub max_frames: u32,
 

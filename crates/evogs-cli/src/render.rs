@@ -161,7 +161,7 @@ pub struct RenderArgs {
 
     /// Render N frames of a run at times evenly spaced over [0, 1] into the folder --out, plus
     /// strip.png with all frames side by side.
-    #[arg(long, value_name = "N", requires = "run", value_parser = clap::value_parser!(u32).range(2..=1000))]
+    #[arg(long, allow_negative_numbers = true, value_name = "N", requires = "run", value_parser = clap::value_parser!(u32).range(2..=1000))]
     pub sweep: Option<u32>,
 
     /// Output PNG image (a folder with --sweep), written atomically (temporary file, rename).
@@ -174,12 +174,12 @@ pub struct RenderArgs {
 
     /// Image width in pixels [demo scene default: 800]. With --camera, the camera is resized to
     /// this width (intrinsics scaled to match).
-    #[arg(long, value_name = "PIXELS", value_parser = clap::value_parser!(u32).range(1..=16384))]
+    #[arg(long, allow_negative_numbers = true, value_name = "PIXELS", value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub width: Option<u32>,
 
     /// Image height in pixels [demo scene default: 600]. With --camera, the camera is resized to
     /// this height (intrinsics scaled to match).
-    #[arg(long, value_name = "PIXELS", value_parser = clap::value_parser!(u32).range(1..=16384))]
+    #[arg(long, allow_negative_numbers = true, value_name = "PIXELS", value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub height: Option<u32>,
 
     /// The rasterizer backend.

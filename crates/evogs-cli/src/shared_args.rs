@@ -94,6 +94,70 @@ fn parse_time_budget(text: &str) -> Result<f64, String> {
     evogs_train::budget::parse_duration(text)
 }
 
+/// The value parser of a whole-number flag in `min..=max`: any other text (a negative number,
+/// a fraction, a word) is refused naming the flag and the range ("invalid value '-5' for
+/// '--iterations <N>': expected a whole number >= 1"), where clap's own unsigned parsers said
+/// "invalid digit found in string" or "not in 1..18446744073709551615".
+#[derive(Clone, Copy, Debug)]
+pub struct Whole<T> {
+    min: u64,
+    max: u64,
+    _as: std::marker::PhantomData<fn() -> T>,
+}
+
+/// [`Whole`] from `min`, unbounded above (`u64::MAX`, or the type's own bound).
+pub fn whole<T>(min: u64) -> Whole<T> {
+    Whole {
+        min,
+        max: u64::MAX,
+        _as: std::marker::PhantomData,
+    }
+}
+
+impl<T> Whole<T> {
+    /// The same with `max` as the largest value.
+    #[must_use]
+    pub fn to(self, max: u64) -> Self {
+        Self { max, ..self }
+    }
+}
+
+impl<T> clap::builder::TypedValueParser for Whole<T>
+where
+    T: TryFrom<u64> + Clone + Send + Sync + 'static,
+{
+    type Value = T;
+
+    fn parse_ref(
+        &self,
+        cmd: &clap::Command,
+        arg: Option<&clap::Arg>,
+        value: &std::ffi::OsStr,
+    ) -> Result<T, clap::Error> {
+        let text = value.to_string_lossy();
+        let range = if self.max == u64::MAX {
+            format!(">= {}", self.min)
+        } else {
+            format!("in {}..={}", self.min, self.max)
+        };
+        text.trim()
+            .parse::<u64>()
+            .ok()
+            .filter(|v| (self.min..=self.max).contains(v))
+            .and_then(|v| T::try_from(v).ok())
+            .ok_or_else(|| {
+                let flag = arg.map_or_else(|| "the value".to_string(), ToString::to_string);
+                clap::Error::raw(
+                    clap::error::ErrorKind::ValueValidation,
+                    format!(
+                        "invalid value '{text}' for '{flag}': expected a whole number {range}\n"
+                    ),
+                )
+                .with_cmd(cmd)
+            })
+    }
+}
+
 /// Parses `cpu`, `wgpu` or `auto`.
 pub fn parse_backend(text: &str) -> Result<BackendChoice, String> {
     text.parse()

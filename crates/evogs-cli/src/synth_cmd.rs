@@ -91,12 +91,12 @@ pub struct SynthArgs {
     pub seed: u64,
 
     /// Image width and height in pixels.
-    #[arg(long, value_name = "N", default_value_t = 128,
+    #[arg(long, allow_negative_numbers = true, value_name = "N", default_value_t = 128,
           value_parser = clap::value_parser!(u32).range(8..=4096))]
     pub size: u32,
 
     /// Training frames (times k/(F-1)); test and val get F/5 each (at least 2).
-    #[arg(long, value_name = "F", default_value_t = 40,
+    #[arg(long, allow_negative_numbers = true, value_name = "F", default_value_t = 40,
           value_parser = clap::value_parser!(u32).range(3..=10000))]
     pub frames: u32,
 

@@ -58,8 +58,9 @@ pub struct TrainArgs {
     /// above 1.6e-6) [preset values: see --help].
     #[arg(
         long,
+        allow_negative_numbers = true,
         value_name = "N",
-        value_parser = clap::builder::RangedU64ValueParser::<u64>::new().range(1..),
+        value_parser = crate::shared_args::whole::<u64>(1),
         help = by_preset(
             "Schedule iterations over which the deformation network's learning rate (D-3DGS's MLP, \
              or EvoGS's Φ, its planes and controls at `--grid-lr-scale` times it) decays from 8e-4 \
@@ -76,8 +77,9 @@ pub struct TrainArgs {
     /// [preset values: see --help].
     #[arg(
         long,
+        allow_negative_numbers = true,
         value_name = "W",
-        value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(2..),
+        value_parser = crate::shared_args::whole::<usize>(2),
         help = by_preset(
             "Width of the deformation network (D-3DGS's MLP; EvoGS's Φ decodes at half of it)",
             |c| c.net.width,
@@ -114,7 +116,7 @@ pub struct TrainArgs {
 
     /// Iterations; the preset's schedule is scaled to this count (with --time-budget: the
     /// schedule's length, which the budget is mapped onto).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, allow_negative_numbers = true, value_name = "N", value_parser = crate::shared_args::whole::<u64>(1))]
     pub iterations: Option<u64>,
 
     /// The time budget.
@@ -172,8 +174,9 @@ pub struct TrainArgs {
     /// densified first) [preset values: see --help].
     #[arg(
         long,
+        allow_negative_numbers = true,
         value_name = "N",
-        value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..),
+        value_parser = crate::shared_args::whole::<usize>(1),
         help = max_gaussians_help()
     )]
     pub max_gaussians: Option<usize>,
@@ -201,8 +204,9 @@ pub struct TrainArgs {
     /// scaled with --iterations].
     #[arg(
         long,
+        allow_negative_numbers = true,
         value_name = "N",
-        value_parser = clap::value_parser!(u64).range(1..),
+        value_parser = crate::shared_args::whole::<u64>(1),
         help = by_preset(
             "Write the checkpoint (what --resume continues from) every N iterations, scaled \
              with --iterations",

@@ -39,7 +39,7 @@ pub struct VideoArgs {
     pub path: PathSpec,
 
     /// Frames [default: 60 for orbit, spiral and a still camera, one per camera for the others].
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    #[arg(long, allow_negative_numbers = true, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
     pub frames: Option<u32>,
 
     /// Frames per second.

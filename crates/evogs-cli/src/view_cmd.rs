@@ -22,7 +22,12 @@ pub struct ViewArgs {
     pub run_b: Option<PathBuf>,
 
     /// Port to listen on (0: any free port; the URL printed says which).
-    #[arg(long, default_value_t = 8080)]
+    #[arg(
+        long,
+        allow_negative_numbers = true,
+        default_value_t = 8080,
+        value_parser = clap::value_parser!(u16).range(0..)
+    )]
     pub port: u16,
 
     /// Address to listen on. Anything but a loopback address exposes the runs to the network

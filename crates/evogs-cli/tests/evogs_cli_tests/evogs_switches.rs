@@ -224,7 +224,7 @@ fn bad_switch_values_name_the_setting() {
         (&["--preset", "huge"][..], "paper, cpu, tiny or dnerf"),
         (&["--method", "evo"][..], "baseline or evogs"),
         (&["--background", "grey"][..], "white, black or random"),
-        (&["--net-lr-decay", "0"][..], "1.."),
+        (&["--net-lr-decay", "0"][..], "expected a whole number >= 1"),
     ] {
         let e = config(flags).unwrap_err();
         let e = e

@@ -376,7 +376,10 @@ fn a_zero_gaussian_cap_is_refused_naming_the_flag() {
     ]);
     assert!(!o.status.success());
     let e = stderr(&o);
-    assert!(e.contains("--max-gaussians") && e.contains("1.."), "{e}");
+    assert!(
+        e.contains("--max-gaussians") && e.contains("expected a whole number >= 1"),
+        "{e}"
+    );
     assert!(!out.exists());
 }
 
@@ -439,5 +442,36 @@ fn absurd_sizes_are_refused_before_any_allocation() {
                 && e.contains("65536"),
             "{e}"
         );
+    }
+}
+
+/// Negative and fractional numbers reach the flag's parser (not "unexpected argument '-1'"),
+/// which names the flag and the accepted range.
+#[test]
+fn bad_numbers_are_refused_naming_the_flag_and_the_range() {
+    for (args, expected) in [
+        (
+            &["render", "--width", "-10", "--out", "x.png"][..],
+            "'--width <PIXELS>': -10 is not in 1..=16384",
+        ),
+        (
+            &["view", "--port", "-1", "run"][..],
+            "'--port <PORT>': -1 is not in 0..=65535",
+        ),
+        (
+            &["train", "--data", "d", "--out", "o", "--iterations", "-5"][..],
+            "'--iterations <N>': expected a whole number >= 1",
+        ),
+        (
+            &["train", "--data", "d", "--out", "o", "--net-width", "2.5"][..],
+            "'--net-width <W>': expected a whole number >= 2",
+        ),
+        (
+            &["ablate", "--data", "d", "--out", "o", "--seeds", "101"][..],
+            "'--seeds <N>': expected a whole number in 1..=100",
+        ),
+    ] {
+        let e = one_line_error(&evogs(args));
+        assert!(e.contains(expected), "{args:?}: {e}");
     }
 }
