@@ -76,6 +76,18 @@ pub(crate) fn set_output_mode(file: &File, target: &Path) -> std::io::Result<()>
     Ok(())
 }
 
+/// The error of creating the temporary file or folder for `target` in `dir`, naming `target`
+/// and never the temporary name (which `tempfile` appends to its errors): a missing folder is
+/// said as such, anything else by its kind.
+pub(crate) fn temp_error(target: &Path, dir: &Path, e: &std::io::Error) -> IoError {
+    let problem = if dir.is_dir() {
+        format!("cannot create a file beside it: {}", e.kind())
+    } else {
+        format!("no such folder {}", dir.display())
+    };
+    IoError::io(target, std::io::Error::new(e.kind(), problem))
+}
+
 /// The directory a path is in (`.` for a bare file name).
 pub(crate) fn parent_dir(path: &Path) -> &Path {
     match path.parent() {
@@ -90,7 +102,7 @@ impl AtomicFile {
         let temp = tempfile::Builder::new()
             .prefix(TEMP_PREFIX)
             .tempfile_in(parent_dir(path))
-            .map_err(|e| IoError::io(path, e))?;
+            .map_err(|e| temp_error(path, parent_dir(path), &e))?;
         let (file, temp_path) = temp.into_parts();
         Ok(Self {
             path: path.to_path_buf(),
@@ -156,7 +168,7 @@ impl StagedFiles {
             tempfile::Builder::new()
                 .prefix(TEMP_PREFIX)
                 .tempdir_in(dir)
-                .map_err(|e| IoError::io(dir, e))?,
+                .map_err(|e| temp_error(dir, dir, &e))?,
         );
         Ok(staged)
     }
@@ -218,6 +230,22 @@ impl Drop for StagedFiles {
 mod tests {
     use super::*;
     use std::io::Write;
+
+    /// Writing into a missing folder names the file asked for and the folder, never the
+    /// temporary file's name.
+    #[test]
+    fn a_missing_folder_is_named_not_the_temporary_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("nodir/x.png");
+        let e = write_atomically(&target, |_| Ok(()))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with(&target.display().to_string()) && e.contains("no such folder"),
+            "{e}"
+        );
+        assert!(!e.contains(TEMP_PREFIX), "{e}");
+    }
 
     /// An error about a staged file names the file it was to become, never the hidden folder;
     /// an error about any other file is left as it was.

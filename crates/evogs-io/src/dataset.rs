@@ -19,7 +19,15 @@ use crate::{IoError, colmap, nerfies, nerfstudio, neu3d};
 /// `poses_bounds.npy` → Neu3D.
 pub fn detect_format(dir: &Path) -> Result<Format, IoError> {
     if !dir.is_dir() {
-        return Err(IoError::field(dir, "(directory)", "is not a directory"));
+        let problem = if dir.exists() {
+            "is a file, not a dataset directory"
+        } else {
+            "no such dataset directory"
+        };
+        return Err(IoError::io(
+            dir,
+            std::io::Error::new(std::io::ErrorKind::NotFound, problem),
+        ));
     }
     let rules = [
         ("sparse", Format::Colmap),

@@ -21,7 +21,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, Command, Stdio};
 
 use crate::IoError;
-use crate::atomic::{AtomicFile, parent_dir, set_output_mode};
+use crate::atomic::{AtomicFile, parent_dir, set_output_mode, temp_error};
 use crate::image_io::{ImageRgb, save_png, to_u8};
 
 /// The environment variable naming the ffmpeg executable (default `ffmpeg` on `PATH`).
@@ -124,7 +124,7 @@ impl VideoWriter {
                 let temp = tempfile::Builder::new()
                     .prefix(".evogs-tmp-")
                     .tempdir_in(parent_dir(out))
-                    .map_err(|e| IoError::io(out, e))?;
+                    .map_err(|e| temp_error(out, parent_dir(out), &e))?;
                 Sink::Frames { temp: Some(temp) }
             }
         };
@@ -273,7 +273,7 @@ fn start_ffmpeg(out: &Path, width: u32, height: u32, fps: f32) -> Result<Sink, I
         .prefix(".evogs-tmp-")
         .suffix(".mp4")
         .tempfile_in(parent_dir(out))
-        .map_err(|e| IoError::io(out, e))?
+        .map_err(|e| temp_error(out, parent_dir(out), &e))?
         .into_temp_path();
     let padded = (width.next_multiple_of(2), height.next_multiple_of(2));
     let program = ffmpeg_program();
@@ -344,7 +344,7 @@ fn replace_folder(dir: tempfile::TempDir, out: &Path) -> Result<(), IoError> {
         let aside = tempfile::Builder::new()
             .prefix(".evogs-old-")
             .tempdir_in(parent_dir(out))
-            .map_err(|e| IoError::io(out, e))?;
+            .map_err(|e| temp_error(out, parent_dir(out), &e))?;
         let aside = aside.keep();
         // Renaming a folder over an empty one replaces it.
         std::fs::rename(out, &aside).map_err(|e| IoError::io(out, e))?;

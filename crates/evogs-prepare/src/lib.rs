@@ -155,8 +155,12 @@ impl PrepareRequest {
             ));
         }
         match &self.source {
-            Source::Video(p) if !p.is_file() => bad("no such video file".into()),
-            Source::Images(p) if !p.is_dir() => bad("no such folder".into()),
+            Source::Video(p) if p.is_dir() => bad("--video: is a folder (use --images)".into()),
+            Source::Video(p) if !p.is_file() => bad("--video: no such video file".into()),
+            Source::Images(p) if p.exists() && !p.is_dir() => {
+                bad("--images: is a file, not a folder of images (use --video)".into())
+            }
+            Source::Images(p) if !p.is_dir() => bad("--images: no such folder".into()),
             _ => Ok(()),
         }
     }

@@ -163,6 +163,19 @@ fn bad_inputs_are_one_line_errors_that_leave_nothing() {
         "broken.mp4",
         "no decodable video frames",
     );
+    // The input of the other kind: a file for --images, a folder for --video.
+    check(
+        &["prepare", "--images", s(&clip), "--out", s(&out)],
+        &out,
+        "broken.mp4",
+        "--images: is a file, not a folder of images (use --video)",
+    );
+    check(
+        &["prepare", "--video", s(&inputs), "--out", s(&out)],
+        &out,
+        "inputs",
+        "--video: is a folder (use --images)",
+    );
     // A folder of one image.
     let one = inputs.join("one");
     std::fs::create_dir_all(&one).unwrap();

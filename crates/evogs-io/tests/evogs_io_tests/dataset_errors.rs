@@ -455,7 +455,11 @@ fn undetectable_directories_are_reported() {
         "{m}"
     );
     let m = message(detect_format(&dir.path().join("missing")));
-    assert_names(&m, "missing", "not a directory");
+    assert_names(&m, "missing", "no such dataset directory");
+    let file = dir.path().join("a.txt");
+    std::fs::write(&file, b"").unwrap();
+    let m = message(detect_format(&file));
+    assert_names(&m, "a.txt", "is a file, not a dataset directory");
 }
 
 /// Applies mutations (byte overwrites) and a truncation to valid bytes.
