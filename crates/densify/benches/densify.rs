@@ -4,8 +4,8 @@
 
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use densify::{
-    Deformation, DensifyConfig, DensifyStats, OptimiserMoments, PerGaussian, PlanInput, apply_plan,
-    make_plan,
+    Deformation, DensifyConfig, DensifyStats, OptimiserMoments, PerGaussian, PlanInput, Planned,
+    apply_plan, make_plan,
 };
 use evo_state::{EvoConfig, EvoState, Frames, Storage};
 use rand::{RngExt, SeedableRng};
@@ -86,29 +86,6 @@ fn run(rng: &mut ChaCha8Rng) -> Run {
     }
 }
 
-/// The evolution state as one of the run's arrays (as its backbone wraps it in
-/// `evogs-backbones`: densify itself does not depend on evo-state).
-struct Evolution<'a>(&'a mut EvoState);
-
-impl PerGaussian for Evolution<'_> {
-    fn label(&self) -> String {
-        "evolution state".into()
-    }
-
-    fn rows(&self) -> usize {
-        self.0.rows()
-    }
-
-    fn apply(&mut self, plan: &densify::DensifyPlan) -> Result<(), densify::DensifyError> {
-        self.0
-            .apply_rows(&plan.rows)
-            .map_err(|e| densify::DensifyError::Container {
-                array: self.label(),
-                source: Box::new(e),
-            })
-    }
-}
-
 fn apply_all(plan: &densify::DensifyPlan, run: &mut Run, with_evo: bool) {
     let Run {
         gaussians,
@@ -125,7 +102,7 @@ fn apply_all(plan: &densify::DensifyPlan, run: &mut Run, with_evo: bool) {
         adam,
         groups: &groups,
     };
-    let mut evolution = Evolution(evo);
+    let mut evolution = Planned(evo);
     let mut arrays: Vec<&mut dyn PerGaussian> = vec![gaussians, stats];
     if with_evo {
         arrays.push(&mut evolution);

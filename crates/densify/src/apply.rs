@@ -8,8 +8,9 @@
 //! - [`Moments`] (one Adam group): new rows start at zero moments (as 3DGS's
 //!   `cat_tensors_to_optimizer`); reset rows' opacity moments are zeroed (`reset_opacity` →
 //!   `replace_tensor_to_optimizer`).
-//! - a deformation's per-Gaussian state (EvoGS's evolution state, implemented beside its
-//!   backbone in `evogs-backbones`): its own row maintenance.
+//! - [`Planned`]: a container that keeps its own rows through the [`RowPlan`]
+//!   ([`FollowsRowPlan`]: EvoGS's evolution state, whose buffer rows of every frame and memory
+//!   are copied from the parent).
 //! - [`DensifyStats`]: zeroed after a densification step (3DGS's `densification_postfix`),
 //!   otherwise rows follow the plan.
 //! - [`Rows`]: any other array of rows, with a chosen fill for new rows.
@@ -19,7 +20,7 @@ use crate::plan::DensifyPlan;
 use crate::stats::DensifyStats;
 use rayon::prelude::*;
 use splat_core::Gaussians;
-use splat_core::{NewRows, RowPlan, RowPlanError};
+use splat_core::{FollowsRowPlan, NewRows, RowPlan, RowPlanError};
 use tiny_nn::adam::{Adam, AdamGroup, GroupId};
 
 /// A container of per-Gaussian rows that a plan can be applied to.
@@ -304,6 +305,46 @@ impl PerGaussian for DensifyStats {
         copy_rows(r, &mut self.residual_count, 1, "stats.residual_count")?;
         copy_rows(r, &mut self.theta_sum, 1, "stats.theta_sum")?;
         copy_rows(r, &mut self.theta_count, 1, "stats.theta_count")
+    }
+}
+
+/// A container that keeps its own rows through a row plan ([`FollowsRowPlan`]: EvoGS's
+/// evolution state) as one of the arrays a plan is applied to: it follows the plan's
+/// [`DensifyPlan::rows`], its errors become [`DensifyError::Container`]. It dereferences to the
+/// container (`Planned(&mut state)` lends one; a backbone may keep its state in one).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Planned<T>(pub T);
+
+impl<T> std::ops::Deref for Planned<T> {
+    type Target = T;
+
+    fn deref(&self) -> &T {
+        &self.0
+    }
+}
+
+impl<T> std::ops::DerefMut for Planned<T> {
+    fn deref_mut(&mut self) -> &mut T {
+        &mut self.0
+    }
+}
+
+impl<T: FollowsRowPlan + Send> PerGaussian for Planned<T> {
+    fn label(&self) -> String {
+        self.0.label()
+    }
+
+    fn rows(&self) -> usize {
+        self.0.row_count()
+    }
+
+    fn apply(&mut self, plan: &DensifyPlan) -> Result<(), DensifyError> {
+        self.0
+            .follow(&plan.rows)
+            .map_err(|source| DensifyError::Container {
+                array: self.0.label(),
+                source,
+            })
     }
 }
 

@@ -54,8 +54,8 @@ pub enum DensifyError {
         #[source]
         source: RowPlanError,
     },
-    /// A per-Gaussian container refused the row plan for a reason of its own (e.g. EvoGS's
-    /// evolution state, whose rows its backbone maintains).
+    /// A container that keeps its own rows refused the row plan ([`crate::Planned`]: e.g.
+    /// EvoGS's evolution state).
     #[error("densify: applying the row plan to the {array}: {source}")]
     Container {
         /// The container's label ([`crate::PerGaussian::label`]).

@@ -42,7 +42,7 @@ pub mod plan;
 pub mod planner;
 pub mod stats;
 
-pub use apply::{Moments, OptimiserMoments, PerGaussian, Rows, apply_plan};
+pub use apply::{Moments, OptimiserMoments, PerGaussian, Planned, Rows, apply_plan};
 pub use config::{DensifyConfig, Schedule, Trigger};
 pub use error::DensifyError;
 pub use extent::scene_extent;

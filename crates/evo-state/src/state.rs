@@ -513,3 +513,17 @@ impl EvoState {
         mean_sq
     }
 }
+
+impl splat_core::FollowsRowPlan for EvoState {
+    fn label(&self) -> String {
+        "evolution state".into()
+    }
+
+    fn row_count(&self) -> usize {
+        self.rows()
+    }
+
+    fn follow(&mut self, plan: &RowPlan) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        Ok(self.apply_rows(plan)?)
+    }
+}

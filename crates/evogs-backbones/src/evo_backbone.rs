@@ -29,7 +29,7 @@
 
 use std::path::Path;
 
-use densify::{Deformation, DensifyError, DensifyPlan, PerGaussian};
+use densify::{Deformation, PerGaussian, Planned};
 use evo_state::{Backward, EvoConfig, EvoError, EvoState, Frames, Step};
 use rayon::prelude::*;
 use splat_core::{GaussiansView, Layout, sigmoid};
@@ -44,45 +44,6 @@ use crate::backbone::{
 use crate::error::BackboneError;
 use crate::evo_settings::EvoSettings;
 use crate::observer::Observer;
-
-/// The evolution state as one of densification's per-Gaussian arrays: a plan's row plan applied
-/// to its buffer rows of every frame and its residual memory (evo-state's
-/// [`EvoState::apply_rows`]). Kept here, beside the backbone that owns the state, so that
-/// densify knows nothing of EvoGS.
-struct Evolution(EvoState);
-
-impl std::ops::Deref for Evolution {
-    type Target = EvoState;
-
-    fn deref(&self) -> &EvoState {
-        &self.0
-    }
-}
-
-impl std::ops::DerefMut for Evolution {
-    fn deref_mut(&mut self) -> &mut EvoState {
-        &mut self.0
-    }
-}
-
-impl PerGaussian for Evolution {
-    fn label(&self) -> String {
-        "evolution state".into()
-    }
-
-    fn rows(&self) -> usize {
-        self.0.rows()
-    }
-
-    fn apply(&mut self, plan: &DensifyPlan) -> Result<(), DensifyError> {
-        self.0
-            .apply_rows(&plan.rows)
-            .map_err(|e| DensifyError::Container {
-                array: self.label(),
-                source: Box::new(e),
-            })
-    }
-}
 
 /// Φ's configuration for a run: half the baseline network's width (`net_width`), scene box
 /// `[-h, h]³` of the initial cube (`half_extent`), output D, initialised from the run's `seed`.
@@ -127,7 +88,8 @@ struct Training<C> {
 pub struct EvoBackbone<P: Observer = ObservationNet> {
     settings: EvoSettings,
     phi: P,
-    evo: Evolution,
+    /// The evolution state, kept as one of densification's per-Gaussian arrays.
+    evo: Planned<EvoState>,
     /// Whether `evo` was built for the run's frames and Gaussians (or loaded).
     ready: bool,
     training: Option<Training<P::Cache>>,
@@ -174,7 +136,7 @@ impl<P: Observer> EvoBackbone<P> {
         let placeholder = Frames::from_timestamps([0.0])
             .map_err(|e| BackboneError::config("frames", e.to_string()))?;
         // The extent is the scene's: `prepare` builds the state again with it.
-        let evo = Evolution(EvoState::new(
+        let evo = Planned(EvoState::new(
             settings.evo,
             placeholder,
             0,
@@ -461,7 +423,7 @@ impl<P: Observer> PerGaussianState for EvoBackbone<P> {
         };
         let mut evo = EvoState::new(config, frames, rows, 0)?;
         evo.psi_mut().set_params(&psi)?;
-        self.evo = Evolution(evo);
+        self.evo = Planned(evo);
         self.ready = true;
         Ok(())
     }
@@ -548,7 +510,7 @@ impl<P: Observer> PerGaussianState for EvoBackbone<P> {
                 "field `psi`: Ψ has another shape",
             ));
         }
-        self.evo = Evolution(evo);
+        self.evo = Planned(evo);
         self.ready = true;
         self.training = None;
         Ok(())

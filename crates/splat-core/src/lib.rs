@@ -28,4 +28,4 @@ pub use deform::{Component, Layout, LayoutParseError};
 pub use deformed::{DeformedGeometry, deformation_gradient, deformation_gradient_into};
 pub use gaussians::{GaussianGrads, Gaussians, GaussiansView, ShapeError, sh_coeff_count};
 pub use one_word::{OneWord, unknown_message};
-pub use rows::{NewRows, RowPlan, RowPlanError};
+pub use rows::{FollowsRowPlan, NewRows, RowPlan, RowPlanError};

@@ -75,6 +75,33 @@ pub enum RowPlanError {
     },
 }
 
+/// A per-Gaussian container that keeps its own rows aligned through a [`RowPlan`] (EvoGS's
+/// evolution state: its buffer rows of every frame and its residual memory). Densification
+/// applies its plans to any such container through one adapter (`densify::Planned`), knowing
+/// nothing else of it.
+pub trait FollowsRowPlan {
+    /// Name used in errors.
+    fn label(&self) -> String;
+    /// Number of rows (Gaussians) held.
+    fn row_count(&self) -> usize;
+    /// Applies `plan` to every per-Gaussian array of the container.
+    fn follow(&mut self, plan: &RowPlan) -> Result<(), Box<dyn std::error::Error + Send + Sync>>;
+}
+
+impl<T: FollowsRowPlan + ?Sized> FollowsRowPlan for &mut T {
+    fn label(&self) -> String {
+        (**self).label()
+    }
+
+    fn row_count(&self) -> usize {
+        (**self).row_count()
+    }
+
+    fn follow(&mut self, plan: &RowPlan) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        (**self).follow(plan)
+    }
+}
+
 impl RowPlan {
     /// The plan that changes nothing for `rows` rows.
     pub fn identity(rows: usize) -> Self {

@@ -6,13 +6,11 @@
 #![allow(clippy::needless_range_loop)]
 
 use densify::{
-    Deformation, DensifyConfig, DensifyStats, Moments, PlanInput, Rows, Trigger, apply_plan,
-    make_plan,
+    Deformation, DensifyConfig, DensifyStats, Moments, PlanInput, Planned, Rows, Trigger,
+    apply_plan, make_plan,
 };
 use evo_state::{EvoConfig, EvoState, Frames, Storage};
 use proptest::prelude::*;
-
-use crate::common::Evolution;
 use splat_core::Gaussians;
 use splat_core::logit;
 use splat_core::{Layout, NewRows};
@@ -168,7 +166,7 @@ proptest! {
         {
             let mut moments = Moments { group: adam.group_mut(id), opacity_column: Some(10) };
             let mut tag_rows = Rows { label: "tags", data: &mut tags, stride: 1, fill: NewRows::CopyParent };
-            apply_plan(&plan, &mut [&mut after, &mut moments, &mut Evolution(&mut evo), &mut after_stats, &mut tag_rows]).unwrap();
+            apply_plan(&plan, &mut [&mut after, &mut moments, &mut Planned(&mut evo), &mut after_stats, &mut tag_rows]).unwrap();
         }
 
         let m = plan.new_len();

@@ -674,3 +674,56 @@ fn max_gaussians_keeps_the_largest_gradients_and_never_grows_past_the_cap() {
         plan.summary
     );
 }
+
+/// A container that keeps its own rows follows the plan through `Planned`; its refusal is the
+/// plan's error, naming the container, and no array is left at a row count of its own.
+#[test]
+fn planned_containers_follow_the_plan_and_name_themselves_when_they_refuse() {
+    use densify::{DensifyPlan, Planned};
+    use splat_core::{FollowsRowPlan, RowPlan};
+
+    struct Tags {
+        rows: Vec<u32>,
+        refuse: bool,
+    }
+    impl FollowsRowPlan for Tags {
+        fn label(&self) -> String {
+            "tag store".into()
+        }
+        fn row_count(&self) -> usize {
+            self.rows.len()
+        }
+        fn follow(
+            &mut self,
+            plan: &RowPlan,
+        ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+            if self.refuse {
+                return Err("read-only".into());
+            }
+            Ok(plan.apply(&mut self.rows, 1, NewRows::CopyParent)?)
+        }
+    }
+    let plan = DensifyPlan {
+        rows: RowPlan {
+            kept: vec![0, 2],
+            parent_from_new: Vec::new(),
+        },
+        ..DensifyPlan::identity(3)
+    };
+    let mut tags = Tags {
+        rows: vec![10, 11, 12],
+        refuse: false,
+    };
+    apply_plan(&plan, &mut [&mut Planned(&mut tags)]).unwrap();
+    assert_eq!(tags.rows, [10, 12]);
+    let mut tags = Tags {
+        rows: vec![10, 11, 12],
+        refuse: true,
+    };
+    let e = apply_plan(&plan, &mut [&mut Planned(&mut tags)]).unwrap_err();
+    assert!(matches!(e, DensifyError::Container { .. }), "{e}");
+    assert_eq!(
+        e.to_string(),
+        "densify: applying the row plan to the tag store: read-only"
+    );
+}

@@ -35,26 +35,3 @@ pub fn stats_with_grads(grads: &[f32]) -> DensifyStats {
 pub fn standard() -> DensifyConfig {
     DensifyConfig::default()
 }
-
-/// EvoGS's evolution state as one of a run's per-Gaussian arrays (as its backbone wraps it in
-/// `evogs-backbones`: densify itself does not depend on evo-state).
-pub struct Evolution<'a>(pub &'a mut evo_state::EvoState);
-
-impl densify::PerGaussian for Evolution<'_> {
-    fn label(&self) -> String {
-        "evolution state".into()
-    }
-
-    fn rows(&self) -> usize {
-        self.0.rows()
-    }
-
-    fn apply(&mut self, plan: &densify::DensifyPlan) -> Result<(), densify::DensifyError> {
-        self.0
-            .apply_rows(&plan.rows)
-            .map_err(|e| densify::DensifyError::Container {
-                array: self.label(),
-                source: Box::new(e),
-            })
-    }
-}
