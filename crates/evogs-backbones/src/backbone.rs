@@ -29,6 +29,14 @@ pub trait Backbone: Send {
     /// Short name for messages and files.
     fn name(&self) -> &'static str;
 
+    /// Starts what the backbone derives from the run's initial Gaussians (SC-GS: its control
+    /// points, by farthest-point sampling of them). Called once, for a new run, before the
+    /// optimiser is built; a resumed run reads it all from its checkpoint instead. Nothing by
+    /// default.
+    fn initialise(&mut self, _canonical: GaussiansView<'_>) -> Result<(), BackboneError> {
+        Ok(())
+    }
+
     /// Deformation rows of the canonical Gaussians at `time` into `out` (N × `layout().dim()`,
     /// whatever it held; the backbone reuses its allocation where it can: the trainer keeps one
     /// buffer for every iteration). `training` says whether a backward pass will follow (the

@@ -19,6 +19,7 @@ use crate::grid4d_phi::Grid4dPhi;
 use crate::hex_backbone::HexBackbone;
 use crate::hex_phi::HexPhi;
 use crate::one_word::{OneWord, unknown};
+use crate::scgs::{ScgsBackbone, ScgsSettings};
 
 /// The deformation method (`--method`).
 #[derive(EnumString, Display, IntoStaticStr, VariantNames)]
@@ -53,6 +54,9 @@ pub enum BackboneKind {
     /// Grid4D's 4D decomposed hash-grid field ([`Grid4dBackbone`]).
     #[serde(rename = "grid4d")]
     Grid4d,
+    /// SC-GS's sparse control points with linear blend skinning ([`ScgsBackbone`]).
+    #[serde(rename = "scgs")]
+    Scgs,
 }
 
 impl OneWord for BackboneKind {
@@ -72,6 +76,8 @@ pub struct BackboneRun<'a> {
     pub net: &'a NetSettings,
     /// EvoGS's settings (read when `method` is EvoGS).
     pub evogs: &'a EvoSettings,
+    /// SC-GS's settings (read when `kind` is SC-GS).
+    pub scgs: &'a ScgsSettings,
     /// Half extent `h` of the initial cube `[-h, h]³` (the fields' boxes).
     pub half_extent: f32,
     /// The run's seed.
@@ -104,6 +110,7 @@ pub fn make_backbone(run: &BackboneRun<'_>) -> Result<Box<dyn Backbone>, Backbon
         }
         (Method::Baseline, BackboneKind::FourDgs) => Box::new(HexBackbone::new(h, seed)?),
         (Method::Baseline, BackboneKind::Grid4d) => Box::new(Grid4dBackbone::new(&run.grid4d())?),
+        (Method::Baseline, BackboneKind::Scgs) => Box::new(ScgsBackbone::new(run.scgs, h, seed)?),
         (Method::Evogs, BackboneKind::D3dgs) => {
             Box::new(EvoBackbone::new(evogs, run.net.width, h, seed)?)
         }
@@ -117,6 +124,13 @@ pub fn make_backbone(run: &BackboneRun<'_>) -> Result<Box<dyn Backbone>, Backbon
             seed,
             Grid4dPhi::new(&run.grid4d(), evogs)?,
         )?),
+        (Method::Evogs, BackboneKind::Scgs) => {
+            return Err(BackboneError::config(
+                "backbone",
+                "EvoGS on SC-GS's control points is not built yet; use --method baseline with \
+                 --backbone scgs",
+            ));
+        }
     })
 }
 
@@ -131,11 +145,22 @@ mod tests {
         net: &'a NetSettings,
         evogs: &'a EvoSettings,
     ) -> BackboneRun<'a> {
+        static SCGS: ScgsSettings = ScgsSettings {
+            control_points: 8,
+            neighbours: 3,
+            width: 16,
+            depth: 2,
+            xyz_freqs: 2,
+            t_freqs: 2,
+            arap_weight: 1e-4,
+            position_lr_scale: 0.0,
+        };
         BackboneRun {
             method,
             kind,
             net,
             evogs,
+            scgs: &SCGS,
             half_extent: 1.3,
             seed: 7,
             grid4d_log2_table: 8,
@@ -151,7 +176,8 @@ mod tests {
 
     /// Every method with every backbone builds, with the name and row layout it stands for: a
     /// baseline deforms geometry only, EvoGS the components of its settings (all five but with
-    /// 4DGaussians' Φ, which has geometric heads only and refuses the others).
+    /// 4DGaussians' Φ, which has geometric heads only and refuses the others; EvoGS on SC-GS is
+    /// refused with a message that names the baseline).
     #[test]
     fn every_choice_builds_its_backbone() {
         let net = NetSettings {
@@ -178,6 +204,9 @@ mod tests {
                         assert_eq!(e.layout(), layout, "{kind}");
                         assert!(e.state().is_some(), "{kind}");
                     }
+                    Err(e) if kind == BackboneKind::Scgs => {
+                        assert!(e.to_string().contains("--method baseline"), "{e}");
+                    }
                     Err(e) => {
                         assert_eq!((kind, layout), (BackboneKind::FourDgs, Layout::ALL));
                         assert!(e.to_string().contains("scale only"), "{e}");
@@ -198,7 +227,7 @@ mod tests {
         let e = "nope".parse::<BackboneKind>().unwrap_err().to_string();
         assert_eq!(
             e,
-            "invalid setting `backbone`: unknown backbone `nope`; expected d3dgs, 4dgs or grid4d"
+            "invalid setting `backbone`: unknown backbone `nope`; expected d3dgs, 4dgs, grid4d or scgs"
         );
         let e = "x".parse::<Method>().unwrap_err().to_string();
         assert_eq!(

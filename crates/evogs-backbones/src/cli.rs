@@ -1,6 +1,7 @@
-//! EvoGS's settings on the command line (cargo feature `clap`): one flag per switch of
-//! [`EvoSettings`] ([`EvoArgs`], flattened into `evogs train`), each default read from
-//! [`EvoSettings::default`], so a default is written once and the help shows it from there; and
+//! EvoGS's and SC-GS's settings on the command line (cargo feature `clap`): one flag per switch
+//! of [`EvoSettings`] ([`EvoArgs`]) and of [`ScgsSettings`] ([`ScgsArgs`]), flattened into
+//! `evogs train`, each default read from the type's `Default`, so a default is written once and
+//! the help shows it from there; and
 //! the value parser of a setting spelled by one word ([`words`]), whose help lists the spellings
 //! the type declares.
 //!
@@ -18,6 +19,7 @@ use strum::VariantNames;
 use crate::evo_settings::{
     DensifyPolicy, EvoSettings, Gain, HistoryMode, Layout, PlaneCombine, Precision, Storage,
 };
+use crate::scgs::ScgsSettings;
 
 /// The value parser of a setting spelled by one word: the type's `FromStr` (its message for an
 /// unknown word, as clap reports any parse error), with the type's spellings
@@ -176,6 +178,54 @@ impl EvoArgs {
     }
 }
 
+/// The defaults every flag of [`ScgsArgs`] shows and starts from.
+fn scgs_defaults() -> ScgsSettings {
+    ScgsSettings::default()
+}
+
+/// SC-GS's settings (`--backbone scgs`), each defaulting to [`ScgsSettings::default`]'s value
+/// (SC-GS's D-NeRF recipe); [`ScgsArgs::apply`] writes every one into a run's settings.
+#[derive(Clone, Debug, PartialEq, Args)]
+pub struct ScgsArgs {
+    /// SC-GS: control points that carry the motion.
+    #[arg(long, value_name = "M", default_value_t = scgs_defaults().control_points)]
+    pub control_points: usize,
+
+    /// SC-GS: nearest control points that move each Gaussian (K).
+    #[arg(long, value_name = "K", default_value_t = scgs_defaults().neighbours)]
+    pub control_neighbours: usize,
+
+    /// SC-GS: hidden width of the control points' network.
+    #[arg(long, value_name = "W", default_value_t = scgs_defaults().width)]
+    pub control_width: usize,
+
+    /// SC-GS: hidden layers of the control points' network.
+    #[arg(long, value_name = "D", default_value_t = scgs_defaults().depth)]
+    pub control_depth: usize,
+
+    /// SC-GS: weight of the as-rigid-as-possible loss on the control points' trajectories
+    /// (0 turns it off).
+    #[arg(long, value_name = "W", default_value_t = scgs_defaults().arap_weight)]
+    pub arap_weight: f32,
+
+    /// SC-GS: factor on the network learning rate for the control points' positions (0 keeps
+    /// them where they started, as SC-GS's code does).
+    #[arg(long, value_name = "S", default_value_t = scgs_defaults().position_lr_scale)]
+    pub control_position_lr_scale: f32,
+}
+
+impl ScgsArgs {
+    /// Writes every flag into `settings` (the encodings' frequencies are left as they are).
+    pub fn apply(&self, settings: &mut ScgsSettings) {
+        settings.control_points = self.control_points;
+        settings.neighbours = self.control_neighbours;
+        settings.width = self.control_width;
+        settings.depth = self.control_depth;
+        settings.arap_weight = self.arap_weight;
+        settings.position_lr_scale = self.control_position_lr_scale;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -185,6 +235,23 @@ mod tests {
     struct Cli {
         #[command(flatten)]
         evo: EvoArgs,
+        #[command(flatten)]
+        scgs: ScgsArgs,
+    }
+
+    /// SC-GS's flags: none gives the defaults; each changes its field.
+    #[test]
+    fn scgs_flags_default_to_the_settings_and_change_their_field() {
+        let mut settings = ScgsSettings {
+            control_points: 3,
+            ..ScgsSettings::default()
+        };
+        Cli::parse_from(["evogs"]).scgs.apply(&mut settings);
+        assert_eq!(settings, ScgsSettings::default());
+        Cli::parse_from(["evogs", "--control-points", "64", "--arap-weight", "0"])
+            .scgs
+            .apply(&mut settings);
+        assert_eq!((settings.control_points, settings.arap_weight), (64, 0.0));
     }
 
     /// No flag gives the defaults exactly (every default survives its trip through clap's

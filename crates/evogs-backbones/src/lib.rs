@@ -11,6 +11,9 @@
 //!   [`grid4d_phi`]: the same field as EvoGS's Φ ([`Grid4dPhi`]);
 //! - [`evo_backbone`], [`evo_settings`]: EvoGS (Φ + evo-state + Ψ, [`EvoBackbone`]) and its
 //!   switches ([`EvoSettings`]), recorded in a run's `config.json`;
+//! - [`scgs`]: SC-GS's sparse control points ([`ScgsBackbone`], `--backbone scgs`): a network
+//!   on a few hundred control points, linear blend skinning of each Gaussian by its nearest ones,
+//!   and the ARAP loss on their trajectories ([`ScgsSettings`]);
 //! - [`observer`]: what a field implements to be Φ ([`Observer`]); [`hex_phi`]: 4DGaussians'
 //!   field as Φ ([`HexPhi`]);
 //! - [`one_word`]: settings spelled by one word and the one message for an unknown word;
@@ -48,6 +51,7 @@ pub mod hex_backbone;
 pub mod hex_phi;
 pub mod observer;
 pub mod one_word;
+pub mod scgs;
 
 pub use backbone::{Backbone, DensifyCues, GainStats, PerGaussianState};
 pub use choice::{BackboneKind, BackboneRun, Method, make_backbone};
@@ -64,3 +68,4 @@ pub use hex_backbone::HexBackbone;
 pub use hex_phi::HexPhi;
 pub use observer::Observer;
 pub use one_word::{OneWord, unknown_message};
+pub use scgs::{ScgsBackbone, ScgsSettings};

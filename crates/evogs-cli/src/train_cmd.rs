@@ -40,15 +40,20 @@ pub struct TrainArgs {
     pub method: evogs_train::Method,
 
     /// Deformation backbone: d3dgs (Deformable-3D-Gaussians' MLP), 4dgs (4DGaussians'
-    /// HexPlane field with its regularisers) or grid4d (Grid4D's 4D decomposed hash grids with
-    /// directional attention). With --method evogs, 4dgs's and grid4d's fields become Φ at half
-    /// their width.
+    /// HexPlane field with its regularisers), grid4d (Grid4D's 4D decomposed hash grids with
+    /// directional attention) or scgs (SC-GS's sparse control points: a network on a few hundred
+    /// points, each Gaussian skinned by its nearest ones; baseline only for now). With --method
+    /// evogs, 4dgs's and grid4d's fields become Φ at half their width.
     #[arg(long, default_value_t = evogs_train::BackboneKind::default(), value_parser = evogs_backbones::cli::words::<evogs_train::BackboneKind>())]
     pub backbone: evogs_train::BackboneKind,
 
     /// EvoGS's switches, each defaulting to `EvoSettings::default()`'s value.
     #[command(flatten)]
     pub evo: evogs_backbones::cli::EvoArgs,
+
+    /// SC-GS's settings, each defaulting to `ScgsSettings::default()`'s value.
+    #[command(flatten)]
+    pub scgs: evogs_backbones::cli::ScgsArgs,
 
     /// Schedule iterations over which the deformation network's learning rate (D-3DGS's MLP, or
     /// EvoGS's Φ, its planes and controls at `--grid-lr-scale` times it) decays from 8e-4 to
@@ -283,6 +288,7 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     config = config.with_method(args.method);
     config.backbone = args.backbone;
     args.evo.apply(&mut config.evogs);
+    args.scgs.apply(&mut config.scgs);
     if let Some(v) = args.net_width {
         config.net.width = v;
     }

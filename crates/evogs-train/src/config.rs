@@ -326,6 +326,10 @@ pub struct TrainConfig {
     /// EvoGS's switches and Φ's shape (used by `method = evogs`; recorded for every run).
     #[serde(default)]
     pub evogs: evogs_backbones::EvoSettings,
+    /// SC-GS's control points and their network (used by `backbone = scgs`; recorded for every
+    /// run; runs written before it existed read SC-GS's defaults).
+    #[serde(default)]
+    pub scgs: evogs_backbones::ScgsSettings,
     /// Rasterizer backend (`cpu`, `wgpu`, `auto`); runs written before it existed read as `cpu`.
     /// A resumed run keeps it unless the resume asks for another.
     #[serde(default)]
@@ -391,6 +395,7 @@ impl TrainConfig {
             checkpoint_every: 5_000,
             log_every: default_log_every(),
             evogs: evogs_backbones::EvoSettings::default(),
+            scgs: evogs_backbones::ScgsSettings::default(),
             backend: splat_raster::BackendChoice::Cpu,
             time_from: evogs_io::TimeFrom::Order,
             memory_limit: None,
@@ -501,6 +506,7 @@ impl TrainConfig {
             kind: self.backbone,
             net: &self.net,
             evogs: &self.evogs,
+            scgs: &self.scgs,
             half_extent: self.init_half_extent,
             seed: self.seed,
             grid4d_log2_table: self.preset.grid4d_log2_table(),
@@ -614,6 +620,9 @@ impl TrainConfig {
         }
         if self.method == Method::Evogs {
             self.evogs.validate()?;
+        }
+        if self.backbone == BackboneKind::Scgs {
+            self.scgs.validate()?;
         }
         if let Some(b) = &self.budget {
             b.validate()?;

@@ -79,7 +79,7 @@ impl MemoryEstimate {
         let images = (inputs.views * inputs.pixels) as u64 * (3 + random) * F32;
         let network = inputs.network_params as u64 * 4 * F32;
         let render = inputs.pixels as u64 * (BYTES_PER_PIXEL + random * 3 * F32);
-        let fixed = PROCESS_BYTES + render + network;
+        let fixed = PROCESS_BYTES + render + network + control_points(config);
         // Per Gaussian: P floats of parameters, two Adam moments, the gradients (P plus the 2-D
         // means and the radius), the deformed copy of the geometry (10) and the deformation rows
         // with their gradient (at most `Layout::MAX_DIM` each: an upper bound for every layout).
@@ -165,6 +165,12 @@ fn per_row_network(config: &TrainConfig, frames: usize) -> (u64, u64) {
             (F32 * (2 * 64 + net.width * 2 + 10) as u64, 0)
         }
         (Method::Baseline, BackboneKind::Grid4d) => (F32 * grid4d_row(net.width, 10) as u64, 0),
+        (Method::Baseline, BackboneKind::Scgs) => {
+            // The canonical mean kept for the backward, K neighbours (index and distance), the
+            // skinned row and its gradient.
+            let k = config.scgs.neighbours;
+            (F32 * (3 + 2 * k + 2 * 10) as u64, 0)
+        }
         (Method::Evogs, backbone) => {
             let s = &config.evogs;
             let dim = s.evo.dim();
@@ -185,6 +191,18 @@ fn per_row_network(config: &TrainConfig, frames: usize) -> (u64, u64) {
             (F32 * (phi + step) as u64, evolution)
         }
     }
+}
+
+/// Bytes of SC-GS's control-point network activations for its two evaluations per step (the
+/// step's time and ARAP's partner), kept for the backward: a fixed part, whatever the Gaussians.
+fn control_points(config: &TrainConfig) -> u64 {
+    if config.backbone != BackboneKind::Scgs {
+        return 0;
+    }
+    let s = &config.scgs;
+    let input = 3 * (1 + 2 * s.xyz_freqs) + (1 + 2 * s.t_freqs);
+    let row = 2 * input + s.width * s.depth + 14;
+    2 * 4 * (s.control_points * row) as u64
 }
 
 /// f32 values per Gaussian a Grid4D field of decoder `width` and `output` values keeps for its

@@ -186,7 +186,8 @@ impl Trainer {
         gaussians: splat_raster::Gaussians,
     ) -> Result<Self, TrainError> {
         config.validate()?;
-        let backbone = make_backbone(&config)?;
+        let mut backbone = make_backbone(&config)?;
+        backbone.initialise(gaussians.view())?;
         let state = SceneState::new(gaussians, backbone.as_ref(), &config.lr)?;
         Self::from_parts(config, train, state, backbone, 0)
     }

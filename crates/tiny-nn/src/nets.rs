@@ -473,15 +473,21 @@ impl DeformNet {
     /// Output width: position 3 + rotation 4 + scale 3.
     pub const OUTPUT: usize = 10;
 
-    /// Builds the network.
+    /// Builds the network with D-3DGS's three heads ([`DeformNet::OUTPUT`] outputs).
     pub fn new(config: DeformConfig) -> Result<Self, NnError> {
+        Self::with_outputs(config, Self::OUTPUT)
+    }
+
+    /// Builds the network with `outputs` output columns (SC-GS's control-point network adds a
+    /// fourth head, 14 outputs); the columns' meaning is the caller's.
+    pub fn with_outputs(config: DeformConfig, outputs: usize) -> Result<Self, NnError> {
         let xyz = Sinusoidal::new(3, config.xyz_freqs)?;
         let t = Sinusoidal::new(1, config.t_freqs)?;
         let mut mc = MlpConfig::new(
             xyz.output_width() + t.output_width(),
             config.width,
             config.depth,
-            Self::OUTPUT,
+            outputs,
         )
         .init(config.init)
         .zero_output(config.zero_heads)
@@ -553,7 +559,7 @@ impl DeformNet {
         Ok(out)
     }
 
-    /// Backward from dL/d(output) (rows × 10).
+    /// Backward from dL/d(output) (rows × outputs).
     pub fn backward(
         &self,
         cache: &DeformCache,

@@ -1,4 +1,4 @@
-//! The baseline's deformation network learns motion (issue Q): on a tiny scene whose only
+//! The baseline's deformation network learns motion (issue Q; SC-GS's control points too): on a tiny scene whose only
 //! Gaussians slide along x as time goes from 0 to 1, the D-3DGS MLP receives a non-zero gradient
 //! from its first step and, after a short run, moves the Gaussians by the ground truth's
 //! displacement. The canonical Gaussians start where the ground truth is at t = 0.5, so nothing
@@ -127,6 +127,38 @@ fn the_deformation_network_gets_gradient_and_learns_the_motion() {
     // Half way, the Gaussians are about where the canonical ones are.
     let mid = mean_dx(&mut trainer, 0.5);
     assert!(mid.abs() < 0.15 * TRAVEL, "displacement at t = 0.5: {mid}");
+}
+
+/// SC-GS's backbone learns the same motion through its control points: the network runs on
+/// three control points placed on the Gaussians, and the skinning carries their motion to them.
+#[test]
+fn sc_gs_control_points_learn_the_motion() {
+    let iterations = 600;
+    let mut c = config(iterations);
+    c.backbone = evogs_train::BackboneKind::Scgs;
+    c.scgs = evogs_backbones::ScgsSettings {
+        control_points: 3,
+        neighbours: 2,
+        width: 32,
+        depth: 4,
+        xyz_freqs: 4,
+        ..evogs_backbones::ScgsSettings::default()
+    };
+    let mut trainer = Trainer::with_gaussians(c, views(), blobs(0.0)).unwrap();
+    assert_eq!(mean_dx(&mut trainer, 0.0), 0.0, "zero heads: no motion yet");
+    let first = trainer.step().unwrap();
+    let g = first
+        .net_grad_norm
+        .expect("the network is used from iteration 1");
+    assert!(g.is_finite() && g > 0.0, "gradient norm {g}");
+    while trainer.iteration() < iterations {
+        trainer.step().unwrap();
+    }
+    let travel = mean_dx(&mut trainer, 1.0) - mean_dx(&mut trainer, 0.0);
+    assert!(
+        (travel - TRAVEL).abs() < 0.15 * TRAVEL,
+        "learned travel {travel}, ground truth {TRAVEL}"
+    );
 }
 
 /// Static Gaussians (away from the x axis) and the three moving ones of [`blobs`] at time `t`.

@@ -1,5 +1,5 @@
-//! `--resume` ends where an uninterrupted run ends, for the D-3DGS and the Grid4D backbone
-//! (whose regulariser draws random rows every step).
+//! `--resume` ends where an uninterrupted run ends, for the D-3DGS, the Grid4D (whose regulariser
+//! draws random rows every step) and the SC-GS backbone.
 //!
 //! The runs are compared **bit for bit** (Gaussians, every Adam moment and step count,
 //! statistics, network weights), and the uninterrupted run uses one thread while the interrupted
@@ -22,6 +22,10 @@ fn config_of(backbone: BackboneKind) -> TrainConfig {
     c.init_points = 400;
     c.checkpoint_every = 7;
     c.backbone = backbone;
+    // SC-GS at a test's size.
+    c.scgs.control_points = 24;
+    c.scgs.width = 16;
+    c.scgs.depth = 2;
     c
 }
 
@@ -60,6 +64,13 @@ fn resumed_run_matches_uninterrupted_run_bit_for_bit() {
 #[test]
 fn resumed_grid4d_run_matches_uninterrupted_run_bit_for_bit() {
     resumes_bit_for_bit(BackboneKind::Grid4d);
+}
+
+/// SC-GS: the control points placed at the start and the ARAP partner times (drawn from the seed
+/// and the time) come back from the checkpoint and the seed alone.
+#[test]
+fn resumed_scgs_run_matches_uninterrupted_run_bit_for_bit() {
+    resumes_bit_for_bit(BackboneKind::Scgs);
 }
 
 fn resumes_bit_for_bit(backbone: BackboneKind) {

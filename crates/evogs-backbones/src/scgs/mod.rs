@@ -1,0 +1,499 @@
+//! The SC-GS backbone (`--backbone scgs`): sparse control points that carry the motion, after
+//! Huang et al., "SC-GS: Sparse-Controlled Gaussian Splatting for Editable Dynamic Scenes"
+//! (CVPR 2024; its code, `yihua7/SC-GS`, is the recipe's source).
+//!
+//! A network is evaluated on a few hundred control points only, each giving a translation, a
+//! rotation residual, a scale residual and a local rotation at time t; every Gaussian is moved by
+//! linear blend skinning of its K nearest control points with learned radial weights
+//! ([`skinning`]), and the control points' trajectories are kept locally rigid by SC-GS's ARAP
+//! loss ([`arap`]). The cost per Gaussian is a K-nearest search and a K-term blend instead of a
+//! deep network.
+//!
+//! The recipe and each deliberate difference (docs/DESIGN.md §5.2d): 512 control points, K = 3,
+//! the network of D-3DGS's shape (8 × 256, skip after layer 4, 10 position and 6 time
+//! frequencies; SC-GS's extra time MLP is left out), He-initialised with zero heads (SC-GS: heads
+//! drawn with σ = 1e-5…1e-4, so the motion starts at nearly zero too), radii
+//! `exp(ρ)` from `ρ = ln(0.1 · range)` of the initial cloud, weight logits from 0, ARAP weight
+//! 1e-4 (SC-GS's first stage of its schedule; held constant here). Control points start by
+//! farthest-point sampling of the run's initial Gaussians ([`Backbone::initialise`], SC-GS's
+//! first initialisation; its 10 000-step pre-training of the control points as Gaussians is not
+//! done), stay where they are (SC-GS detaches their positions everywhere after pre-training; a
+//! factor on their learning rate, `position_lr_scale`, lets them move), and the search is in 3D
+//! (SC-GS adds 8 learned "hyper" coordinates per point and Gaussian). The K nearest control
+//! points are found again at every forward, as SC-GS does.
+//!
+//! What it is not (yet): SC-GS's control-point densification and pruning, its pre-training stage,
+//! and EvoGS on control points.
+
+pub mod arap;
+pub mod fps;
+pub mod knn;
+pub mod skinning;
+
+use std::path::Path;
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use splat_core::GaussiansView;
+use tiny_nn::{DeformCache, DeformConfig, DeformNet, Parameters, Precision, StoreMut, StoreRef};
+
+use self::knn::Neighbours;
+use self::skinning::{Controls, NODE_OUTPUT, TRANSLATION};
+use crate::backbone::{Backbone, no_training_forward};
+use crate::error::BackboneError;
+
+/// Most control points a run may ask for.
+pub const MAX_CONTROL_POINTS: usize = 1 << 16;
+/// Most neighbours per Gaussian.
+pub const MAX_NEIGHBOURS: usize = 16;
+/// Widest control-point network.
+pub const MAX_WIDTH: usize = 2048;
+/// Deepest control-point network.
+pub const MAX_DEPTH: usize = 64;
+/// Most frequencies of an encoding.
+pub const MAX_FREQUENCIES: usize = 32;
+/// Initial radius as a fraction of the initial cloud's coordinate range (SC-GS:
+/// `_node_radius = log(0.1 * scene_range + 1e-7)`).
+const RADIUS_FRACTION: f32 = 0.1;
+/// Half-width of the time window of the ARAP loss's two times (SC-GS: `delta_t = 0.05`).
+const ARAP_HALF_WINDOW: f32 = 0.025;
+
+/// SC-GS's settings (`config.json`'s `train.scgs`; flags `--control-points` …).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ScgsSettings {
+    /// Control points (SC-GS's D-NeRF command: `--node_num 512`).
+    pub control_points: usize,
+    /// Nearest control points per Gaussian, K (SC-GS: 3).
+    pub neighbours: usize,
+    /// The control-point network's hidden width (SC-GS: 256).
+    pub width: usize,
+    /// Its hidden layers (SC-GS: 8, the input joined again after layer 4).
+    pub depth: usize,
+    /// Frequencies of the control points' position encoding (SC-GS: `multires = 10`).
+    pub xyz_freqs: usize,
+    /// Frequencies of the time encoding (SC-GS: `t_multires = 6` for D-NeRF scenes).
+    pub t_freqs: usize,
+    /// Weight of the ARAP loss (SC-GS: 1e-4 in its first 5 000 steps).
+    pub arap_weight: f32,
+    /// Factor on the network learning rate for the control points' positions (0: they stay
+    /// where they started, as in SC-GS's code).
+    pub position_lr_scale: f32,
+}
+
+impl Default for ScgsSettings {
+    fn default() -> Self {
+        Self {
+            control_points: 512,
+            neighbours: 3,
+            width: 256,
+            depth: 8,
+            xyz_freqs: 10,
+            t_freqs: 6,
+            arap_weight: 1e-4,
+            position_lr_scale: 0.0,
+        }
+    }
+}
+
+impl ScgsSettings {
+    /// Checks every setting's range (the error names the setting, as `scgs.<field>`).
+    pub fn validate(&self) -> Result<(), BackboneError> {
+        let whole = |field: &str, v: usize, max: usize| {
+            if (1..=max).contains(&v) {
+                Ok(())
+            } else {
+                Err(BackboneError::config(
+                    format!("scgs.{field}"),
+                    format!("{v} is not in 1..={max}"),
+                ))
+            }
+        };
+        whole("control_points", self.control_points, MAX_CONTROL_POINTS)?;
+        whole("neighbours", self.neighbours, MAX_NEIGHBOURS)?;
+        whole("width", self.width, MAX_WIDTH)?;
+        whole("depth", self.depth, MAX_DEPTH)?;
+        whole("xyz_freqs", self.xyz_freqs, MAX_FREQUENCIES)?;
+        whole("t_freqs", self.t_freqs, MAX_FREQUENCIES)?;
+        for (field, v) in [
+            ("arap_weight", self.arap_weight),
+            ("position_lr_scale", self.position_lr_scale),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(BackboneError::config(
+                    format!("scgs.{field}"),
+                    format!("{v} is not a finite number >= 0"),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The learnable parts: the control-point network and the control points' shape.
+struct ScgsParams {
+    net: DeformNet,
+    positions: Vec<[f32; 3]>,
+    log_radii: Vec<f32>,
+    weight_logits: Vec<f32>,
+}
+
+/// Names of the control points' buffers, after the network's.
+const POSITIONS: &str = "controls.position";
+const LOG_RADII: &str = "controls.log_radius";
+const WEIGHT_LOGITS: &str = "controls.weight_logit";
+
+impl Parameters for ScgsParams {
+    fn named_params(&self) -> Vec<(String, StoreRef<'_>)> {
+        let mut out: Vec<(String, StoreRef<'_>)> = self
+            .net
+            .named_params()
+            .into_iter()
+            .map(|(n, s)| (format!("net.{n}"), s))
+            .collect();
+        out.push((
+            POSITIONS.into(),
+            StoreRef::F32(self.positions.as_flattened()),
+        ));
+        out.push((LOG_RADII.into(), StoreRef::F32(&self.log_radii)));
+        out.push((WEIGHT_LOGITS.into(), StoreRef::F32(&self.weight_logits)));
+        out
+    }
+
+    fn named_params_mut(&mut self) -> Vec<(String, StoreMut<'_>)> {
+        let mut out: Vec<(String, StoreMut<'_>)> = self
+            .net
+            .named_params_mut()
+            .into_iter()
+            .map(|(n, s)| (format!("net.{n}"), s))
+            .collect();
+        out.push((
+            POSITIONS.into(),
+            StoreMut::F32(self.positions.as_flattened_mut()),
+        ));
+        out.push((LOG_RADII.into(), StoreMut::F32(&mut self.log_radii)));
+        out.push((WEIGHT_LOGITS.into(), StoreMut::F32(&mut self.weight_logits)));
+        out
+    }
+}
+
+impl ScgsParams {
+    fn controls(&self) -> Controls<'_> {
+        Controls {
+            positions: &self.positions,
+            log_radii: &self.log_radii,
+            weight_logits: &self.weight_logits,
+        }
+    }
+
+    /// Control points at `points` (picked by farthest-point sampling), radii from the points'
+    /// coordinate range, weight logits 0.
+    fn place(&mut self, points: &[[f32; 3]], seed: u64) {
+        let m = self.positions.len();
+        let picked = fps::farthest_points(points, m, seed);
+        if picked.is_empty() {
+            return;
+        }
+        for (p, i) in self.positions.iter_mut().zip(picked) {
+            *p = points[i];
+        }
+        let (lo, hi) = points
+            .iter()
+            .flatten()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+                (lo.min(v), hi.max(v))
+            });
+        let radius = (RADIUS_FRACTION * (hi - lo) + 1e-7).ln();
+        self.log_radii.fill(radius);
+        self.weight_logits.fill(0.0);
+    }
+}
+
+/// What the backward pass needs of the last training forward.
+struct Cache {
+    time: f32,
+    means: Vec<[f32; 3]>,
+    neighbours: Neighbours,
+    nodes: Vec<f32>,
+    net: DeformCache,
+}
+
+/// SC-GS's sparse control points as a backbone (module docs).
+pub struct ScgsBackbone {
+    settings: ScgsSettings,
+    seed: u64,
+    params: ScgsParams,
+    cache: Option<Cache>,
+    /// The weighted ARAP loss of the last backward.
+    arap_loss: f64,
+    times: Vec<f32>,
+}
+
+impl ScgsBackbone {
+    /// The backbone of `settings`, its control points spread over the cube `[-h, h]³` until
+    /// [`Backbone::initialise`] places them on the run's Gaussians.
+    pub fn new(
+        settings: &ScgsSettings,
+        half_extent: f32,
+        seed: u64,
+    ) -> Result<Self, BackboneError> {
+        settings.validate()?;
+        let net = DeformNet::with_outputs(
+            DeformConfig {
+                width: settings.width,
+                depth: settings.depth,
+                skip_after: (settings.depth > 4).then_some(settings.depth / 2),
+                xyz_freqs: settings.xyz_freqs,
+                t_freqs: settings.t_freqs,
+                init: tiny_nn::Init::He,
+                zero_heads: true,
+                precision: Precision::F32,
+                seed: seed ^ 0x5C65_0000,
+            },
+            NODE_OUTPUT,
+        )?;
+        let m = settings.control_points;
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5C65_C0DE);
+        let h = half_extent.abs().max(f32::MIN_POSITIVE);
+        let cube: Vec<[f32; 3]> = (0..m)
+            .map(|_| std::array::from_fn(|_| rng.random_range(-h..=h)))
+            .collect();
+        let mut params = ScgsParams {
+            net,
+            positions: vec![[0.0; 3]; m],
+            log_radii: vec![0.0; m],
+            weight_logits: vec![0.0; m],
+        };
+        params.place(&cube, seed);
+        Ok(Self {
+            settings: *settings,
+            seed,
+            params,
+            cache: None,
+            arap_loss: 0.0,
+            times: Vec::new(),
+        })
+    }
+
+    /// The control points' canonical positions.
+    pub fn control_positions(&self) -> &[[f32; 3]] {
+        &self.params.positions
+    }
+
+    /// The control points' radii `exp(ρ)`.
+    pub fn control_radii(&self) -> Vec<f32> {
+        self.params.log_radii.iter().map(|r| r.exp()).collect()
+    }
+
+    /// The control points' positions at `time` (canonical + the network's translation).
+    pub fn controls_at(&mut self, time: f32) -> Result<Vec<[f32; 3]>, BackboneError> {
+        let nodes = self.node_outputs(time, &mut DeformCache::default())?;
+        Ok(moved(&self.params.positions, &nodes))
+    }
+
+    /// The network's outputs at every control point at `time` (M × [`NODE_OUTPUT`]).
+    fn node_outputs(
+        &mut self,
+        time: f32,
+        cache: &mut DeformCache,
+    ) -> Result<Vec<f32>, BackboneError> {
+        let m = self.params.positions.len();
+        self.times.clear();
+        self.times.resize(m, time);
+        Ok(self.params.net.forward_into(
+            self.params.positions.as_flattened(),
+            &self.times,
+            m,
+            cache,
+        )?)
+    }
+
+    /// The partner time of ARAP's pair for a step at `time`: within ±[`ARAP_HALF_WINDOW`],
+    /// drawn from the run's seed and the time (the same on a resumed run), in `[0, 1]`.
+    fn arap_partner(&self, time: f32) -> f32 {
+        let mut rng = ChaCha8Rng::seed_from_u64(self.seed ^ u64::from(time.to_bits()) ^ 0xA7A9);
+        let delta = rng.random_range(-ARAP_HALF_WINDOW..=ARAP_HALF_WINDOW);
+        (time + delta).clamp(0.0, 1.0)
+    }
+
+    fn learns_positions(&self) -> bool {
+        self.settings.position_lr_scale > 0.0
+    }
+}
+
+/// Positions plus the translation columns of `nodes`.
+fn moved(positions: &[[f32; 3]], nodes: &[f32]) -> Vec<[f32; 3]> {
+    positions
+        .iter()
+        .zip(nodes.chunks_exact(NODE_OUTPUT))
+        .map(|(p, n)| {
+            let t = &n[TRANSLATION];
+            [p[0] + t[0], p[1] + t[1], p[2] + t[2]]
+        })
+        .collect()
+}
+
+impl Backbone for ScgsBackbone {
+    fn name(&self) -> &'static str {
+        "scgs"
+    }
+
+    fn initialise(&mut self, canonical: GaussiansView<'_>) -> Result<(), BackboneError> {
+        self.params.place(canonical.means, self.seed);
+        Ok(())
+    }
+
+    fn forward_into(
+        &mut self,
+        canonical: GaussiansView<'_>,
+        time: f32,
+        training: bool,
+        out: &mut Vec<f32>,
+    ) -> Result<(), BackboneError> {
+        let mut net = self.cache.take().map(|c| c.net).unwrap_or_default();
+        let nodes = self.node_outputs(time, &mut net)?;
+        let neighbours = knn::nearest(
+            &self.params.positions,
+            canonical.means,
+            self.settings.neighbours,
+        )?;
+        skinning::skin_into(
+            canonical.means,
+            &neighbours,
+            self.params.controls(),
+            &nodes,
+            out,
+        );
+        if training {
+            self.cache = Some(Cache {
+                time,
+                means: canonical.means.to_vec(),
+                neighbours,
+                nodes,
+                net,
+            });
+        }
+        Ok(())
+    }
+
+    fn backward_into(
+        &mut self,
+        d_deform: &[f32],
+        out: &mut Vec<Vec<f32>>,
+    ) -> Result<(), BackboneError> {
+        let cache = self.cache.take().ok_or_else(no_training_forward)?;
+        let result = self.backward_cached(&cache, d_deform);
+        self.cache = Some(cache);
+        *out = result?;
+        Ok(())
+    }
+
+    fn params(&self) -> Vec<(String, StoreRef<'_>)> {
+        self.params.named_params()
+    }
+
+    fn params_mut(&mut self) -> Vec<(String, StoreMut<'_>)> {
+        self.params.named_params_mut()
+    }
+
+    fn lr_scale(&self, name: &str) -> f32 {
+        if name == POSITIONS {
+            self.settings.position_lr_scale
+        } else {
+            1.0
+        }
+    }
+
+    fn loss_terms(&self) -> f64 {
+        self.arap_loss
+    }
+
+    fn save(&self, path: &Path) -> Result<(), BackboneError> {
+        Ok(tiny_nn::weights::save(path, &self.params)?)
+    }
+
+    fn load(&mut self, path: &Path) -> Result<(), BackboneError> {
+        Ok(tiny_nn::weights::load(path, &mut self.params)?)
+    }
+}
+
+impl ScgsBackbone {
+    /// The gradients of every parameter buffer (in [`Backbone::params`]'s order) from the rows'
+    /// gradient and the ARAP loss, for the forward of `cache`.
+    fn backward_cached(
+        &mut self,
+        cache: &Cache,
+        d_deform: &[f32],
+    ) -> Result<Vec<Vec<f32>>, BackboneError> {
+        let expected = cache.means.len() * skinning::ROW;
+        if d_deform.len() != expected {
+            return Err(BackboneError::config(
+                "scgs",
+                format!("{} row gradients for {expected} values", d_deform.len()),
+            ));
+        }
+        let skin = skinning::skin_backward(
+            &cache.means,
+            &cache.neighbours,
+            self.params.controls(),
+            &cache.nodes,
+            d_deform,
+        );
+        let mut d_nodes = skin.nodes;
+        let mut d_positions = skin.positions;
+        let want_positions = self.learns_positions();
+        let lambda = self.settings.arap_weight;
+        let m = self.params.positions.len();
+        let mut net_grad: Option<Vec<f32>> = None;
+        self.arap_loss = 0.0;
+        if lambda > 0.0 && m >= 2 {
+            let partner = self.arap_partner(cache.time);
+            let mut net1 = DeformCache::default();
+            let nodes1 = self.node_outputs(partner, &mut net1)?;
+            let first = moved(&self.params.positions, &cache.nodes);
+            let second = moved(&self.params.positions, &nodes1);
+            let a = arap::arap(&first, &second)?;
+            self.arap_loss = f64::from(lambda) * a.loss;
+            let mut d_nodes1 = vec![0f32; m * NODE_OUTPUT];
+            for i in 0..m {
+                for c in 0..3 {
+                    let (g0, g1) = (
+                        lambda * a.d_first[i * 3 + c],
+                        lambda * a.d_second[i * 3 + c],
+                    );
+                    d_nodes[i * NODE_OUTPUT + c] += g0;
+                    d_nodes1[i * NODE_OUTPUT + c] = g1;
+                    d_positions[i * 3 + c] += g0 + g1;
+                }
+            }
+            let g1 = self.params.net.backward(&net1, &d_nodes1, want_positions)?;
+            if let Some(p) = &g1.positions {
+                add_into(&mut d_positions, p);
+            }
+            net_grad = Some(g1.mlp);
+        }
+        let g0 = self
+            .params
+            .net
+            .backward(&cache.net, &d_nodes, want_positions)?;
+        if let Some(p) = &g0.positions {
+            add_into(&mut d_positions, p);
+        }
+        let mut mlp = g0.mlp;
+        if let Some(g1) = net_grad {
+            add_into(&mut mlp, &g1);
+        }
+        if !want_positions {
+            // The positions do not move: their gradient is not worth the network's input pass.
+            d_positions.fill(0.0);
+        }
+        Ok(vec![mlp, d_positions, skin.log_radii, skin.weight_logits])
+    }
+}
+
+fn add_into(a: &mut [f32], b: &[f32]) {
+    for (x, y) in a.iter_mut().zip(b) {
+        *x += y;
+    }
+}

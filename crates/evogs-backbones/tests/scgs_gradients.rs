@@ -1,0 +1,319 @@
+//! Finite-difference checks of SC-GS's backbone: the skinning's gradient to the control-point
+//! network's outputs, positions, log radii and weight logits (f64 central differences with the
+//! neighbours held, as the gradient defines them), and the whole backbone, rows and ARAP loss,
+//! into every parameter buffer; and the hard cases (a Gaussian far from every control point,
+//! coincident control points, a radius going to zero, one control point, a degenerate local
+//! rotation) stay finite.
+
+use evogs_backbones::scgs::knn::{self, Neighbours};
+use evogs_backbones::scgs::skinning::{
+    Controls, LOCAL, NODE_OUTPUT, ROW, SkinGrads, skin_backward, skin_into,
+};
+use evogs_backbones::{Backbone, ScgsBackbone, ScgsSettings};
+use splat_core::Gaussians;
+use tiny_nn::StoreMut;
+
+/// A small deterministic generator in [-1, 1).
+struct Lcg(u64);
+impl Lcg {
+    fn next(&mut self) -> f32 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((self.0 >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+    }
+}
+
+/// Control points, their outputs and Gaussians for a skinning check.
+struct Scene {
+    positions: Vec<[f32; 3]>,
+    log_radii: Vec<f32>,
+    weight_logits: Vec<f32>,
+    nodes: Vec<f32>,
+    means: Vec<[f32; 3]>,
+    /// dL/d(rows) of the linear test loss `L = Σ r · rows`.
+    r: Vec<f32>,
+}
+
+impl Scene {
+    fn new(m: usize, n: usize, seed: u64) -> Self {
+        let mut rng = Lcg(seed);
+        let mut v = |s: f32| rng.next() * s;
+        let positions = (0..m).map(|_| [v(0.8), v(0.8), v(0.8)]).collect();
+        let log_radii = (0..m).map(|_| -0.7 + v(0.3)).collect();
+        let weight_logits = (0..m).map(|_| v(1.0)).collect();
+        let nodes = (0..m * NODE_OUTPUT).map(|_| v(0.3)).collect();
+        let means = (0..n).map(|_| [v(1.0), v(1.0), v(1.0)]).collect();
+        let r = (0..n * ROW).map(|_| v(1.0)).collect();
+        Self {
+            positions,
+            log_radii,
+            weight_logits,
+            nodes,
+            means,
+            r,
+        }
+    }
+
+    fn controls(&self) -> Controls<'_> {
+        Controls {
+            positions: &self.positions,
+            log_radii: &self.log_radii,
+            weight_logits: &self.weight_logits,
+        }
+    }
+
+    fn loss(&self, nb: &Neighbours) -> f64 {
+        let mut rows = Vec::new();
+        skin_into(&self.means, nb, self.controls(), &self.nodes, &mut rows);
+        rows.iter()
+            .zip(&self.r)
+            .map(|(a, b)| f64::from(*a) * f64::from(*b))
+            .sum()
+    }
+
+    fn grads(&self, nb: &Neighbours) -> SkinGrads {
+        skin_backward(&self.means, nb, self.controls(), &self.nodes, &self.r)
+    }
+}
+
+/// `|fd − g| ≤ tol · max(|g|, floor)`.
+fn close(fd: f64, g: f64, what: &str) {
+    assert!(
+        (fd - g).abs() <= 2e-2 * g.abs().max(2e-2),
+        "{what}: finite difference {fd} vs gradient {g}"
+    );
+}
+
+/// Central difference of the scene's loss in one value chosen by `pick`.
+fn fd(scene: &Scene, nb: &Neighbours, pick: impl Fn(&mut Scene) -> &mut f32) -> f64 {
+    let h = 1e-3f32;
+    let mut plus = clone(scene);
+    let mut minus = clone(scene);
+    let x = *pick(&mut plus);
+    *pick(&mut plus) = x + h;
+    *pick(&mut minus) = x - h;
+    let step = f64::from(x + h) - f64::from(x - h);
+    (plus.loss(nb) - minus.loss(nb)) / step
+}
+
+fn clone(s: &Scene) -> Scene {
+    Scene {
+        positions: s.positions.clone(),
+        log_radii: s.log_radii.clone(),
+        weight_logits: s.weight_logits.clone(),
+        nodes: s.nodes.clone(),
+        means: s.means.clone(),
+        r: s.r.clone(),
+    }
+}
+
+/// The skinning's gradient to every kind of input matches central differences.
+#[test]
+fn skinning_gradient_matches_finite_differences() {
+    let scene = Scene::new(6, 12, 11);
+    let nb = knn::nearest(&scene.positions, &scene.means, 3).unwrap();
+    let g = scene.grads(&nb);
+    for idx in (0..6 * NODE_OUTPUT).step_by(5) {
+        close(
+            fd(&scene, &nb, |s| &mut s.nodes[idx]),
+            f64::from(g.nodes[idx]),
+            &format!("node output {idx}"),
+        );
+    }
+    for idx in 0..18 {
+        close(
+            fd(&scene, &nb, |s| &mut s.positions[idx / 3][idx % 3]),
+            f64::from(g.positions[idx]),
+            &format!("position {idx}"),
+        );
+    }
+    for c in 0..6 {
+        close(
+            fd(&scene, &nb, |s| &mut s.log_radii[c]),
+            f64::from(g.log_radii[c]),
+            &format!("log radius {c}"),
+        );
+        close(
+            fd(&scene, &nb, |s| &mut s.weight_logits[c]),
+            f64::from(g.weight_logits[c]),
+            &format!("weight logit {c}"),
+        );
+    }
+    assert!(g.log_radii.iter().any(|&v| v.abs() > 1e-3));
+}
+
+/// Zero motion: zero network outputs move nothing (the rows are zero whatever the weights).
+#[test]
+fn zero_outputs_are_zero_motion() {
+    let mut scene = Scene::new(5, 9, 3);
+    scene.nodes.fill(0.0);
+    let nb = knn::nearest(&scene.positions, &scene.means, 3).unwrap();
+    let mut rows = Vec::new();
+    skin_into(&scene.means, &nb, scene.controls(), &scene.nodes, &mut rows);
+    assert!(rows.iter().all(|v| v.abs() < 1e-6), "{rows:?}");
+}
+
+/// The hard cases give finite rows and gradients: a Gaussian far from every control point (an
+/// even blend of ε weights), coincident control points, radii that underflow to zero or
+/// overflow, one control point for K = 3, a local rotation of zero norm.
+#[test]
+fn hard_cases_stay_finite() {
+    let finite = |scene: &Scene, k: usize| {
+        let nb = knn::nearest(&scene.positions, &scene.means, k).unwrap();
+        let mut rows = Vec::new();
+        skin_into(&scene.means, &nb, scene.controls(), &scene.nodes, &mut rows);
+        let g = scene.grads(&nb);
+        assert!(rows.iter().all(|v| v.is_finite()), "rows {rows:?}");
+        for (name, v) in [
+            ("nodes", &g.nodes),
+            ("positions", &g.positions),
+            ("log radii", &g.log_radii),
+            ("weight logits", &g.weight_logits),
+        ] {
+            assert!(v.iter().all(|x| x.is_finite()), "{name} {v:?}");
+        }
+        rows
+    };
+    // Far away: the translation rows blend the control points' targets evenly.
+    let mut far = Scene::new(4, 1, 5);
+    far.means[0] = [1e4, -1e4, 1e4];
+    far.nodes.fill(0.0);
+    let rows = finite(&far, 3);
+    assert!(rows.iter().all(|v| v.is_finite()));
+    // Coincident control points, and a Gaussian sitting on them.
+    let mut same = Scene::new(4, 6, 7);
+    same.positions = vec![[0.1, 0.2, 0.3]; 4];
+    same.means[0] = [0.1, 0.2, 0.3];
+    finite(&same, 3);
+    // Radii underflowing to zero and overflowing.
+    let mut tiny = Scene::new(5, 8, 9);
+    tiny.log_radii = vec![-1e3, -50.0, 60.0, 1e3, 0.0];
+    finite(&tiny, 3);
+    // One control point, K = 3: every Gaussian follows it.
+    let one = Scene::new(1, 7, 13);
+    let rows = finite(&one, 3);
+    assert_eq!(rows.len(), 7 * ROW);
+    // A local quaternion of zero norm is no rotation.
+    let mut flat = Scene::new(3, 4, 17);
+    for c in 0..3 {
+        let l = &mut flat.nodes[c * NODE_OUTPUT..(c + 1) * NODE_OUTPUT][LOCAL];
+        l.copy_from_slice(&[-1.0, 0.0, 0.0, 0.0]);
+    }
+    finite(&flat, 2);
+}
+
+fn gaussians(n: usize, seed: u64) -> Gaussians {
+    let mut rng = Lcg(seed);
+    let mut g = Gaussians::with_degree(0);
+    for _ in 0..n {
+        g.means.push([rng.next(), rng.next(), rng.next()]);
+        g.log_scales.push([-2.0; 3]);
+        g.rotations.push([1.0, 0.0, 0.0, 0.0]);
+        g.opacity_logits.push(0.0);
+        g.sh.extend([0.1, 0.2, 0.3]);
+    }
+    g
+}
+
+/// The backbone's loss `Σ r · rows + λ ARAP` at its current parameters.
+fn backbone_loss(b: &mut ScgsBackbone, g: &Gaussians, time: f32, r: &[f32]) -> f64 {
+    let rows = b.forward(g.view(), time, true).unwrap();
+    b.backward(r).unwrap();
+    let linear: f64 = rows
+        .iter()
+        .zip(r)
+        .map(|(a, b)| f64::from(*a) * f64::from(*b))
+        .sum();
+    linear + b.loss_terms()
+}
+
+/// The whole backbone (network on the control points, skinning, ARAP) against central
+/// differences in a sample of every parameter buffer, control positions learning.
+#[test]
+fn backbone_gradient_matches_finite_differences() {
+    let settings = ScgsSettings {
+        control_points: 7,
+        neighbours: 3,
+        width: 12,
+        depth: 2,
+        // Low frequencies: central differences need an input smooth at the step's scale.
+        xyz_freqs: 2,
+        t_freqs: 2,
+        arap_weight: 0.5,
+        position_lr_scale: 1.0,
+    };
+    let g = gaussians(20, 21);
+    let mut b = ScgsBackbone::new(&settings, 1.0, 4).unwrap();
+    b.initialise(g.view()).unwrap();
+    // Non-zero heads, so that every buffer has a gradient.
+    let mut rng = Lcg(99);
+    for (_, p) in b.params_mut() {
+        if let StoreMut::F32(v) = p
+            && v.len() > 100
+        {
+            for x in v.iter_mut() {
+                *x += 0.3 * rng.next();
+            }
+        }
+    }
+    let time = 0.4;
+    let r: Vec<f32> = (0..20 * ROW).map(|_| rng.next()).collect();
+    b.forward(g.view(), time, true).unwrap();
+    let grads = b.backward(&r).unwrap();
+    assert!(b.loss_terms() > 0.0, "the ARAP term is on");
+    let names: Vec<String> = b.params().into_iter().map(|(n, _)| n).collect();
+    assert_eq!(grads.len(), names.len());
+    for (buffer, name) in names.iter().enumerate() {
+        let len = grads[buffer].len();
+        let picks: Vec<usize> = (0..len).step_by((len / 9).max(1)).collect();
+        for &idx in &picks {
+            let h = 2e-3f32;
+            let at = |b: &mut ScgsBackbone, delta: f32| {
+                let mut params = b.params_mut();
+                let StoreMut::F32(v) = &mut params[buffer].1 else {
+                    panic!("f32 buffers")
+                };
+                v[idx] += delta;
+            };
+            at(&mut b, h);
+            let plus = backbone_loss(&mut b, &g, time, &r);
+            at(&mut b, -2.0 * h);
+            let minus = backbone_loss(&mut b, &g, time, &r);
+            at(&mut b, h);
+            let fd = (plus - minus) / (2.0 * f64::from(h));
+            let grad = f64::from(grads[buffer][idx]);
+            assert!(
+                (fd - grad).abs() <= 3e-2 * grad.abs().max(3e-2),
+                "{name}[{idx}]: finite difference {fd} vs gradient {grad}"
+            );
+        }
+    }
+}
+
+/// Control points start on the run's Gaussians, and a saved backbone loads bit for bit.
+#[test]
+fn control_points_start_on_the_gaussians_and_round_trip() {
+    let settings = ScgsSettings {
+        control_points: 6,
+        width: 8,
+        depth: 2,
+        ..ScgsSettings::default()
+    };
+    let g = gaussians(30, 5);
+    let mut b = ScgsBackbone::new(&settings, 1.0, 2).unwrap();
+    b.initialise(g.view()).unwrap();
+    for p in b.control_positions() {
+        assert!(g.means.contains(p), "{p:?}");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("deform.safetensors");
+    b.save(&path).unwrap();
+    let mut c = ScgsBackbone::new(&settings, 1.0, 99).unwrap();
+    c.load(&path).unwrap();
+    assert_eq!(c.control_positions(), b.control_positions());
+    let rows_b = b.forward(g.view(), 0.3, false).unwrap();
+    let rows_c = c.forward(g.view(), 0.3, false).unwrap();
+    assert_eq!(rows_b, rows_c);
+}
