@@ -29,10 +29,11 @@ pub trait Backbone: Send {
     /// Short name for messages and files.
     fn name(&self) -> &'static str;
 
-    /// Starts what the backbone derives from the run's initial Gaussians (SC-GS: its control
-    /// points, by farthest-point sampling of them). Called once, for a new run, before the
-    /// optimiser is built; a resumed run reads it all from its checkpoint instead. Nothing by
-    /// default.
+    /// Places what the backbone derives from the canonical Gaussians (SC-GS: its control
+    /// points, by farthest-point sampling of them). The trainer calls it for a new run before
+    /// the optimiser is built, and again at the step the deformation starts (after the static
+    /// warm-up, on the Gaussians it fitted; the backbone has had no gradient yet); a resumed run
+    /// reads the result from its checkpoint. Nothing by default.
     fn initialise(&mut self, _canonical: GaussiansView<'_>) -> Result<(), BackboneError> {
         Ok(())
     }

@@ -224,6 +224,24 @@ impl ScgsArgs {
         settings.arap_weight = self.arap_weight;
         settings.position_lr_scale = self.control_position_lr_scale;
     }
+
+    /// The flags that give these values back (`evogs bench --jobs` hands them to its parts).
+    pub fn flags(&self) -> Vec<String> {
+        [
+            ("--control-points", self.control_points.to_string()),
+            ("--control-neighbours", self.control_neighbours.to_string()),
+            ("--control-width", self.control_width.to_string()),
+            ("--control-depth", self.control_depth.to_string()),
+            ("--arap-weight", self.arap_weight.to_string()),
+            (
+                "--control-position-lr-scale",
+                self.control_position_lr_scale.to_string(),
+            ),
+        ]
+        .into_iter()
+        .flat_map(|(flag, value)| [flag.to_string(), value])
+        .collect()
+    }
 }
 
 #[cfg(test)]
@@ -252,6 +270,11 @@ mod tests {
             .scgs
             .apply(&mut settings);
         assert_eq!((settings.control_points, settings.arap_weight), (64, 0.0));
+        // The flags written back parse to the same values.
+        let cli = Cli::parse_from(["evogs", "--control-width", "96", "--arap-weight", "2.5e-5"]);
+        let mut again = vec!["evogs".to_string()];
+        again.extend(cli.scgs.flags());
+        assert_eq!(Cli::parse_from(again).scgs, cli.scgs);
     }
 
     /// No flag gives the defaults exactly (every default survives its trip through clap's

@@ -60,6 +60,10 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = evogs_train::BackboneKind::default(), value_parser = evogs_backbones::cli::words::<evogs_train::BackboneKind>())]
     pub backbone: evogs_train::BackboneKind,
 
+    /// SC-GS's settings (`--backbone scgs`), each defaulting to `ScgsSettings::default()`'s value.
+    #[command(flatten)]
+    pub scgs: evogs_backbones::cli::ScgsArgs,
+
     /// Seed of every run.
     #[arg(long, value_name = "S")]
     pub seed: Option<u64>,
@@ -98,6 +102,9 @@ fn shared_flags(args: &BenchArgs) -> Vec<String> {
         "--backbone".to_string(),
         args.backbone.to_string(),
     ];
+    if args.backbone == evogs_train::BackboneKind::Scgs {
+        f.extend(args.scgs.flags());
+    }
     if let Some(n) = args.iterations {
         f.extend(["--iterations".to_string(), n.to_string()]);
     }
@@ -198,6 +205,7 @@ pub fn run_bench_cmd(args: &BenchArgs) -> Result<Vec<BenchRun>> {
         config.seed = s;
     }
     config.backbone = args.backbone;
+    args.scgs.apply(&mut config.scgs);
     let methods = args.methods.clone();
     let request = BenchRequest {
         scenes: args.data.iter().map(|d| BenchScene::from_dir(d)).collect(),

@@ -398,6 +398,12 @@ impl Trainer {
         let vi = self.view_at(i);
         let deforms = self.deforms_at(at);
         t = self.times.lap(Phase::Data, t);
+        if deforms && self.schedule_iteration < self.config.warm_up {
+            // The deformation starts: a backbone that places its state on the Gaussians (SC-GS's
+            // control points) places it on those the static warm-up has fitted, as SC-GS places
+            // its control points after its pre-training.
+            self.backbone.initialise(self.state.gaussians().view())?;
+        }
         if deforms {
             let view = &self.train.views[vi];
             self.backbone.forward_into(

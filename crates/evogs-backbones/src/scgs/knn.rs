@@ -1,6 +1,7 @@
 //! The K nearest control points of every Gaussian, in canonical space: a k-d tree from `kiddo`
-//! over the control points ([`nearest`]) and the brute-force search it is tested against
-//! ([`nearest_brute`]).
+//! over the control points ([`nearest`]), the brute-force search it is tested against
+//! ([`nearest_brute`]), and a cache that searches a moving Gaussian again only when its K
+//! nearest may have changed ([`NeighbourCache`]; exact, not approximate).
 //!
 //! Fewer control points than K give every Gaussian all of them. Among equally distant control
 //! points the tree may pick any; the distances it returns are the exact ones either way.
@@ -79,6 +80,135 @@ pub fn nearest(
             }
         });
     Ok(out)
+}
+
+/// The K nearest control points of Gaussians that move a little between searches: a row is
+/// searched again only when its Gaussian has moved far enough that its K nearest may have
+/// changed, so the result is always the exact K nearest (module docs).
+///
+/// At a row's search it keeps the Gaussian's position `x₀`, the distance `d_K` to its K-th
+/// nearest and `d_{K+1}` to the next one. Moved to `x`, `|x − x₀| = δ`, every distance changes by
+/// at most δ, so the same K stay the nearest while `d_K + δ < d_{K+1} − δ`: the row is searched
+/// again when `δ ≥ (d_{K+1} − d_K) / 2` (less a rounding margin). Each row's K are then put in the
+/// order of their distance from `x` (ties by index), so the result does not depend on which rows
+/// were searched: a resumed run, whose first search is of every row, gets the same rows as an
+/// uninterrupted one. A change of the control points, of K or of the number of Gaussians searches
+/// every row.
+#[derive(Clone, Debug, Default)]
+pub struct NeighbourCache {
+    controls: Vec<[f32; 3]>,
+    k: usize,
+    /// Per row: the Gaussian's position at its last search.
+    searched_at: Vec<[f32; 3]>,
+    /// Per row: how far it may move before its K nearest may change.
+    margin: Vec<f64>,
+    neighbours: Neighbours,
+    /// Rows searched by the last update.
+    searched: usize,
+}
+
+impl NeighbourCache {
+    /// The K nearest of `controls` to every point of `means`, searching again only the rows
+    /// that need it.
+    pub fn update(
+        &mut self,
+        controls: &[[f32; 3]],
+        means: &[[f32; 3]],
+        k: usize,
+    ) -> Result<&Neighbours, BackboneError> {
+        let k = checked_k(controls, k)?;
+        check_finite("Gaussian means", means)?;
+        let all = self.k != k || self.controls != controls || self.searched_at.len() != means.len();
+        let stale: Vec<usize> = if all {
+            (0..means.len()).collect()
+        } else {
+            (0..means.len())
+                .into_par_iter()
+                .with_min_len(QUERIES_PER_TASK)
+                .filter(|&i| {
+                    let d = distance(&means[i], &self.searched_at[i]);
+                    // Searched again unless it moved less than its margin (so a NaN, which
+                    // finite inputs cannot make, would search again too).
+                    d.partial_cmp(&self.margin[i]) != Some(std::cmp::Ordering::Less)
+                })
+                .collect()
+        };
+        if all {
+            self.controls.clear();
+            self.controls.extend_from_slice(controls);
+            self.k = k;
+            self.searched_at = vec![[0.0; 3]; means.len()];
+            self.margin = vec![0.0; means.len()];
+            self.neighbours = Neighbours {
+                k,
+                index: vec![0; means.len() * k],
+                dist2: vec![0.0; means.len() * k],
+            };
+        }
+        self.searched = stale.len();
+        if !stale.is_empty() {
+            // One more than K, for the margin (when there is one more).
+            let wide = (k + 1).min(controls.len());
+            let queries: Vec<[f32; 3]> = stale.iter().map(|&i| means[i]).collect();
+            let found = nearest(controls, &queries, wide)?;
+            for (j, &i) in stale.iter().enumerate() {
+                let row = &found.index[j * wide..(j + 1) * wide];
+                self.neighbours.index[i * k..(i + 1) * k].copy_from_slice(&row[..k]);
+                self.searched_at[i] = means[i];
+                self.margin[i] = if wide > k {
+                    let near = distance(&means[i], &controls[row[k - 1] as usize]);
+                    let next = distance(&means[i], &controls[row[k] as usize]);
+                    // Less a margin for the rounding of the tree's f32 distances.
+                    (next - near) / 2.0 - 1e-5 * (1.0 + next)
+                } else {
+                    f64::INFINITY
+                };
+            }
+        }
+        let nb = &mut self.neighbours;
+        nb.index
+            .par_chunks_mut(k)
+            .zip(nb.dist2.par_chunks_mut(k))
+            .zip(means.par_iter())
+            .with_min_len(QUERIES_PER_TASK)
+            .for_each(|((index, dist2), x)| order_row(controls, x, index, dist2));
+        Ok(&self.neighbours)
+    }
+
+    /// Rows the last [`NeighbourCache::update`] searched again.
+    pub fn searched(&self) -> usize {
+        self.searched
+    }
+
+    /// The neighbours of the last update.
+    pub fn neighbours(&self) -> &Neighbours {
+        &self.neighbours
+    }
+}
+
+/// Puts a row's control points in the order of their squared distance from `x` (ties by
+/// index), writing the distances.
+fn order_row(controls: &[[f32; 3]], x: &[f32; 3], index: &mut [u32], dist2: &mut [f32]) {
+    for (d, &c) in dist2.iter_mut().zip(index.iter()) {
+        *d = dist2_between(x, &controls[c as usize]);
+    }
+    // Insertion sort: K is small.
+    for a in 1..index.len() {
+        let mut b = a;
+        while b > 0 && (dist2[b - 1], index[b - 1]) > (dist2[b], index[b]) {
+            index.swap(b - 1, b);
+            dist2.swap(b - 1, b);
+            b -= 1;
+        }
+    }
+}
+
+/// |a − b| in f64.
+fn distance(a: &[f32; 3], b: &[f32; 3]) -> f64 {
+    (0..3)
+        .map(|c| (f64::from(a[c]) - f64::from(b[c])).powi(2))
+        .sum::<f64>()
+        .sqrt()
 }
 
 /// [`nearest`] by comparing every pair (the reference): ties go to the lower index.
@@ -187,6 +317,51 @@ mod tests {
         assert!(nearest(&[], &[[0.0; 3]], 3).is_err());
         let e = nearest(&two, &[[f32::NAN, 0.0, 0.0]], 3).unwrap_err();
         assert!(e.to_string().contains("Gaussian means: row 0"), "{e}");
+    }
+
+    /// The cache gives what a fresh search gives, with the rows in the order of distance, while
+    /// the points move by small and large steps; small steps search few rows again.
+    #[test]
+    fn the_cache_answers_as_a_fresh_search() {
+        let controls: Vec<[f32; 3]> = (0..64)
+            .map(|i| {
+                let f = i as f32;
+                [(f * 0.73).sin(), (f * 1.31).cos(), (f * 0.37).sin()]
+            })
+            .collect();
+        let mut means: Vec<[f32; 3]> = (0..500)
+            .map(|i| {
+                let f = i as f32;
+                [(f * 0.11).cos(), (f * 0.53).sin(), (f * 0.29).cos()]
+            })
+            .collect();
+        let mut cache = NeighbourCache::default();
+        for step in 0..30 {
+            let size = if step % 10 == 9 { 0.3 } else { 1e-3 };
+            for (i, m) in means.iter_mut().enumerate() {
+                let f = (i * 31 + step * 7) as f32;
+                m[0] += size * f.sin();
+                m[1] += size * f.cos();
+            }
+            let got = cache.update(&controls, &means, 3).unwrap().clone();
+            let mut fresh = nearest_brute(&controls, &means, 3).unwrap();
+            for ((index, dist2), x) in fresh
+                .index
+                .chunks_mut(3)
+                .zip(fresh.dist2.chunks_mut(3))
+                .zip(&means)
+            {
+                order_row(&controls, x, index, dist2);
+            }
+            assert_eq!(got, fresh, "step {step}");
+            if step > 0 && size < 1e-2 {
+                assert!(cache.searched() < means.len() / 4, "{}", cache.searched());
+            }
+        }
+        // Other control points: every row again.
+        let moved: Vec<[f32; 3]> = controls.iter().map(|c| [c[0] + 0.01, c[1], c[2]]).collect();
+        cache.update(&moved, &means, 3).unwrap();
+        assert_eq!(cache.searched(), means.len());
     }
 
     proptest! {

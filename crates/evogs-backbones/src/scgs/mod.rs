@@ -14,13 +14,15 @@
 //! frequencies; SC-GS's extra time MLP is left out), He-initialised with zero heads (SC-GS: heads
 //! drawn with σ = 1e-5…1e-4, so the motion starts at nearly zero too), radii
 //! `exp(ρ)` from `ρ = ln(0.1 · range)` of the initial cloud, weight logits from 0, ARAP weight
-//! 1e-4 (SC-GS's first stage of its schedule; held constant here). Control points start by
-//! farthest-point sampling of the run's initial Gaussians ([`Backbone::initialise`], SC-GS's
-//! first initialisation; its 10 000-step pre-training of the control points as Gaussians is not
-//! done), stay where they are (SC-GS detaches their positions everywhere after pre-training; a
+//! 1e-4 (SC-GS's first stage of its schedule; held constant here). Control points are placed by
+//! farthest-point sampling of the canonical Gaussians ([`Backbone::initialise`]): of the run's
+//! initial ones, then again of those the static warm-up fitted when the deformation starts (in
+//! place of SC-GS's 10 000-step pre-training of the control points as Gaussians, which picks them
+//! by farthest-point sampling of their trajectories); they then stay where they are (SC-GS detaches their positions everywhere after pre-training; a
 //! factor on their learning rate, `position_lr_scale`, lets them move), and the search is in 3D
 //! (SC-GS adds 8 learned "hyper" coordinates per point and Gaussian). The K nearest control
-//! points are found again at every forward, as SC-GS does.
+//! points are exact at every forward, as SC-GS's search: a Gaussian's are searched again only
+//! when it has moved far enough that they may have changed ([`knn::NeighbourCache`]).
 //!
 //! What it is not (yet): SC-GS's control-point densification and pruning, its pre-training stage,
 //! and EvoGS on control points.
@@ -227,6 +229,8 @@ pub struct ScgsBackbone {
     cache: Option<Cache>,
     /// The weighted ARAP loss of the last backward.
     arap_loss: f64,
+    /// The K nearest control points, searched again only where they may have changed.
+    neighbours: knn::NeighbourCache,
     times: Vec<f32>,
 }
 
@@ -272,6 +276,7 @@ impl ScgsBackbone {
             params,
             cache: None,
             arap_loss: 0.0,
+            neighbours: knn::NeighbourCache::default(),
             times: Vec::new(),
         })
     }
@@ -353,11 +358,14 @@ impl Backbone for ScgsBackbone {
     ) -> Result<(), BackboneError> {
         let mut net = self.cache.take().map(|c| c.net).unwrap_or_default();
         let nodes = self.node_outputs(time, &mut net)?;
-        let neighbours = knn::nearest(
-            &self.params.positions,
-            canonical.means,
-            self.settings.neighbours,
-        )?;
+        let neighbours = self
+            .neighbours
+            .update(
+                &self.params.positions,
+                canonical.means,
+                self.settings.neighbours,
+            )?
+            .clone();
         skinning::skin_into(
             canonical.means,
             &neighbours,
