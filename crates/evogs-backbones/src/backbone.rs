@@ -38,6 +38,13 @@ pub trait Backbone: Send {
         Ok(())
     }
 
+    /// The points that carry the motion at `time`, for drawing the motion skeleton (SC-GS: its
+    /// control points, canonical position plus the network's translation); `None` for a backbone
+    /// without such points (every other).
+    fn control_points_at(&mut self, _time: f32) -> Result<Option<Vec<[f32; 3]>>, BackboneError> {
+        Ok(None)
+    }
+
     /// Deformation rows of the canonical Gaussians at `time` into `out` (N × `layout().dim()`,
     /// whatever it held; the backbone reuses its allocation where it can: the trainer keeps one
     /// buffer for every iteration). `training` says whether a backward pass will follow (the

@@ -127,6 +127,7 @@ pub fn run_demo(args: &DemoArgs) -> Result<(u64, Vec<DemoRow>)> {
                 camera: Some(evogs_video::camera_path::CameraSpec::File(camera.clone())),
                 time: None,
                 sweep: Some(8),
+                show_controls: false,
                 out: out.join("sweep"),
                 background: [0.0; 3],
                 width: None,

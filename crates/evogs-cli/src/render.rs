@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use evogs_eval::LoadedRun;
-use evogs_eval::render::{render_at, sweep};
+use evogs_eval::render::{draw_points, render_at, sweep};
 use evogs_io::{ImageRgb, read_gaussians, read_nerfies_camera, save_png};
 use splat_raster::{Camera, Gaussians, RenderOptions, select_rasterizer};
 
@@ -164,6 +164,11 @@ pub struct RenderArgs {
     #[arg(long, allow_negative_numbers = true, value_name = "N", requires = "run", value_parser = clap::value_parser!(u32).range(2..=1000))]
     pub sweep: Option<u32>,
 
+    /// Draw the run's control points over the image (magenta discs ringed in black: the motion
+    /// skeleton of a `--backbone scgs` run, where each is at the time rendered).
+    #[arg(long, requires = "run", conflicts_with = "sweep")]
+    pub show_controls: bool,
+
     /// Output PNG image (a folder with --sweep), written atomically (temporary file, rename).
     #[arg(long, value_name = "IMAGE.png")]
     pub out: PathBuf,
@@ -240,9 +245,21 @@ pub fn render_run(run: &Path, args: &RenderArgs) -> Result<RenderReport> {
         None => {
             check_output_name(&args.out)?;
             let time = args.time.or(resolved.time).unwrap_or(0.0);
-            let image = render_at(&mut loaded, &camera, time)?;
+            let mut image = render_at(&mut loaded, &camera, time)?;
+            let mut drawn = String::new();
+            if args.show_controls {
+                let name = loaded.backbone.name();
+                let points = loaded.backbone.control_points_at(time)?.with_context(|| {
+                    format!(
+                        "--show-controls: the run's backbone ({name}) has no control points \
+                         (those of --backbone scgs)"
+                    )
+                })?;
+                let n = draw_points(&mut image, &camera, &points, [1.0, 0.1, 0.9]);
+                drawn = format!(" with {n} of its {} control points in view", points.len());
+            }
             evogs_io::save_png(&args.out, &image)?;
-            format!("rendered {} at time {time}", run.display())
+            format!("rendered {} at time {time}{drawn}", run.display())
         }
     };
     Ok(RenderReport {

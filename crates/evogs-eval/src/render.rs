@@ -25,6 +25,49 @@ use evogs_train::run::write_json;
 
 use crate::loaded::LoadedRun;
 
+/// Draws `points` over `image` as seen by `camera`: a filled disc of radius 2.5 px in `colour`
+/// ringed in black, for each point in front of the camera (camera-space depth above 1e-3) and
+/// inside the image (`evogs render --show-controls`: SC-GS's control points over the render).
+/// Returns how many were drawn.
+pub fn draw_points(
+    image: &mut ImageRgb,
+    camera: &Camera,
+    points: &[[f32; 3]],
+    colour: [f32; 3],
+) -> usize {
+    const RADIUS: f32 = 2.5;
+    const RING: f32 = 1.2;
+    let (w, h) = (image.width as i64, image.height as i64);
+    let mut drawn = 0;
+    for p in points {
+        let c = camera.world_to_camera(glam::Vec3::from(*p));
+        // In front of the camera (a NaN coordinate is not).
+        if c.z.partial_cmp(&1e-3) != Some(std::cmp::Ordering::Greater) {
+            continue;
+        }
+        let u = camera.fx * c.x / c.z + camera.cx;
+        let v = camera.fy * c.y / c.z + camera.cy;
+        if !((0.0..w as f32).contains(&u) && (0.0..h as f32).contains(&v)) {
+            continue;
+        }
+        drawn += 1;
+        let reach = (RADIUS + RING).ceil() as i64;
+        let (ui, vi) = (u.floor() as i64, v.floor() as i64);
+        for y in (vi - reach).max(0)..=(vi + reach).min(h - 1) {
+            for x in (ui - reach).max(0)..=(ui + reach).min(w - 1) {
+                let d = ((x as f32 + 0.5 - u).powi(2) + (y as f32 + 0.5 - v).powi(2)).sqrt();
+                let pixel = &mut image.pixels[(y * w + x) as usize];
+                if d <= RADIUS {
+                    *pixel = colour;
+                } else if d <= RADIUS + RING {
+                    *pixel = [0.0; 3];
+                }
+            }
+        }
+    }
+    drawn
+}
+
 /// Renders `run` from `camera` at any finite `time` (see the module docs for times outside
 /// [0, 1]) over the run's background, colours clamped to [0, 1]. Read-only.
 pub fn render_at(run: &mut LoadedRun, camera: &Camera, time: f32) -> Result<ImageRgb, TrainError> {

@@ -29,7 +29,8 @@ use std::time::Instant;
 use evogs_io::{ImageRgb, Split};
 
 pub use crate::bench_data::{
-    BenchRun, CurvePoint, PUBLISHED, Published, SplitScore, published_for,
+    BenchRun, CurvePoint, PUBLISHED, PUBLISHED_SCGS, Published, SplitScore, published_for,
+    published_scgs_for,
 };
 use crate::bench_plot;
 use crate::error::ExperimentError;
@@ -360,8 +361,8 @@ pub fn table(config: &TrainConfig, runs: &[BenchRun]) -> String {
          evaluations are excluded. LPIPS: AlexNet and VGG16 backbones (– where not computed); \
          D-3DGS publishes VGG16. Non-finite: Gaussians with a NaN or infinite value, canonical \
          or deformed at an evaluated time.\n\n\
-         | scene | method | split | PSNR (dB) | SSIM | LPIPS (Alex) | LPIPS (VGG) | other split PSNR | Gaussians | peak memory (MiB) | training (min) | non-finite | published (D-3DGS) |\n\
-         | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |\n",
+         | scene | method | split | PSNR (dB) | SSIM | LPIPS (Alex) | LPIPS (VGG) | other split PSNR | Gaussians | peak memory (MiB) | training (min) | non-finite | published (D-3DGS) | published (SC-GS) |\n\
+         | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | --- |\n",
         config.backbone,
         config.preset,
         config.length(),
@@ -379,8 +380,17 @@ pub fn table(config: &TrainConfig, runs: &[BenchRun]) -> String {
                 )
             },
         );
+        let scgs = published_scgs_for(&r.scene).map_or_else(
+            || "–".to_string(),
+            |p| {
+                format!(
+                    "{:.2} / {:.3} / {:.4} ({})",
+                    p.psnr, p.ssim, p.lpips, p.split
+                )
+            },
+        );
         s += &format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} | {} | {} | {} |\n",
             r.scene,
             r.method,
             r.headline,
@@ -396,7 +406,8 @@ pub fn table(config: &TrainConfig, runs: &[BenchRun]) -> String {
             fmt_opt(r.peak_rss_bytes.map(|b| b as f64 / (1024.0 * 1024.0)), 0),
             r.seconds / 60.0,
             r.non_finite,
-            published
+            published,
+            scgs
         );
     }
     s
@@ -415,6 +426,7 @@ pub fn write_outputs(
             "config": config,
             "runs": runs,
             "published": PUBLISHED,
+            "published_scgs": PUBLISHED_SCGS,
         }),
     )?;
     let png = out.join("bench.png");
@@ -526,6 +538,13 @@ mod tests {
         let p = published_for("lego", 400).unwrap();
         assert_eq!((p.resolution, p.split, p.psnr), (800, "val", 33.07));
         assert!(published_for("mine", 400).is_none());
+        // SC-GS's table: the issue's figures, and none for lego.
+        let p = published_scgs_for("jumpingjacks").unwrap();
+        assert_eq!((p.method, p.psnr, p.split), ("SC-GS", 41.13, "test"));
+        assert_eq!(published_scgs_for("mutant").unwrap().psnr, 45.19);
+        assert!(published_scgs_for("lego").is_none());
+        let mean = PUBLISHED_SCGS.iter().map(|p| p.psnr).sum::<f64>() / 7.0;
+        assert!((mean - 43.31).abs() < 0.005, "the table's average: {mean}");
     }
 
     #[test]

@@ -1,6 +1,7 @@
 //! The D-NeRF benchmark's data: one trained and evaluated run ([`BenchRun`]: its [`SplitScore`]s
-//! and its PSNR-against-time curve of [`CurvePoint`]s) and Deformable-3D-Gaussians' published
-//! figures ([`PUBLISHED`], [`published_for`]).
+//! and its PSNR-against-time curve of [`CurvePoint`]s), Deformable-3D-Gaussians' published
+//! figures ([`PUBLISHED`], [`published_for`]) and SC-GS's ([`PUBLISHED_SCGS`],
+//! [`published_scgs_for`]).
 //!
 //! What it is not: the benchmark's runner or its table ([`bench`](mod@crate::bench), which
 //! re-exports these items) or its plot ([`bench_plot`](crate::bench_plot)). Both import this
@@ -149,6 +150,39 @@ pub const PUBLISHED: [Published; 11] = [
         source: D3DGS_README,
     },
 ];
+
+/// Where SC-GS's figures are published.
+const SCGS_README: &str = "yihua7/SC-GS README, D-NeRF table (assets/D-NeRF-Results.png; 400x400 by the readme's best-PSNR command)";
+
+/// SC-GS's published figure for one scene (its readme's D-NeRF table, test split, LPIPS VGG).
+const fn scgs(scene: &'static str, psnr: f64, ssim: f64, lpips: f64) -> Published {
+    Published {
+        method: "SC-GS",
+        scene,
+        resolution: 400,
+        split: "test",
+        psnr,
+        ssim,
+        lpips,
+        source: SCGS_README,
+    }
+}
+
+/// SC-GS's published figures for the D-NeRF scenes (no lego in its table).
+pub const PUBLISHED_SCGS: [Published; 7] = [
+    scgs("hook", 39.87, 0.997, 0.0076),
+    scgs("jumpingjacks", 41.13, 0.998, 0.0067),
+    scgs("trex", 41.24, 0.998, 0.0046),
+    scgs("bouncingballs", 44.91, 0.998, 0.0166),
+    scgs("hellwarrior", 42.93, 0.994, 0.0155),
+    scgs("mutant", 45.19, 0.999, 0.0028),
+    scgs("standup", 47.89, 0.999, 0.0023),
+];
+
+/// SC-GS's published figure for `scene`, when its table has one.
+pub fn published_scgs_for(scene: &str) -> Option<&'static Published> {
+    PUBLISHED_SCGS.iter().find(|p| p.scene == scene)
+}
 
 /// The published figure for `scene` closest to `resolution` (the same resolution when there is
 /// one, else the nearest).

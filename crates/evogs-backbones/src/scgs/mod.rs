@@ -344,6 +344,10 @@ impl Backbone for ScgsBackbone {
         "scgs"
     }
 
+    fn control_points_at(&mut self, time: f32) -> Result<Option<Vec<[f32; 3]>>, BackboneError> {
+        self.controls_at(time).map(Some)
+    }
+
     fn initialise(&mut self, canonical: GaussiansView<'_>) -> Result<(), BackboneError> {
         self.params.place(canonical.means, self.seed);
         Ok(())

@@ -1,4 +1,4 @@
-//! `evogs train --backbone 4dgs|grid4d` end to end through the binary on a tiny dynamic scene:
+//! `evogs train --backbone 4dgs|grid4d|scgs` end to end through the binary on a tiny dynamic scene:
 //! each backbone (and EvoGS(grid4d)) trains well above the untrained floor, the run records the
 //! backbone and its weights and keeps it on resume, `evogs ablate --backbone grid4d` runs its
 //! rows on it, and unsupported combinations are one-line errors.
@@ -49,6 +49,113 @@ fn the_4dgs_backbone_and_evogs_4dgs_train_a_tiny_scene_and_are_recorded() {
         assert_eq!(config["train"]["method"], method);
         assert_weights(&run, weights);
     }
+}
+
+/// SC-GS's control points: the baseline trains well above the untrained floor, records its
+/// settings and its control points' buffers, `render --show-controls` draws them (and a d3dgs run
+/// refuses the flag), and EvoGS on it is refused in one line naming the baseline.
+#[test]
+fn scgs_trains_a_tiny_scene_and_draws_its_control_points() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = rigid_scene(dir.path(), 32, 16);
+    let scgs = [
+        "--backbone",
+        "scgs",
+        "--control-points",
+        "32",
+        "--control-width",
+        "32",
+        "--control-depth",
+        "3",
+    ];
+    let floor = trained_psnr(
+        &data,
+        &dir.path().join("untrained"),
+        &[&scgs[..], &["--iterations", "1"]].concat(),
+    );
+    let run = dir.path().join("scgs");
+    let psnr = trained_psnr(&data, &run, &[&scgs[..], &["--seed", "3"]].concat());
+    assert!(
+        psnr > floor + 5.0 && psnr > 14.0,
+        "scgs: trained {psnr} dB vs untrained {floor} dB"
+    );
+    let config = json(&run.join("config.json"));
+    assert_eq!(config["train"]["backbone"], "scgs");
+    assert_eq!(config["train"]["scgs"]["control_points"], 32);
+    assert_weights(
+        &run,
+        &[
+            "controls.position",
+            "controls.log_radius",
+            "controls.weight_logit",
+        ],
+    );
+    let image = dir.path().join("controls.png");
+    let camera = ["--camera", "dataset:test:0"];
+    let o = evogs(
+        &[
+            &[
+                "render",
+                "--run",
+                s(&run),
+                "--show-controls",
+                "--out",
+                s(&image),
+            ][..],
+            &camera[..],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let said = String::from_utf8_lossy(&o.stdout).to_string() + &stderr(&o);
+    assert!(said.contains("of its 32 control points in view"), "{said}");
+    let plain = dir.path().join("plain.png");
+    let o = evogs(
+        &[
+            &["render", "--run", s(&run), "--out", s(&plain)][..],
+            &camera[..],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_ne!(
+        std::fs::read(&image).unwrap(),
+        std::fs::read(&plain).unwrap()
+    );
+    let d3dgs = dir.path().join("d3dgs");
+    let o = train_tiny(&data, &d3dgs, &["--iterations", "1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = evogs(
+        &[
+            &[
+                "render",
+                "--run",
+                s(&d3dgs),
+                "--show-controls",
+                "--out",
+                s(&image),
+            ][..],
+            &camera[..],
+        ]
+        .concat(),
+    );
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("(d3dgs) has no control points"),
+        "{}",
+        stderr(&o)
+    );
+    let o = train_tiny(
+        &data,
+        &dir.path().join("evogs"),
+        &[&scgs[..], &["--method", "evogs"]].concat(),
+    );
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains("--method baseline") && e.lines().count() == 1,
+        "{e}"
+    );
 }
 
 /// Test PSNR of a tiny-preset run with `extra` flags, after `evogs eval`.
