@@ -19,6 +19,7 @@ use crate::grid4d_phi::Grid4dPhi;
 use crate::hex_backbone::HexBackbone;
 use crate::hex_phi::HexPhi;
 use crate::one_word::{OneWord, unknown};
+use crate::scgs::phi::ScgsPhi;
 use crate::scgs::{ScgsBackbone, ScgsSettings};
 
 /// The deformation method (`--method`).
@@ -124,13 +125,11 @@ pub fn make_backbone(run: &BackboneRun<'_>) -> Result<Box<dyn Backbone>, Backbon
             seed,
             Grid4dPhi::new(&run.grid4d(), evogs)?,
         )?),
-        (Method::Evogs, BackboneKind::Scgs) => {
-            return Err(BackboneError::config(
-                "backbone",
-                "EvoGS on SC-GS's control points is not built yet; use --method baseline with \
-                 --backbone scgs",
-            ));
-        }
+        (Method::Evogs, BackboneKind::Scgs) => Box::new(EvoBackbone::with_phi(
+            evogs,
+            seed,
+            ScgsPhi::new(run.scgs, evogs, h, seed)?,
+        )?),
     })
 }
 
@@ -176,8 +175,7 @@ mod tests {
 
     /// Every method with every backbone builds, with the name and row layout it stands for: a
     /// baseline deforms geometry only, EvoGS the components of its settings (all five but with
-    /// 4DGaussians' Φ, which has geometric heads only and refuses the others; EvoGS on SC-GS is
-    /// refused with a message that names the baseline).
+    /// 4DGaussians' and SC-GS's Φ, which deform geometry only and refuse the others).
     #[test]
     fn every_choice_builds_its_backbone() {
         let net = NetSettings {
@@ -204,11 +202,12 @@ mod tests {
                         assert_eq!(e.layout(), layout, "{kind}");
                         assert!(e.state().is_some(), "{kind}");
                     }
-                    Err(e) if kind == BackboneKind::Scgs => {
-                        assert!(e.to_string().contains("--method baseline"), "{e}");
-                    }
                     Err(e) => {
-                        assert_eq!((kind, layout), (BackboneKind::FourDgs, Layout::ALL));
+                        assert_eq!(layout, Layout::ALL, "{kind}");
+                        assert!(
+                            matches!(kind, BackboneKind::FourDgs | BackboneKind::Scgs),
+                            "{kind}"
+                        );
                         assert!(e.to_string().contains("scale only"), "{e}");
                     }
                 }

@@ -258,6 +258,14 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
         "evogs"
     }
 
+    fn initialise(&mut self, canonical: GaussiansView<'_>) -> Result<(), BackboneError> {
+        self.phi.initialise(canonical.means)
+    }
+
+    fn control_points_at(&mut self, time: f32) -> Result<Option<Vec<[f32; 3]>>, BackboneError> {
+        self.phi.control_points_at(time)
+    }
+
     fn forward_into(
         &mut self,
         canonical: GaussiansView<'_>,

@@ -63,6 +63,18 @@ pub trait Observer: Parameters + Send {
     fn own_schedule(&self, _name: &str) -> Option<LrSchedule> {
         None
     }
+
+    /// Places what Φ derives from the canonical means (SC-GS's control points); the backbone's
+    /// `Backbone::initialise`. Nothing by default.
+    fn initialise(&mut self, _means: &[[f32; 3]]) -> Result<(), BackboneError> {
+        Ok(())
+    }
+
+    /// The points that carry Φ's motion at `time` (SC-GS's control points); the backbone's
+    /// `Backbone::control_points_at`. `None` by default.
+    fn control_points_at(&mut self, _time: f32) -> Result<Option<Vec<[f32; 3]>>, BackboneError> {
+        Ok(None)
+    }
 }
 
 impl Observer for ObservationNet {

@@ -8,13 +8,15 @@
 //! is held at its value: the stop-gradient).
 //!
 //! Each Φ that [`EvoBackbone`] wraps is checked: EvoGS(D-3DGS)'s tri-plane Φ, EvoGS(Grid4D)'s
-//! hash-grid field ([`Grid4dPhi`], whose smoothness regulariser is `R_Φ`) and EvoGS(4DGS)'s
-//! HexPlane field ([`HexPhi`], its plane regularisers), at small sizes.
+//! hash-grid field ([`Grid4dPhi`], whose smoothness regulariser is `R_Φ`), EvoGS(4DGS)'s
+//! HexPlane field ([`HexPhi`], its plane regularisers) and EvoGS(SC-GS)'s skinning
+//! ([`ScgsPhi`], its ARAP loss), at small sizes.
 
 use evogs_backbones::evo_backbone::observation_config;
+use evogs_backbones::scgs::phi::ScgsPhi;
 use evogs_backbones::{
     Backbone, EvoBackbone, EvoSettings, Gain, Grid4dLr, Grid4dPhi, Grid4dRun, HexPhi, HistoryMode,
-    Layout, Observer, PerGaussianState,
+    Layout, Observer, PerGaussianState, ScgsSettings,
 };
 use splat_core::Gaussians;
 use tiny_nn::ObservationNet;
@@ -117,6 +119,32 @@ fn hexplane() -> Case<HexPhi> {
             } else {
                 (0.0, 0.5)
             }
+        },
+    }
+}
+
+/// EvoGS(SC-GS)'s Φ: four control points (K = 3) with a small network at low frequencies, their
+/// positions learning (so their gradient is checked too), the ARAP term weighted so that it
+/// counts in L.
+fn scgs() -> Case<ScgsPhi> {
+    Case {
+        phi: |c| {
+            let settings = ScgsSettings {
+                control_points: 4,
+                neighbours: 3,
+                width: 8,
+                depth: 2,
+                xyz_freqs: 2,
+                t_freqs: 2,
+                arap_weight: 0.5,
+                position_lr_scale: 1.0,
+            };
+            ScgsPhi::new(&settings, &c.evogs, c.init_half_extent, c.seed).unwrap()
+        },
+        init: |name| match name {
+            "controls.position" => (0.0, 0.8),
+            "controls.log_radius" => (-0.7, 0.2),
+            _ => (0.0, 0.5),
         },
     }
 }
@@ -461,4 +489,24 @@ fn hexplane_phi_gradients_through_the_requeried_history_match_finite_differences
         HistoryMode::Requery,
         &is_phi,
     );
+}
+
+/// EvoGS(SC-GS): the control-point network, positions, radii and weight logits through the
+/// skinning, the ARAP regulariser included.
+#[test]
+fn scgs_phi_gradients_match_finite_differences_with_a_fixed_gain() {
+    let c = Layout::default();
+    check_phi(&scgs(), Gain::Fixed(0.3), c, HistoryMode::Buffer, &is_phi);
+}
+
+#[test]
+fn scgs_psi_gradients_match_finite_differences_with_the_learned_gain() {
+    let c = Layout::default();
+    check_phi(&scgs(), Gain::Learned, c, HistoryMode::Buffer, &is_psi);
+}
+
+#[test]
+fn scgs_phi_gradients_through_the_requeried_history_match_finite_differences() {
+    let c = Layout::default();
+    check_phi(&scgs(), Gain::Fixed(0.3), c, HistoryMode::Requery, &is_phi);
 }

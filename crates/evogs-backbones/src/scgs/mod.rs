@@ -24,12 +24,16 @@
 //! points are exact at every forward, as SC-GS's search: a Gaussian's are searched again only
 //! when it has moved far enough that they may have changed ([`knn::NeighbourCache`]).
 //!
+//! EvoGS(SC-GS) (`--method evogs --backbone scgs`, [`phi::ScgsPhi`]): this skinning as EvoGS's Φ,
+//! the evolution state on every Gaussian.
+//!
 //! What it is not (yet): SC-GS's control-point densification and pruning, its pre-training stage,
-//! and EvoGS on control points.
+//! and the evolution state on the control points.
 
 pub mod arap;
 pub mod fps;
 pub mod knn;
+pub mod phi;
 pub mod skinning;
 
 use std::path::Path;
@@ -181,6 +185,40 @@ impl Parameters for ScgsParams {
 }
 
 impl ScgsParams {
+    /// The network and control points of `settings`, the points spread over `[-h, h]³` until
+    /// placed on the Gaussians.
+    fn new(settings: &ScgsSettings, half_extent: f32, seed: u64) -> Result<Self, BackboneError> {
+        settings.validate()?;
+        let net = DeformNet::with_outputs(
+            DeformConfig {
+                width: settings.width,
+                depth: settings.depth,
+                skip_after: (settings.depth > 4).then_some(settings.depth / 2),
+                xyz_freqs: settings.xyz_freqs,
+                t_freqs: settings.t_freqs,
+                init: tiny_nn::Init::He,
+                zero_heads: true,
+                precision: Precision::F32,
+                seed: seed ^ 0x5C65_0000,
+            },
+            NODE_OUTPUT,
+        )?;
+        let m = settings.control_points;
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5C65_C0DE);
+        let h = half_extent.abs().max(f32::MIN_POSITIVE);
+        let cube: Vec<[f32; 3]> = (0..m)
+            .map(|_| std::array::from_fn(|_| rng.random_range(-h..=h)))
+            .collect();
+        let mut params = Self {
+            net,
+            positions: vec![[0.0; 3]; m],
+            log_radii: vec![0.0; m],
+            weight_logits: vec![0.0; m],
+        };
+        params.place(&cube, seed);
+        Ok(params)
+    }
+
     fn controls(&self) -> Controls<'_> {
         Controls {
             positions: &self.positions,
@@ -242,34 +280,7 @@ impl ScgsBackbone {
         half_extent: f32,
         seed: u64,
     ) -> Result<Self, BackboneError> {
-        settings.validate()?;
-        let net = DeformNet::with_outputs(
-            DeformConfig {
-                width: settings.width,
-                depth: settings.depth,
-                skip_after: (settings.depth > 4).then_some(settings.depth / 2),
-                xyz_freqs: settings.xyz_freqs,
-                t_freqs: settings.t_freqs,
-                init: tiny_nn::Init::He,
-                zero_heads: true,
-                precision: Precision::F32,
-                seed: seed ^ 0x5C65_0000,
-            },
-            NODE_OUTPUT,
-        )?;
-        let m = settings.control_points;
-        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5C65_C0DE);
-        let h = half_extent.abs().max(f32::MIN_POSITIVE);
-        let cube: Vec<[f32; 3]> = (0..m)
-            .map(|_| std::array::from_fn(|_| rng.random_range(-h..=h)))
-            .collect();
-        let mut params = ScgsParams {
-            net,
-            positions: vec![[0.0; 3]; m],
-            log_radii: vec![0.0; m],
-            weight_logits: vec![0.0; m],
-        };
-        params.place(&cube, seed);
+        let params = ScgsParams::new(settings, half_extent, seed)?;
         Ok(Self {
             settings: *settings,
             seed,
@@ -314,16 +325,26 @@ impl ScgsBackbone {
         )?)
     }
 
-    /// The partner time of ARAP's pair for a step at `time`: within ±[`ARAP_HALF_WINDOW`],
-    /// drawn from the run's seed and the time (the same on a resumed run), in `[0, 1]`.
-    fn arap_partner(&self, time: f32) -> f32 {
-        let mut rng = ChaCha8Rng::seed_from_u64(self.seed ^ u64::from(time.to_bits()) ^ 0xA7A9);
-        let delta = rng.random_range(-ARAP_HALF_WINDOW..=ARAP_HALF_WINDOW);
-        (time + delta).clamp(0.0, 1.0)
-    }
-
     fn learns_positions(&self) -> bool {
         self.settings.position_lr_scale > 0.0
+    }
+}
+
+/// The partner time of ARAP's pair for a step at `time`: within ±[`ARAP_HALF_WINDOW`], drawn
+/// from the run's seed and the time (the same on a resumed run), in `[0, 1]`.
+fn arap_partner(seed: u64, time: f32) -> f32 {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ u64::from(time.to_bits()) ^ 0xA7A9);
+    let delta = rng.random_range(-ARAP_HALF_WINDOW..=ARAP_HALF_WINDOW);
+    (time + delta).clamp(0.0, 1.0)
+}
+
+/// The factor on the network schedule for the buffer `name`: the control points' positions at
+/// `position_lr_scale`, every other buffer at 1.
+fn position_lr_scale(name: &str, settings: &ScgsSettings) -> f32 {
+    if name == POSITIONS {
+        settings.position_lr_scale
+    } else {
+        1.0
     }
 }
 
@@ -410,11 +431,7 @@ impl Backbone for ScgsBackbone {
     }
 
     fn lr_scale(&self, name: &str) -> f32 {
-        if name == POSITIONS {
-            self.settings.position_lr_scale
-        } else {
-            1.0
-        }
+        position_lr_scale(name, &self.settings)
     }
 
     fn loss_terms(&self) -> f64 {
@@ -460,7 +477,7 @@ impl ScgsBackbone {
         let mut net_grad: Option<Vec<f32>> = None;
         self.arap_loss = 0.0;
         if lambda > 0.0 && m >= 2 {
-            let partner = self.arap_partner(cache.time);
+            let partner = arap_partner(self.seed, cache.time);
             let mut net1 = DeformCache::default();
             let nodes1 = self.node_outputs(partner, &mut net1)?;
             let first = moved(&self.params.positions, &cache.nodes);

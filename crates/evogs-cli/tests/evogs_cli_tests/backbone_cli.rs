@@ -53,7 +53,8 @@ fn the_4dgs_backbone_and_evogs_4dgs_train_a_tiny_scene_and_are_recorded() {
 
 /// SC-GS's control points: the baseline trains well above the untrained floor, records its
 /// settings and its control points' buffers, `render --show-controls` draws them (and a d3dgs run
-/// refuses the flag), and EvoGS on it is refused in one line naming the baseline.
+/// refuses the flag); EvoGS(SC-GS) trains and draws them too, and refuses opacity and colour in one
+/// line.
 #[test]
 fn scgs_trains_a_tiny_scene_and_draws_its_control_points() {
     let dir = tempfile::tempdir().unwrap();
@@ -145,17 +146,46 @@ fn scgs_trains_a_tiny_scene_and_draws_its_control_points() {
         "{}",
         stderr(&o)
     );
+    // EvoGS(SC-GS) trains too, and draws the same kind of points.
+    let evo = dir.path().join("evogs");
+    let psnr = trained_psnr(
+        &data,
+        &evo,
+        &[&scgs[..], &["--method", "evogs", "--seed", "3"]].concat(),
+    );
+    assert!(
+        psnr > floor + 5.0 && psnr > 14.0,
+        "EvoGS(scgs): trained {psnr} dB vs untrained {floor} dB"
+    );
+    assert_weights(&evo, &["phi.controls.position", "psi"]);
+    let o = evogs(
+        &[
+            &[
+                "render",
+                "--run",
+                s(&evo),
+                "--show-controls",
+                "--out",
+                s(&image),
+            ][..],
+            &camera[..],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    // SC-GS deforms no opacity or colour: asked for them, one line says so.
     let o = train_tiny(
         &data,
-        &dir.path().join("evogs"),
-        &[&scgs[..], &["--method", "evogs"]].concat(),
+        &dir.path().join("evogs-opacity"),
+        &[
+            &scgs[..],
+            &["--method", "evogs", "--components", "pos,opacity"],
+        ]
+        .concat(),
     );
     assert!(!o.status.success());
     let e = stderr(&o);
-    assert!(
-        e.contains("--method baseline") && e.lines().count() == 1,
-        "{e}"
-    );
+    assert!(e.contains("scale only") && e.lines().count() == 1, "{e}");
 }
 
 /// Test PSNR of a tiny-preset run with `extra` flags, after `evogs eval`.

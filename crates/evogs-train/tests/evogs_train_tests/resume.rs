@@ -15,10 +15,15 @@ use evogs_train::checkpoint::load_checkpoint;
 use evogs_train::run::RunPaths;
 use evogs_train::state::SceneState;
 use evogs_train::trainer::make_backbone;
-use evogs_train::{BackboneKind, Preset, TrainConfig, TrainRequest, train};
+use evogs_train::{BackboneKind, Method, Preset, TrainConfig, TrainRequest, train};
 
 fn config_of(backbone: BackboneKind) -> TrainConfig {
+    config_with(backbone, Method::Baseline)
+}
+
+fn config_with(backbone: BackboneKind, method: Method) -> TrainConfig {
     let mut c = TrainConfig::preset(Preset::Tiny).with_iterations(60);
+    c.method = method;
     c.init_points = 400;
     c.checkpoint_every = 7;
     c.backbone = backbone;
@@ -33,8 +38,12 @@ fn config() -> TrainConfig {
     config_of(BackboneKind::D3dgs)
 }
 
-fn final_state(root: &std::path::Path, backbone: BackboneKind) -> (SceneState, Vec<f32>, u64) {
-    let c = config_of(backbone);
+fn final_state(
+    root: &std::path::Path,
+    backbone: BackboneKind,
+    method: Method,
+) -> (SceneState, Vec<f32>, u64) {
+    let c = config_with(backbone, method);
     let mut backbone = make_backbone(&c).unwrap();
     let init = evogs_train::init::random_gaussians(1, 1.0, c.sh_degree, 0);
     let mut state = SceneState::new(init, backbone.as_ref(), &c.lr).unwrap();
@@ -58,22 +67,28 @@ fn bits(v: &[f32]) -> Vec<u32> {
 
 #[test]
 fn resumed_run_matches_uninterrupted_run_bit_for_bit() {
-    resumes_bit_for_bit(BackboneKind::D3dgs);
+    resumes_bit_for_bit(BackboneKind::D3dgs, Method::Baseline);
 }
 
 #[test]
 fn resumed_grid4d_run_matches_uninterrupted_run_bit_for_bit() {
-    resumes_bit_for_bit(BackboneKind::Grid4d);
+    resumes_bit_for_bit(BackboneKind::Grid4d, Method::Baseline);
 }
 
 /// SC-GS: the control points placed at the start and the ARAP partner times (drawn from the seed
 /// and the time) come back from the checkpoint and the seed alone.
 #[test]
 fn resumed_scgs_run_matches_uninterrupted_run_bit_for_bit() {
-    resumes_bit_for_bit(BackboneKind::Scgs);
+    resumes_bit_for_bit(BackboneKind::Scgs, Method::Baseline);
 }
 
-fn resumes_bit_for_bit(backbone: BackboneKind) {
+/// EvoGS(SC-GS): the evolution state beside the control points.
+#[test]
+fn resumed_evogs_scgs_run_matches_uninterrupted_run_bit_for_bit() {
+    resumes_bit_for_bit(BackboneKind::Scgs, Method::Evogs);
+}
+
+fn resumes_bit_for_bit(backbone: BackboneKind, method: Method) {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("scene");
     common::write_scene(&data);
@@ -86,7 +101,7 @@ fn resumes_bit_for_bit(backbone: BackboneKind) {
     let request = |out: &str, resume: bool, stop_after: Option<u64>| TrainRequest {
         data: data.clone(),
         out: dir.path().join(out),
-        config: config_of(backbone),
+        config: config_with(backbone, method),
         resume,
         stop_after,
         resume_backend: None,
@@ -106,8 +121,8 @@ fn resumes_bit_for_bit(backbone: BackboneKind) {
         assert_eq!(rest.iteration, 60);
         assert_eq!(rest.iterations_this_process, 30);
     });
-    let (a, wa, ia) = final_state(&dir.path().join("straight"), backbone);
-    let (b, wb, ib) = final_state(&dir.path().join("resumed"), backbone);
+    let (a, wa, ia) = final_state(&dir.path().join("straight"), backbone, method);
+    let (b, wb, ib) = final_state(&dir.path().join("resumed"), backbone, method);
     assert_eq!((ia, ib), (60, 60));
     assert_eq!(a.len(), b.len());
     let ga = a.gaussians();
@@ -133,7 +148,7 @@ fn resumes_bit_for_bit(backbone: BackboneKind) {
     assert_eq!(bits(&a.stats().grad_sum), bits(&b.stats().grad_sum));
     assert_eq!(a.stats().visible, b.stats().visible);
     // The run did train the network (past the warm-up) and densify.
-    assert!(config_of(backbone).warm_up < 30);
+    assert!(config_with(backbone, method).warm_up < 30);
     assert!(
         a.adam()
             .groups()
