@@ -42,8 +42,8 @@ pub struct TrainArgs {
     /// Deformation backbone: d3dgs (Deformable-3D-Gaussians' MLP), 4dgs (4DGaussians'
     /// HexPlane field with its regularisers), grid4d (Grid4D's 4D decomposed hash grids with
     /// directional attention) or scgs (SC-GS's sparse control points: a network on a few hundred
-    /// points, each Gaussian skinned by its nearest ones; baseline only for now). With --method
-    /// evogs, 4dgs's and grid4d's fields become Φ at half their width.
+    /// points, each Gaussian skinned by its nearest ones). With --method evogs, 4dgs's and
+    /// grid4d's fields become Φ at half their width, scgs's skinning becomes Φ as it is.
     #[arg(long, default_value_t = evogs_train::BackboneKind::default(), value_parser = evogs_backbones::cli::words::<evogs_train::BackboneKind>())]
     pub backbone: evogs_train::BackboneKind,
 
