@@ -43,6 +43,10 @@ pub struct AblateArgs {
     #[arg(long, default_value_t = evogs_train::BackboneKind::default(), value_parser = evogs_backbones::cli::words::<evogs_train::BackboneKind>())]
     pub backbone: evogs_train::BackboneKind,
 
+    /// SC-GS's settings (`--backbone scgs`), each defaulting to `ScgsSettings::default()`'s value.
+    #[command(flatten)]
+    pub scgs: evogs_backbones::cli::ScgsArgs,
+
     /// Random seed for every row (the first seed with --seeds) [default: the preset's].
     #[arg(long, value_name = "S")]
     pub seed: Option<u64>,
@@ -76,6 +80,7 @@ pub fn run_ablate(args: &AblateArgs) -> Result<Vec<AblationResult>> {
         config.seed = s;
     }
     config.backbone = args.backbone;
+    args.scgs.apply(&mut config.scgs);
     let rows = select(&args.rows)?;
     let seeds = seeds_from(config.seed, args.seeds as usize);
     let request = AblationRequest {

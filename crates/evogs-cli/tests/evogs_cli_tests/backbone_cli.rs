@@ -173,6 +173,43 @@ fn scgs_trains_a_tiny_scene_and_draws_its_control_points() {
         .concat(),
     );
     assert!(o.status.success(), "{}", stderr(&o));
+    // Every ablation switch works with it: the whole ladder on SC-GS.
+    let ablate = dir.path().join("ablate");
+    let o = evogs(
+        &[
+            &[
+                "ablate",
+                "--data",
+                s(&data),
+                "--out",
+                s(&ablate),
+                "--preset",
+                "tiny",
+            ][..],
+            &["--iterations", "40"],
+            &scgs[..],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rows = json(&ablate.join("ablation.json"));
+    assert_eq!(rows["backbone"], "scgs");
+    for row in [
+        "baseline",
+        "phi",
+        "evo-requery",
+        "evo-buffer",
+        "trigger",
+        "full",
+        "k0",
+        "k1",
+        "net-f16",
+        "buffer-f16",
+    ] {
+        let config = json(&ablate.join(row).join("config.json"));
+        assert_eq!(config["train"]["backbone"], "scgs", "{row}");
+        assert_eq!(config["train"]["scgs"]["control_points"], 32, "{row}");
+    }
     // SC-GS deforms no opacity or colour: asked for them, one line says so.
     let o = train_tiny(
         &data,
