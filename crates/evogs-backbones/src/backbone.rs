@@ -38,6 +38,13 @@ pub trait Backbone: Send {
         Ok(())
     }
 
+    /// Called after a training step whose densification changed the canonical Gaussians (once
+    /// the deformation is in use), with the new set. Nothing by default; SC-GS's control points
+    /// move to the new Gaussians when its settings say so.
+    fn gaussians_changed(&mut self, _canonical: GaussiansView<'_>) -> Result<(), BackboneError> {
+        Ok(())
+    }
+
     /// The points that carry the motion at `time`, for drawing the motion skeleton (SC-GS: its
     /// control points, canonical position plus the network's translation); `None` for a backbone
     /// without such points (every other).

@@ -153,6 +153,7 @@ mod tests {
             t_freqs: 2,
             arap_weight: 1e-4,
             position_lr_scale: 0.0,
+            follow_densify: false,
         };
         BackboneRun {
             method,

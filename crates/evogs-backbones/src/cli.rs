@@ -212,6 +212,12 @@ pub struct ScgsArgs {
     /// them where they started, as SC-GS's code does).
     #[arg(long, value_name = "S", default_value_t = scgs_defaults().position_lr_scale)]
     pub control_position_lr_scale: f32,
+
+    /// SC-GS: place the control points again on the Gaussians after every densification that
+    /// changed them (each keeping the radius and weight of the old point nearest to it), instead
+    /// of once when the deformation starts.
+    #[arg(long, default_value_t = scgs_defaults().follow_densify)]
+    pub control_follow_densify: bool,
 }
 
 impl ScgsArgs {
@@ -223,6 +229,7 @@ impl ScgsArgs {
         settings.depth = self.control_depth;
         settings.arap_weight = self.arap_weight;
         settings.position_lr_scale = self.control_position_lr_scale;
+        settings.follow_densify = self.control_follow_densify;
     }
 
     /// The flags that give these values back (`evogs bench --jobs` hands them to its parts).
@@ -240,6 +247,10 @@ impl ScgsArgs {
         ]
         .into_iter()
         .flat_map(|(flag, value)| [flag.to_string(), value])
+        .chain(
+            self.control_follow_densify
+                .then(|| "--control-follow-densify".to_string()),
+        )
         .collect()
     }
 }
@@ -271,7 +282,14 @@ mod tests {
             .apply(&mut settings);
         assert_eq!((settings.control_points, settings.arap_weight), (64, 0.0));
         // The flags written back parse to the same values.
-        let cli = Cli::parse_from(["evogs", "--control-width", "96", "--arap-weight", "2.5e-5"]);
+        let cli = Cli::parse_from([
+            "evogs",
+            "--control-width",
+            "96",
+            "--arap-weight",
+            "2.5e-5",
+            "--control-follow-densify",
+        ]);
         let mut again = vec!["evogs".to_string()];
         again.extend(cli.scgs.flags());
         assert_eq!(Cli::parse_from(again).scgs, cli.scgs);

@@ -266,6 +266,10 @@ impl<P: Observer> Backbone for EvoBackbone<P> {
         self.phi.control_points_at(time)
     }
 
+    fn gaussians_changed(&mut self, canonical: GaussiansView<'_>) -> Result<(), BackboneError> {
+        self.phi.gaussians_changed(canonical.means)
+    }
+
     fn forward_into(
         &mut self,
         canonical: GaussiansView<'_>,

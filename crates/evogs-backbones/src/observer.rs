@@ -70,6 +70,12 @@ pub trait Observer: Parameters + Send {
         Ok(())
     }
 
+    /// After a densification changed the canonical means; the backbone's
+    /// `Backbone::gaussians_changed`. Nothing by default.
+    fn gaussians_changed(&mut self, _means: &[[f32; 3]]) -> Result<(), BackboneError> {
+        Ok(())
+    }
+
     /// The points that carry Φ's motion at `time` (SC-GS's control points); the backbone's
     /// `Backbone::control_points_at`. `None` by default.
     fn control_points_at(&mut self, _time: f32) -> Result<Option<Vec<[f32; 3]>>, BackboneError> {

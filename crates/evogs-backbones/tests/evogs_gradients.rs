@@ -138,6 +138,7 @@ fn scgs() -> Case<ScgsPhi> {
                 t_freqs: 2,
                 arap_weight: 0.5,
                 position_lr_scale: 1.0,
+                follow_densify: false,
             };
             ScgsPhi::new(&settings, &c.evogs, c.init_half_extent, c.seed).unwrap()
         },

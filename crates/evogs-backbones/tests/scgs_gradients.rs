@@ -243,6 +243,7 @@ fn backbone_gradient_matches_finite_differences() {
         t_freqs: 2,
         arap_weight: 0.5,
         position_lr_scale: 1.0,
+        follow_densify: false,
     };
     let g = gaussians(20, 21);
     let mut b = ScgsBackbone::new(&settings, 1.0, 4).unwrap();
@@ -316,4 +317,37 @@ fn control_points_start_on_the_gaussians_and_round_trip() {
     let rows_b = b.forward(g.view(), 0.3, false).unwrap();
     let rows_c = c.forward(g.view(), 0.3, false).unwrap();
     assert_eq!(rows_b, rows_c);
+    // Densification changed the Gaussians: without `follow_densify` nothing moves; with it the
+    // points move onto the new Gaussians, each keeping the radius of the old point nearest to it.
+    let moved = gaussians(40, 77);
+    let before = b.control_positions().to_vec();
+    b.gaussians_changed(moved.view()).unwrap();
+    assert_eq!(b.control_positions(), before);
+    let follows = ScgsSettings {
+        follow_densify: true,
+        ..settings
+    };
+    let mut f = ScgsBackbone::new(&follows, 1.0, 2).unwrap();
+    f.initialise(g.view()).unwrap();
+    let mut params = f.params_mut();
+    let StoreMut::F32(radii) = &mut params[2].1 else {
+        panic!("f32 radii")
+    };
+    for (k, r) in radii.iter_mut().enumerate() {
+        *r = -2.0 - k as f32;
+    }
+    drop(params);
+    let old = f.control_positions().to_vec();
+    f.gaussians_changed(moved.view()).unwrap();
+    let radii = f.control_radii();
+    for (p, r) in f.control_positions().iter().zip(radii) {
+        assert!(moved.means.contains(p), "{p:?}");
+        let nearest = (0..old.len())
+            .min_by(|&a, &b| {
+                let d = |q: &[f32; 3]| (0..3).map(|c| (q[c] - p[c]).powi(2)).sum::<f32>();
+                d(&old[a]).total_cmp(&d(&old[b]))
+            })
+            .unwrap();
+        assert_eq!(r, (-2.0 - nearest as f32).exp());
+    }
 }

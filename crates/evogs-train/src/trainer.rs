@@ -512,7 +512,14 @@ impl Trainer {
                     .step_network(self.backbone.as_mut(), g, lr_step)?;
             }
         }
-        self.times.lap(Phase::Optimizer, t);
+        let t = self.times.lap(Phase::Optimizer, t);
+        if densified && deforms {
+            // After the step's updates: a backbone that follows the Gaussians (SC-GS's control
+            // points, with `--control-follow-densify`) follows them to the new set.
+            self.backbone
+                .gaussians_changed(self.state.gaussians().view())?;
+            self.times.lap(Phase::Densify, t);
+        }
         self.iteration = i;
         self.schedule_iteration = at;
         Ok(StepReport {

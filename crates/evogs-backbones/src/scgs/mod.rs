@@ -86,6 +86,11 @@ pub struct ScgsSettings {
     /// Factor on the network learning rate for the control points' positions (0: they stay
     /// where they started, as in SC-GS's code).
     pub position_lr_scale: f32,
+    /// Place the control points again on the Gaussians after every densification that changed
+    /// them (farthest-point sampling; each new point keeps the radius and weight logit of the
+    /// old point nearest to it), so that they follow the Gaussians into the moving parts a
+    /// static warm-up fits poorly. Off: placed once, when the deformation starts.
+    pub follow_densify: bool,
 }
 
 impl Default for ScgsSettings {
@@ -99,6 +104,7 @@ impl Default for ScgsSettings {
             t_freqs: 6,
             arap_weight: 1e-4,
             position_lr_scale: 0.0,
+            follow_densify: false,
         }
     }
 }
@@ -250,6 +256,30 @@ impl ScgsParams {
     }
 }
 
+impl ScgsParams {
+    /// Places the control points again on `points` (farthest-point sampling), each keeping the
+    /// radius and weight logit of the old control point nearest to it.
+    fn follow(&mut self, points: &[[f32; 3]], seed: u64) {
+        let picked = fps::farthest_points(points, self.positions.len(), seed);
+        if picked.is_empty() {
+            return;
+        }
+        let old = std::mem::take(&mut self.positions);
+        let (radii, logits) = (self.log_radii.clone(), self.weight_logits.clone());
+        self.positions = picked.iter().map(|&i| points[i]).collect();
+        for (k, p) in self.positions.iter().enumerate() {
+            let nearest = old
+                .iter()
+                .enumerate()
+                .map(|(j, q)| (knn::dist2_between(p, q), j))
+                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
+                .map_or(k, |(_, j)| j);
+            self.log_radii[k] = radii[nearest];
+            self.weight_logits[k] = logits[nearest];
+        }
+    }
+}
+
 /// What the backward pass needs of the last training forward.
 struct Cache {
     time: f32,
@@ -371,6 +401,13 @@ impl Backbone for ScgsBackbone {
 
     fn initialise(&mut self, canonical: GaussiansView<'_>) -> Result<(), BackboneError> {
         self.params.place(canonical.means, self.seed);
+        Ok(())
+    }
+
+    fn gaussians_changed(&mut self, canonical: GaussiansView<'_>) -> Result<(), BackboneError> {
+        if self.settings.follow_densify {
+            self.params.follow(canonical.means, self.seed);
+        }
         Ok(())
     }
 

@@ -240,6 +240,13 @@ impl Observer for ScgsPhi {
         Ok(())
     }
 
+    fn gaussians_changed(&mut self, means: &[[f32; 3]]) -> Result<(), BackboneError> {
+        if self.settings.follow_densify {
+            self.params.follow(means, self.seed);
+        }
+        Ok(())
+    }
+
     fn control_points_at(&mut self, time: f32) -> Result<Option<Vec<[f32; 3]>>, BackboneError> {
         let nodes = self.node_outputs(time, &mut DeformCache::default())?;
         Ok(Some(moved(&self.params.positions, &nodes)))
