@@ -1,5 +1,6 @@
 //! `config.json` files written by older evogs (main at 6068508, before the settings became the
-//! libraries' own types; main at e616b30, before `--triplane-combine`) still load, give the
+//! libraries' own types; main at e616b30, before `--triplane-combine`; main at 04d89b0, before
+//! SC-GS's settings) still load, give the
 //! settings the same flags give today (with `--max-screen-radius 20`: the screen-size prune was
 //! always on then), and a run resumed from such a config keeps it. Today's format is pinned by
 //! the same three runs' files written by today's evogs (`tests/data/config-current`): each old
@@ -97,7 +98,7 @@ const FIXTURES: [(&str, &[&str]); 3] = [
 
 /// The fixtures of older evogs: at 6068508, and at e616b30 (the format before
 /// `triplane_combine`).
-const OLD: [&str; 2] = ["config-6068508", "config-e616b30"];
+const OLD: [&str; 3] = ["config-6068508", "config-e616b30", "config-04d89b0"];
 /// The same runs' files in today's format.
 const CURRENT: &str = "config-current";
 
@@ -130,8 +131,9 @@ fn old_configs_load_as_the_same_flags_give_and_are_written_back_in_todays_format
         assert_eq!(run.train, today, "{old}/{name}");
         assert_eq!(current.train, today, "{name}");
         // Today's format: an old file is written back as its current twin, byte for byte, and
-        // the twin as itself. (The format changed twice since 6068508: in the order of the
-        // `evogs` object's keys, evo-state's config embedded first; then `triplane_combine`.)
+        // the twin as itself. (The format changed three times since 6068508: in the order of the
+        // `evogs` object's keys, evo-state's config embedded first; then `triplane_combine`;
+        // then SC-GS's `scgs` object.)
         let text = serde_json::to_string_pretty(&run).unwrap();
         assert_eq!(text, current_text, "{old}/{name}");
         assert_eq!(
