@@ -731,8 +731,9 @@ mod tests {
                 BackboneKind::D3dgs,
                 BackboneKind::FourDgs,
                 BackboneKind::Grid4d,
+                BackboneKind::Scgs,
             ],
-            "d3dgs, 4dgs or grid4d",
+            "d3dgs, 4dgs, grid4d or scgs",
         );
         check_one_word(
             &[Background::White, Background::Black, Background::Random],
