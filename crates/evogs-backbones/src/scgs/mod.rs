@@ -18,9 +18,10 @@
 //! farthest-point sampling of the canonical Gaussians ([`Backbone::initialise`]): of the run's
 //! initial ones, then again of those the static warm-up fitted when the deformation starts (in
 //! place of SC-GS's 10 000-step pre-training of the control points as Gaussians, which picks them
-//! by farthest-point sampling of their trajectories); they then stay where they are (SC-GS detaches their positions everywhere after pre-training; a
-//! factor on their learning rate, `position_lr_scale`, lets them move), and the search is in 3D
-//! (SC-GS adds 8 learned "hyper" coordinates per point and Gaussian). The K nearest control
+//! by farthest-point sampling of their trajectories; `follow_densify` places them again after
+//! each densification). They do not learn their positions (SC-GS detaches them everywhere after
+//! pre-training; a factor on their learning rate, `position_lr_scale`, lets them move), and the
+//! search is in 3D (SC-GS adds 8 learned "hyper" coordinates per point and Gaussian). The K nearest control
 //! points are exact at every forward, as SC-GS's search: a Gaussian's are searched again only
 //! when it has moved far enough that they may have changed ([`knn::NeighbourCache`]).
 //!
