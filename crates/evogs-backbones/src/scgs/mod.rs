@@ -279,6 +279,76 @@ impl ScgsParams {
             self.weight_logits[k] = logits[nearest];
         }
     }
+
+    /// The gradients of every buffer (network, positions, log radii, weight logits) from the
+    /// skinned rows' gradient `d_rows` (N × [`skinning::ROW`]) of a forward that skinned `means`
+    /// with `nodes` (its network cache `net`); the positions' gradient only when `want_positions`
+    /// (else zeros: they do not move, and the network's input pass is spared).
+    fn gradients(
+        &self,
+        means: &[[f32; 3]],
+        neighbours: &Neighbours,
+        nodes: &[f32],
+        net: &DeformCache,
+        d_rows: &[f32],
+        want_positions: bool,
+    ) -> Result<Vec<Vec<f32>>, BackboneError> {
+        let skin = skinning::skin_backward(means, neighbours, self.controls(), nodes, d_rows);
+        let g = self.net.backward(net, &skin.nodes, want_positions)?;
+        let mut d_positions = skin.positions;
+        match &g.positions {
+            Some(p) => add_into(&mut d_positions, p),
+            None => d_positions.fill(0.0),
+        }
+        Ok(vec![g.mlp, d_positions, skin.log_radii, skin.weight_logits])
+    }
+
+    /// SC-GS's ARAP loss, weighted by `lambda`, between the control points at a forward's time
+    /// (its outputs `nodes`, network cache `net`) and at `partner`: adds its gradient to `grads`
+    /// (in [`ScgsParams::gradients`]' order; to the positions only when `want_positions`) and
+    /// returns its weighted value (0 when off or with fewer than two control points).
+    fn add_arap(
+        &self,
+        lambda: f32,
+        partner: f32,
+        nodes: &[f32],
+        net: &DeformCache,
+        want_positions: bool,
+        grads: &mut [Vec<f32>],
+    ) -> Result<f64, BackboneError> {
+        let m = self.positions.len();
+        if lambda == 0.0 || m < 2 {
+            return Ok(0.0);
+        }
+        let mut net1 = DeformCache::default();
+        let nodes1 = self.net.forward_into(
+            self.positions.as_flattened(),
+            &vec![partner; m],
+            m,
+            &mut net1,
+        )?;
+        let a = arap::arap(
+            &moved(&self.positions, nodes),
+            &moved(&self.positions, &nodes1),
+        )?;
+        for (net, d) in [(net, &a.d_first), (&net1, &a.d_second)] {
+            let mut d_nodes = vec![0f32; m * NODE_OUTPUT];
+            for i in 0..m {
+                for c in 0..3 {
+                    d_nodes[i * NODE_OUTPUT + c] = lambda * d[i * 3 + c];
+                    if want_positions {
+                        grads[1][i * 3 + c] += lambda * d[i * 3 + c];
+                    }
+                }
+            }
+            let g = self.net.backward(net, &d_nodes, want_positions)?;
+            add_into(&mut grads[0], &g.mlp);
+            if let Some(p) = &g.positions {
+                add_into(&mut grads[1], p);
+            }
+        }
+        Ok(f64::from(lambda) * a.loss)
+    }
 }
 
 /// What the backward pass needs of the last training forward.
@@ -500,62 +570,24 @@ impl ScgsBackbone {
                 format!("{} row gradients for {expected} values", d_deform.len()),
             ));
         }
-        let skin = skinning::skin_backward(
+        let want = self.learns_positions();
+        let mut grads = self.params.gradients(
             &cache.means,
             &cache.neighbours,
-            self.params.controls(),
             &cache.nodes,
+            &cache.net,
             d_deform,
-        );
-        let mut d_nodes = skin.nodes;
-        let mut d_positions = skin.positions;
-        let want_positions = self.learns_positions();
-        let lambda = self.settings.arap_weight;
-        let m = self.params.positions.len();
-        let mut net_grad: Option<Vec<f32>> = None;
-        self.arap_loss = 0.0;
-        if lambda > 0.0 && m >= 2 {
-            let partner = arap_partner(self.seed, cache.time);
-            let mut net1 = DeformCache::default();
-            let nodes1 = self.node_outputs(partner, &mut net1)?;
-            let first = moved(&self.params.positions, &cache.nodes);
-            let second = moved(&self.params.positions, &nodes1);
-            let a = arap::arap(&first, &second)?;
-            self.arap_loss = f64::from(lambda) * a.loss;
-            let mut d_nodes1 = vec![0f32; m * NODE_OUTPUT];
-            for i in 0..m {
-                for c in 0..3 {
-                    let (g0, g1) = (
-                        lambda * a.d_first[i * 3 + c],
-                        lambda * a.d_second[i * 3 + c],
-                    );
-                    d_nodes[i * NODE_OUTPUT + c] += g0;
-                    d_nodes1[i * NODE_OUTPUT + c] = g1;
-                    d_positions[i * 3 + c] += g0 + g1;
-                }
-            }
-            let g1 = self.params.net.backward(&net1, &d_nodes1, want_positions)?;
-            if let Some(p) = &g1.positions {
-                add_into(&mut d_positions, p);
-            }
-            net_grad = Some(g1.mlp);
-        }
-        let g0 = self
-            .params
-            .net
-            .backward(&cache.net, &d_nodes, want_positions)?;
-        if let Some(p) = &g0.positions {
-            add_into(&mut d_positions, p);
-        }
-        let mut mlp = g0.mlp;
-        if let Some(g1) = net_grad {
-            add_into(&mut mlp, &g1);
-        }
-        if !want_positions {
-            // The positions do not move: their gradient is not worth the network's input pass.
-            d_positions.fill(0.0);
-        }
-        Ok(vec![mlp, d_positions, skin.log_radii, skin.weight_logits])
+            want,
+        )?;
+        self.arap_loss = self.params.add_arap(
+            self.settings.arap_weight,
+            arap_partner(self.seed, cache.time),
+            &cache.nodes,
+            &cache.net,
+            want,
+            &mut grads,
+        )?;
+        Ok(grads)
     }
 }
 

@@ -11,7 +11,7 @@
 use tiny_nn::{DeformCache, Parameters, StoreMut, StoreRef};
 
 use super::knn::{self, Neighbours};
-use super::skinning::{self, NODE_OUTPUT, ROW};
+use super::skinning::{self, ROW};
 use super::{ScgsParams, ScgsSettings, arap_partner, moved};
 use crate::error::BackboneError;
 use crate::evo_settings::EvoSettings;
@@ -175,21 +175,14 @@ impl Observer for ScgsPhi {
                 row[c] = v;
             }
         }
-        let skin = skinning::skin_backward(
+        self.params.gradients(
             &cache.means,
             &cache.neighbours,
-            self.params.controls(),
             &cache.nodes,
+            &cache.net,
             &d_rows,
-        );
-        let want = self.learns_positions();
-        let g = self.params.net.backward(&cache.net, &skin.nodes, want)?;
-        let mut d_positions = skin.positions;
-        match &g.positions {
-            Some(p) => d_positions.iter_mut().zip(p).for_each(|(a, b)| *a += b),
-            None => d_positions.fill(0.0),
-        }
-        Ok(vec![g.mlp, d_positions, skin.log_radii, skin.weight_logits])
+            self.learns_positions(),
+        )
     }
 
     /// SC-GS's ARAP loss on the control points between the forward's time and its partner.
@@ -198,37 +191,14 @@ impl Observer for ScgsPhi {
         cache: &ScgsPhiCache,
         grads: &mut [Vec<f32>],
     ) -> Result<f64, BackboneError> {
-        let lambda = self.settings.arap_weight;
-        let m = self.params.positions.len();
-        if lambda == 0.0 || m < 2 {
-            return Ok(0.0);
-        }
-        let partner = arap_partner(self.seed, cache.time);
-        let (nodes0, net0) = (&cache.nodes, &cache.net);
-        let mut net1 = DeformCache::default();
-        let nodes1 = self.node_outputs(partner, &mut net1)?;
-        let a = super::arap::arap(
-            &moved(&self.params.positions, nodes0),
-            &moved(&self.params.positions, &nodes1),
-        )?;
-        let want = self.learns_positions();
-        for (net, d) in [(net0, &a.d_first), (&net1, &a.d_second)] {
-            let mut d_nodes = vec![0f32; m * NODE_OUTPUT];
-            for i in 0..m {
-                for c in 0..3 {
-                    d_nodes[i * NODE_OUTPUT + c] = lambda * d[i * 3 + c];
-                    if want {
-                        grads[1][i * 3 + c] += lambda * d[i * 3 + c];
-                    }
-                }
-            }
-            let g = self.params.net.backward(net, &d_nodes, want)?;
-            grads[0].iter_mut().zip(&g.mlp).for_each(|(a, b)| *a += b);
-            if let Some(p) = &g.positions {
-                grads[1].iter_mut().zip(p).for_each(|(a, b)| *a += b);
-            }
-        }
-        Ok(f64::from(lambda) * a.loss)
+        self.params.add_arap(
+            self.settings.arap_weight,
+            arap_partner(self.seed, cache.time),
+            &cache.nodes,
+            &cache.net,
+            self.learns_positions(),
+            grads,
+        )
     }
 
     fn lr_scale(&self, name: &str, _grid_lr_scale: f32) -> f32 {
