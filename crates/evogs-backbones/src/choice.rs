@@ -19,8 +19,9 @@ use crate::grid4d_phi::Grid4dPhi;
 use crate::hex_backbone::HexBackbone;
 use crate::hex_phi::HexPhi;
 use crate::one_word::{OneWord, unknown};
+use crate::scgs::control_evo::ScgsControlEvo;
 use crate::scgs::phi::ScgsPhi;
-use crate::scgs::{ScgsBackbone, ScgsSettings};
+use crate::scgs::{EvolutionOn, ScgsBackbone, ScgsSettings};
 
 /// The deformation method (`--method`).
 #[derive(EnumString, Display, IntoStaticStr, VariantNames)]
@@ -125,11 +126,14 @@ pub fn make_backbone(run: &BackboneRun<'_>) -> Result<Box<dyn Backbone>, Backbon
             seed,
             Grid4dPhi::new(&run.grid4d(), evogs)?,
         )?),
-        (Method::Evogs, BackboneKind::Scgs) => Box::new(EvoBackbone::with_phi(
-            evogs,
-            seed,
-            ScgsPhi::new(run.scgs, evogs, h, seed)?,
-        )?),
+        (Method::Evogs, BackboneKind::Scgs) => match run.scgs.evolution_on {
+            EvolutionOn::Gaussians => Box::new(EvoBackbone::with_phi(
+                evogs,
+                seed,
+                ScgsPhi::new(run.scgs, evogs, h, seed)?,
+            )?),
+            EvolutionOn::Controls => Box::new(ScgsControlEvo::new(run.scgs, evogs, h, seed)?),
+        },
     })
 }
 
@@ -154,6 +158,7 @@ mod tests {
             arap_weight: 1e-4,
             position_lr_scale: 0.0,
             follow_densify: false,
+            evolution_on: EvolutionOn::Gaussians,
         };
         BackboneRun {
             method,

@@ -19,7 +19,7 @@ use strum::VariantNames;
 use crate::evo_settings::{
     DensifyPolicy, EvoSettings, Gain, HistoryMode, Layout, PlaneCombine, Precision, Storage,
 };
-use crate::scgs::ScgsSettings;
+use crate::scgs::{EvolutionOn, ScgsSettings};
 
 /// The value parser of a setting spelled by one word: the type's `FromStr` (its message for an
 /// unknown word, as clap reports any parse error), with the type's spellings
@@ -218,6 +218,11 @@ pub struct ScgsArgs {
     /// of once when the deformation starts.
     #[arg(long, default_value_t = scgs_defaults().follow_densify)]
     pub control_follow_densify: bool,
+
+    /// EvoGS(SC-GS): keep the evolution state on every Gaussian (the paper's wording) or on the
+    /// control points (their translation, rotation and scale before the skinning).
+    #[arg(long, value_parser = words::<EvolutionOn>(), default_value_t = scgs_defaults().evolution_on)]
+    pub evolution_on: EvolutionOn,
 }
 
 impl ScgsArgs {
@@ -230,6 +235,7 @@ impl ScgsArgs {
         settings.arap_weight = self.arap_weight;
         settings.position_lr_scale = self.control_position_lr_scale;
         settings.follow_densify = self.control_follow_densify;
+        settings.evolution_on = self.evolution_on;
     }
 
     /// The flags that give these values back (`evogs bench --jobs` hands them to its parts).
@@ -244,6 +250,7 @@ impl ScgsArgs {
                 "--control-position-lr-scale",
                 self.control_position_lr_scale.to_string(),
             ),
+            ("--evolution-on", self.evolution_on.to_string()),
         ]
         .into_iter()
         .flat_map(|(flag, value)| [flag.to_string(), value])

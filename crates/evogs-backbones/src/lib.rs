@@ -13,7 +13,9 @@
 //!   switches ([`EvoSettings`]), recorded in a run's `config.json`;
 //! - [`scgs`]: SC-GS's sparse control points ([`ScgsBackbone`], `--backbone scgs`): a network
 //!   on a few hundred control points, linear blend skinning of each Gaussian by its nearest ones,
-//!   and the ARAP loss on their trajectories ([`ScgsSettings`]);
+//!   and the ARAP loss on their trajectories ([`ScgsSettings`]); EvoGS on it with the state on
+//!   every Gaussian ([`EvoBackbone`] of `scgs::phi::ScgsPhi`) or on the control points
+//!   ([`ScgsControlEvo`], [`EvolutionOn`]);
 //! - [`observer`]: what a field implements to be Φ ([`Observer`]); [`hex_phi`]: 4DGaussians'
 //!   field as Φ ([`HexPhi`]);
 //! - [`one_word`]: settings spelled by one word and the one message for an unknown word;
@@ -68,4 +70,5 @@ pub use hex_backbone::HexBackbone;
 pub use hex_phi::HexPhi;
 pub use observer::Observer;
 pub use one_word::{OneWord, unknown_message};
-pub use scgs::{ScgsBackbone, ScgsSettings};
+pub use scgs::control_evo::ScgsControlEvo;
+pub use scgs::{EvolutionOn, ScgsBackbone, ScgsSettings};

@@ -139,6 +139,7 @@ fn scgs() -> Case<ScgsPhi> {
                 arap_weight: 0.5,
                 position_lr_scale: 1.0,
                 follow_densify: false,
+                evolution_on: evogs_backbones::EvolutionOn::Gaussians,
             };
             ScgsPhi::new(&settings, &c.evogs, c.init_half_extent, c.seed).unwrap()
         },

@@ -9,7 +9,7 @@ use evogs_backbones::scgs::knn::{self, Neighbours};
 use evogs_backbones::scgs::skinning::{
     Controls, LOCAL, NODE_OUTPUT, ROW, SkinGrads, skin_backward, skin_into,
 };
-use evogs_backbones::{Backbone, ScgsBackbone, ScgsSettings};
+use evogs_backbones::{Backbone, EvolutionOn, ScgsBackbone, ScgsSettings};
 use splat_core::Gaussians;
 use tiny_nn::StoreMut;
 
@@ -244,6 +244,7 @@ fn backbone_gradient_matches_finite_differences() {
         arap_weight: 0.5,
         position_lr_scale: 1.0,
         follow_densify: false,
+        evolution_on: EvolutionOn::Gaussians,
     };
     let g = gaussians(20, 21);
     let mut b = ScgsBackbone::new(&settings, 1.0, 4).unwrap();

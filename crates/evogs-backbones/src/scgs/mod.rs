@@ -25,13 +25,16 @@
 //! points are exact at every forward, as SC-GS's search: a Gaussian's are searched again only
 //! when it has moved far enough that they may have changed ([`knn::NeighbourCache`]).
 //!
-//! EvoGS(SC-GS) (`--method evogs --backbone scgs`, [`phi::ScgsPhi`]): this skinning as EvoGS's Φ,
-//! the evolution state on every Gaussian.
+//! EvoGS(SC-GS) (`--method evogs --backbone scgs`): this skinning as EvoGS's Φ with the evolution
+//! state on every Gaussian ([`phi::ScgsPhi`], `--evolution-on gaussians`), or the evolution state
+//! on the control points' own rows before the skinning ([`control_evo::ScgsControlEvo`],
+//! `--evolution-on controls`).
 //!
-//! What it is not (yet): SC-GS's control-point densification and pruning, its pre-training stage,
-//! and the evolution state on the control points.
+//! What it is not (yet): SC-GS's control-point densification and pruning, and its pre-training
+//! stage.
 
 pub mod arap;
+pub mod control_evo;
 pub mod fps;
 pub mod knn;
 pub mod phi;
@@ -49,6 +52,9 @@ use self::knn::Neighbours;
 use self::skinning::{Controls, NODE_OUTPUT, TRANSLATION};
 use crate::backbone::{Backbone, no_training_forward};
 use crate::error::BackboneError;
+use crate::one_word::{OneWord, unknown};
+use splat_core::Layout;
+use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 
 /// Most control points a run may ask for.
 pub const MAX_CONTROL_POINTS: usize = 1 << 16;
@@ -92,6 +98,29 @@ pub struct ScgsSettings {
     /// old point nearest to it), so that they follow the Gaussians into the moving parts a
     /// static warm-up fits poorly. Off: placed once, when the deformation starts.
     pub follow_densify: bool,
+    /// EvoGS(SC-GS) only: where the evolution state lives, on every Gaussian (the paper's
+    /// wording, [`phi::ScgsPhi`]) or on the control points ([`control_evo::ScgsControlEvo`]).
+    /// A run recorded without it kept the state on every Gaussian.
+    #[serde(default)]
+    pub evolution_on: EvolutionOn,
+}
+
+/// Where EvoGS(SC-GS) keeps its evolution state (`--evolution-on`).
+#[derive(EnumString, Display, IntoStaticStr, VariantNames)]
+#[strum(serialize_all = "lowercase", parse_err_ty = BackboneError, parse_err_fn = unknown::<Self>)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum EvolutionOn {
+    /// One row per Gaussian: its skinned position, rotation and scale (the paper's wording).
+    #[default]
+    Gaussians,
+    /// One row per control point: its translation, rotation and scale residuals, before the
+    /// skinning (a few hundred rows).
+    Controls,
+}
+
+impl OneWord for EvolutionOn {
+    const FIELD: &'static str = "scgs.evolution_on";
 }
 
 impl Default for ScgsSettings {
@@ -106,6 +135,7 @@ impl Default for ScgsSettings {
             arap_weight: 1e-4,
             position_lr_scale: 0.0,
             follow_densify: false,
+            evolution_on: EvolutionOn::Gaussians,
         }
     }
 }
@@ -259,12 +289,14 @@ impl ScgsParams {
 
 impl ScgsParams {
     /// Places the control points again on `points` (farthest-point sampling), each keeping the
-    /// radius and weight logit of the old control point nearest to it.
-    fn follow(&mut self, points: &[[f32; 3]], seed: u64) {
+    /// radius and weight logit of the old control point nearest to it; returns those old
+    /// points, one per new point (none when there is nothing to place on).
+    fn follow(&mut self, points: &[[f32; 3]], seed: u64) -> Vec<u32> {
         let picked = fps::farthest_points(points, self.positions.len(), seed);
         if picked.is_empty() {
-            return;
+            return Vec::new();
         }
+        let mut parents = Vec::with_capacity(picked.len());
         let old = std::mem::take(&mut self.positions);
         let (radii, logits) = (self.log_radii.clone(), self.weight_logits.clone());
         self.positions = picked.iter().map(|&i| points[i]).collect();
@@ -277,7 +309,9 @@ impl ScgsParams {
                 .map_or(k, |(_, j)| j);
             self.log_radii[k] = radii[nearest];
             self.weight_logits[k] = logits[nearest];
+            parents.push(nearest as u32);
         }
+        parents
     }
 
     /// The gradients of every buffer (network, positions, log radii, weight logits) from the
@@ -294,7 +328,21 @@ impl ScgsParams {
         want_positions: bool,
     ) -> Result<Vec<Vec<f32>>, BackboneError> {
         let skin = skinning::skin_backward(means, neighbours, self.controls(), nodes, d_rows);
-        let g = self.net.backward(net, &skin.nodes, want_positions)?;
+        let d_nodes = skin.nodes.clone();
+        self.node_gradients(net, &d_nodes, skin, want_positions)
+    }
+
+    /// [`ScgsParams::gradients`] from the control points' side: the network's backward of
+    /// `d_nodes` (M × [`NODE_OUTPUT`], the gradient of its outputs) joined with the skinning's
+    /// gradients of the control points' shape (`skin`; its `nodes` are not read).
+    fn node_gradients(
+        &self,
+        net: &DeformCache,
+        d_nodes: &[f32],
+        skin: skinning::SkinGrads,
+        want_positions: bool,
+    ) -> Result<Vec<Vec<f32>>, BackboneError> {
+        let g = self.net.backward(net, d_nodes, want_positions)?;
         let mut d_positions = skin.positions;
         match &g.positions {
             Some(p) => add_into(&mut d_positions, p),
@@ -447,6 +495,30 @@ fn position_lr_scale(name: &str, settings: &ScgsSettings) -> f32 {
     } else {
         1.0
     }
+}
+
+/// The columns of a control point's outputs (equally of a skinned row: [`skinning::ROW`]'s
+/// first ten columns are the same) that EvoGS's `layout` keeps, in its order; opacity and colour
+/// are refused (SC-GS deforms neither).
+fn evolved_columns(layout: Layout) -> Result<Vec<usize>, BackboneError> {
+    if layout.opacity || layout.colour {
+        return Err(BackboneError::config(
+            "evogs.components",
+            format!(
+                "`{layout}`: SC-GS deforms position, rotation and scale only; use \
+                 --components pos,rot,scale (or a part of it)"
+            ),
+        ));
+    }
+    Ok([
+        (layout.position, skinning::TRANSLATION),
+        (layout.rotation, skinning::ROTATION),
+        (layout.scale, skinning::SCALE),
+    ]
+    .into_iter()
+    .filter(|(on, _)| *on)
+    .flat_map(|(_, r)| r)
+    .collect())
 }
 
 /// Positions plus the translation columns of `nodes`.

@@ -12,7 +12,7 @@ use tiny_nn::{DeformCache, Parameters, StoreMut, StoreRef};
 
 use super::knn::{self, Neighbours};
 use super::skinning::{self, ROW};
-use super::{ScgsParams, ScgsSettings, arap_partner, moved};
+use super::{ScgsParams, ScgsSettings, arap_partner, evolved_columns, moved};
 use crate::error::BackboneError;
 use crate::evo_settings::EvoSettings;
 use crate::observer::Observer;
@@ -45,25 +45,7 @@ impl ScgsPhi {
         half_extent: f32,
         seed: u64,
     ) -> Result<Self, BackboneError> {
-        let layout = evogs.evo.layout;
-        if layout.opacity || layout.colour {
-            return Err(BackboneError::config(
-                "evogs.components",
-                format!(
-                    "`{layout}`: SC-GS's Φ deforms position, rotation and scale only; use \
-                     --components pos,rot,scale (or a part of it)"
-                ),
-            ));
-        }
-        let columns = [
-            (layout.position, 0..3),
-            (layout.rotation, 3..7),
-            (layout.scale, 7..10),
-        ]
-        .into_iter()
-        .filter(|(on, _)| *on)
-        .flat_map(|(_, r)| r)
-        .collect();
+        let columns = evolved_columns(evogs.evo.layout)?;
         Ok(Self {
             settings: *settings,
             seed,

@@ -53,8 +53,9 @@ fn the_4dgs_backbone_and_evogs_4dgs_train_a_tiny_scene_and_are_recorded() {
 
 /// SC-GS's control points: the baseline trains well above the untrained floor, records its
 /// settings and its control points' buffers, `render --show-controls` draws them (and a d3dgs run
-/// refuses the flag); EvoGS(SC-GS) trains and draws them too, and refuses opacity and colour in one
-/// line.
+/// refuses the flag); EvoGS(SC-GS) trains and draws them too, with its state on every Gaussian
+/// and on the control points, runs the ablation ladder both ways, and refuses opacity and colour
+/// in one line.
 #[test]
 fn scgs_trains_a_tiny_scene_and_draws_its_control_points() {
     let dir = tempfile::tempdir().unwrap();
@@ -146,69 +147,83 @@ fn scgs_trains_a_tiny_scene_and_draws_its_control_points() {
         "{}",
         stderr(&o)
     );
-    // EvoGS(SC-GS) trains too, and draws the same kind of points.
-    let evo = dir.path().join("evogs");
-    let psnr = trained_psnr(
-        &data,
-        &evo,
-        &[&scgs[..], &["--method", "evogs", "--seed", "3"]].concat(),
-    );
-    assert!(
-        psnr > floor + 5.0 && psnr > 14.0,
-        "EvoGS(scgs): trained {psnr} dB vs untrained {floor} dB"
-    );
-    assert_weights(&evo, &["phi.controls.position", "psi"]);
-    let o = evogs(
-        &[
+    // EvoGS(SC-GS) trains too, with the evolution state on every Gaussian and on the control
+    // points, and draws the same kind of points.
+    for rows in ["gaussians", "controls"] {
+        let evo = dir.path().join(format!("evogs-{rows}"));
+        let psnr = trained_psnr(
+            &data,
+            &evo,
             &[
-                "render",
-                "--run",
-                s(&evo),
-                "--show-controls",
-                "--out",
-                s(&image),
-            ][..],
-            &camera[..],
-        ]
-        .concat(),
-    );
-    assert!(o.status.success(), "{}", stderr(&o));
-    // Every ablation switch works with it: the whole ladder on SC-GS.
-    let ablate = dir.path().join("ablate");
-    let o = evogs(
-        &[
+                &scgs[..],
+                &["--method", "evogs", "--seed", "3", "--evolution-on", rows],
+            ]
+            .concat(),
+        );
+        assert!(
+            psnr > floor + 5.0 && psnr > 14.0,
+            "EvoGS(scgs), state on {rows}: trained {psnr} dB vs untrained {floor} dB"
+        );
+        assert_eq!(
+            json(&evo.join("config.json"))["train"]["scgs"]["evolution_on"],
+            rows
+        );
+        assert_weights(&evo, &["phi.controls.position", "psi"]);
+        let o = evogs(
             &[
-                "ablate",
-                "--data",
-                s(&data),
-                "--out",
-                s(&ablate),
-                "--preset",
-                "tiny",
-            ][..],
-            &["--iterations", "40"],
-            &scgs[..],
-        ]
-        .concat(),
-    );
-    assert!(o.status.success(), "{}", stderr(&o));
-    let rows = json(&ablate.join("ablation.json"));
-    assert_eq!(rows["backbone"], "scgs");
-    for row in [
-        "baseline",
-        "phi",
-        "evo-requery",
-        "evo-buffer",
-        "trigger",
-        "full",
-        "k0",
-        "k1",
-        "net-f16",
-        "buffer-f16",
-    ] {
-        let config = json(&ablate.join(row).join("config.json"));
-        assert_eq!(config["train"]["backbone"], "scgs", "{row}");
-        assert_eq!(config["train"]["scgs"]["control_points"], 32, "{row}");
+                &[
+                    "render",
+                    "--run",
+                    s(&evo),
+                    "--show-controls",
+                    "--out",
+                    s(&image),
+                ][..],
+                &camera[..],
+            ]
+            .concat(),
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        // Every ablation switch works with it: the whole ladder on SC-GS.
+        let ablate = dir.path().join(format!("ablate-{rows}"));
+        let o = evogs(
+            &[
+                &[
+                    "ablate",
+                    "--data",
+                    s(&data),
+                    "--out",
+                    s(&ablate),
+                    "--preset",
+                    "tiny",
+                    "--evolution-on",
+                    rows,
+                ][..],
+                &["--iterations", "40"],
+                &scgs[..],
+            ]
+            .concat(),
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        let ladder = json(&ablate.join("ablation.json"));
+        assert_eq!(ladder["backbone"], "scgs");
+        for row in [
+            "baseline",
+            "phi",
+            "evo-requery",
+            "evo-buffer",
+            "trigger",
+            "full",
+            "k0",
+            "k1",
+            "net-f16",
+            "buffer-f16",
+        ] {
+            let config = json(&ablate.join(row).join("config.json"));
+            assert_eq!(config["train"]["backbone"], "scgs", "{row}");
+            assert_eq!(config["train"]["scgs"]["control_points"], 32, "{row}");
+            assert_eq!(config["train"]["scgs"]["evolution_on"], rows, "{row}");
+        }
     }
     // SC-GS deforms no opacity or colour: asked for them, one line says so.
     let o = train_tiny(

@@ -1,6 +1,6 @@
 //! `config.json` files written by older evogs (main at 6068508, before the settings became the
 //! libraries' own types; main at e616b30, before `--triplane-combine`; main at 04d89b0, before
-//! SC-GS's settings) still load, give the
+//! SC-GS's settings; main at b51c05c, before `scgs.evolution_on`) still load, give the
 //! settings the same flags give today (with `--max-screen-radius 20`: the screen-size prune was
 //! always on then), and a run resumed from such a config keeps it. Today's format is pinned by
 //! the same three runs' files written by today's evogs (`tests/data/config-current`): each old
@@ -98,7 +98,12 @@ const FIXTURES: [(&str, &[&str]); 3] = [
 
 /// The fixtures of older evogs: at 6068508, and at e616b30 (the format before
 /// `triplane_combine`).
-const OLD: [&str; 3] = ["config-6068508", "config-e616b30", "config-04d89b0"];
+const OLD: [&str; 4] = [
+    "config-6068508",
+    "config-e616b30",
+    "config-04d89b0",
+    "config-b51c05c",
+];
 /// The same runs' files in today's format.
 const CURRENT: &str = "config-current";
 

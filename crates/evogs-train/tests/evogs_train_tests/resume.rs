@@ -38,13 +38,8 @@ fn config() -> TrainConfig {
     config_of(BackboneKind::D3dgs)
 }
 
-fn final_state(
-    root: &std::path::Path,
-    backbone: BackboneKind,
-    method: Method,
-) -> (SceneState, Vec<f32>, u64) {
-    let c = config_with(backbone, method);
-    let mut backbone = make_backbone(&c).unwrap();
+fn final_state(root: &std::path::Path, c: &TrainConfig) -> (SceneState, Vec<f32>, u64) {
+    let mut backbone = make_backbone(c).unwrap();
     let init = evogs_train::init::random_gaussians(1, 1.0, c.sh_degree, 0);
     let mut state = SceneState::new(init, backbone.as_ref(), &c.lr).unwrap();
     let meta = load_checkpoint(
@@ -88,7 +83,21 @@ fn resumed_evogs_scgs_run_matches_uninterrupted_run_bit_for_bit() {
     resumes_bit_for_bit(BackboneKind::Scgs, Method::Evogs);
 }
 
+/// EvoGS(SC-GS) with the evolution state on the control points, placed again after each
+/// densification (their state rows follow them).
+#[test]
+fn resumed_evogs_scgs_run_with_the_state_on_the_control_points_matches_bit_for_bit() {
+    let mut c = config_with(BackboneKind::Scgs, Method::Evogs);
+    c.scgs.evolution_on = evogs_backbones::EvolutionOn::Controls;
+    c.scgs.follow_densify = true;
+    resumes_config_bit_for_bit(&c);
+}
+
 fn resumes_bit_for_bit(backbone: BackboneKind, method: Method) {
+    resumes_config_bit_for_bit(&config_with(backbone, method));
+}
+
+fn resumes_config_bit_for_bit(c: &TrainConfig) {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("scene");
     common::write_scene(&data);
@@ -101,7 +110,7 @@ fn resumes_bit_for_bit(backbone: BackboneKind, method: Method) {
     let request = |out: &str, resume: bool, stop_after: Option<u64>| TrainRequest {
         data: data.clone(),
         out: dir.path().join(out),
-        config: config_with(backbone, method),
+        config: c.clone(),
         resume,
         stop_after,
         resume_backend: None,
@@ -121,8 +130,8 @@ fn resumes_bit_for_bit(backbone: BackboneKind, method: Method) {
         assert_eq!(rest.iteration, 60);
         assert_eq!(rest.iterations_this_process, 30);
     });
-    let (a, wa, ia) = final_state(&dir.path().join("straight"), backbone, method);
-    let (b, wb, ib) = final_state(&dir.path().join("resumed"), backbone, method);
+    let (a, wa, ia) = final_state(&dir.path().join("straight"), c);
+    let (b, wb, ib) = final_state(&dir.path().join("resumed"), c);
     assert_eq!((ia, ib), (60, 60));
     assert_eq!(a.len(), b.len());
     let ga = a.gaussians();
@@ -148,7 +157,7 @@ fn resumes_bit_for_bit(backbone: BackboneKind, method: Method) {
     assert_eq!(bits(&a.stats().grad_sum), bits(&b.stats().grad_sum));
     assert_eq!(a.stats().visible, b.stats().visible);
     // The run did train the network (past the warm-up) and densify.
-    assert!(config_with(backbone, method).warm_up < 30);
+    assert!(c.warm_up < 30);
     assert!(
         a.adam()
             .groups()
