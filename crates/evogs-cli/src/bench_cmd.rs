@@ -244,14 +244,25 @@ pub fn run_bench_cmd(args: &BenchArgs) -> Result<Vec<BenchRun>> {
             point.seconds / 60.0,
             point.psnr
         ),
-        BenchProgress::Finished { run } => eprintln!(
-            "{} {}: finished in {:.1} min, {} PSNR {:.2} dB, {} Gaussians",
-            run.scene,
-            run.method,
-            run.seconds / 60.0,
-            run.headline,
-            run.score(&run.headline).map_or(f64::NAN, |s| s.psnr),
-            run.gaussians
-        ),
+        BenchProgress::Finished { run } => {
+            eprintln!(
+                "{} {}: finished in {:.1} min, {} steps, {} PSNR {:.2} dB, {} Gaussians",
+                run.scene,
+                run.method,
+                run.seconds / 60.0,
+                run.iterations,
+                run.headline,
+                run.score(&run.headline).map_or(f64::NAN, |s| s.psnr),
+                run.gaussians
+            );
+            if run.schedule_lagged > 0 {
+                eprintln!(
+                    "warning: {} {}: its schedule fell behind the time budget: the last step took \
+                     {} schedule iterations at once (marked \"lagged\" in bench.md); for a \
+                     schedule that fits, run it with --iterations near {}",
+                    run.scene, run.method, run.schedule_lagged, run.iterations
+                );
+            }
+        }
     })?)
 }

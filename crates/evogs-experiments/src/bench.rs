@@ -241,6 +241,7 @@ fn bench_one(
         run: out.to_path_buf(),
         resolution,
         iterations: summary.iteration,
+        schedule_lagged: summary.budget.as_ref().map_or(0, |b| b.lagged),
         seconds,
         peak_rss_bytes,
         gaussians: summary.gaussians,
@@ -351,6 +352,15 @@ fn fmt_opt(v: Option<f64>, digits: usize) -> String {
     v.map_or_else(|| "–".to_string(), |v| format!("{v:.digits$}"))
 }
 
+/// The steps a run made, with its schedule's lag when it fell behind its budget.
+fn steps_cell(r: &BenchRun) -> String {
+    if r.schedule_lagged > 0 {
+        format!("{} (lagged {})", r.iterations, r.schedule_lagged)
+    } else {
+        r.iterations.to_string()
+    }
+}
+
 /// The markdown table: one row per run (headline split first, then the other split), and the
 /// published figure for each scene beside ours.
 pub fn table(config: &TrainConfig, runs: &[BenchRun]) -> String {
@@ -360,9 +370,12 @@ pub fn table(config: &TrainConfig, runs: &[BenchRun]) -> String {
          wall clock on the machine as it was (see the README for what else ran); curve \
          evaluations are excluded. LPIPS: AlexNet and VGG16 backbones (– where not computed); \
          D-3DGS publishes VGG16. Non-finite: Gaussians with a NaN or infinite value, canonical \
-         or deformed at an evaluated time.\n\n\
-         | scene | method | split | PSNR (dB) | SSIM | LPIPS (Alex) | LPIPS (VGG) | other split PSNR | Gaussians | peak memory (MiB) | training (min) | non-finite | published (D-3DGS) | published (SC-GS) |\n\
-         | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | --- |\n",
+         or deformed at an evaluated time. Steps: the optimiser steps made; \"lagged N\": under a \
+         time budget the schedule fell behind and its last step took N schedule iterations at \
+         once (its end compressed into one step: compare such a row with care, or run it again \
+         with `--iterations` near its steps).\n\n\
+         | scene | method | split | PSNR (dB) | SSIM | LPIPS (Alex) | LPIPS (VGG) | other split PSNR | Gaussians | peak memory (MiB) | training (min) | steps | non-finite | published (D-3DGS) | published (SC-GS) |\n\
+         | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | --- |\n",
         config.backbone,
         config.preset,
         config.length(),
@@ -390,7 +403,7 @@ pub fn table(config: &TrainConfig, runs: &[BenchRun]) -> String {
             },
         );
         s += &format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} | {} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} | {} | {} | {} | {} |\n",
             r.scene,
             r.method,
             r.headline,
@@ -405,6 +418,7 @@ pub fn table(config: &TrainConfig, runs: &[BenchRun]) -> String {
             r.gaussians,
             fmt_opt(r.peak_rss_bytes.map(|b| b as f64 / (1024.0 * 1024.0)), 0),
             r.seconds / 60.0,
+            steps_cell(r),
             r.non_finite,
             published,
             scgs
@@ -556,6 +570,7 @@ mod tests {
             run: dir.path().to_path_buf(),
             resolution: 400,
             iterations: 12_000,
+            schedule_lagged: 2_470,
             seconds: 1234.5678901234,
             peak_rss_bytes: Some(554 << 20),
             gaussians: 40_000,
@@ -592,6 +607,37 @@ mod tests {
         let bad = read_run_record(dir.path()).unwrap_err().to_string();
         assert!(bad.contains(RUN_RECORD) && bad.contains("method"), "{bad}");
         assert_eq!(bad.lines().count(), 1, "{bad}");
+    }
+
+    /// A run whose schedule fell behind its budget says so in its steps cell; one that kept
+    /// pace shows its steps alone.
+    #[test]
+    fn the_table_gives_each_run_its_steps_and_marks_a_lagged_schedule() {
+        let run = |scene: &str, lagged: u64| BenchRun {
+            scene: scene.into(),
+            method: Method::Baseline,
+            run: PathBuf::from("/nowhere"),
+            resolution: 400,
+            iterations: 5_832,
+            schedule_lagged: lagged,
+            seconds: 900.0,
+            peak_rss_bytes: None,
+            gaussians: 10_000,
+            non_finite: 0,
+            headline: "test".into(),
+            scores: Vec::new(),
+            curve: Vec::new(),
+        };
+        let config = TrainConfig::preset(evogs_train::Preset::Tiny);
+        let table = table(&config, &[run("hook", 2_470), run("mutant", 0)]);
+        let steps: Vec<String> = table
+            .lines()
+            .filter(|l| l.starts_with("| hook") || l.starts_with("| mutant"))
+            .map(|l| l.split('|').map(str::trim).nth(12).unwrap().to_string())
+            .collect();
+        assert_eq!(steps, ["5832 (lagged 2470)", "5832"], "{table}");
+        let header = table.lines().find(|l| l.starts_with("| scene")).unwrap();
+        assert_eq!(header.split('|').map(str::trim).nth(12), Some("steps"));
     }
 
     #[test]

@@ -234,6 +234,12 @@ pub struct BenchRun {
     pub resolution: u32,
     /// Iterations trained.
     pub iterations: u64,
+    /// Under a time budget, the schedule iterations its last step took beyond the pace a step
+    /// may take (`train_metrics.json`'s `budget.lagged`): the schedule fell behind the budget
+    /// and ended compressed into that step. 0 when it kept pace or without a budget (and in
+    /// records written before it was kept).
+    #[serde(default)]
+    pub schedule_lagged: u64,
     /// Training time (s, wall clock, curve evaluations excluded).
     pub seconds: f64,
     /// Peak resident memory of the process during the run (bytes), where measurable.

@@ -224,3 +224,45 @@ fn a_failed_part_fails_the_bench_naming_the_run() {
     assert!(e.contains("failed runs: nosuch baseline"), "{e}");
     assert!(!dir.path().join("out").join("bench.md").exists(), "{e}");
 }
+
+/// A budget far too short for the schedule asked for: the schedule falls behind, the bench says
+/// so in a warning naming the flag that fixes it, and the table marks the row.
+#[test]
+fn a_schedule_that_lags_its_budget_is_warned_about_and_marked() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("jump");
+    synth("jump", &data, 32, 8);
+    let out = dir.path().join("bench");
+    let o = evogs(&[
+        "bench",
+        "--data",
+        s(&data),
+        "--out",
+        s(&out),
+        "--methods",
+        "baseline",
+        "--preset",
+        "tiny",
+        "--iterations",
+        "1000000",
+        "--time-budget",
+        "1s",
+        "--eval-every",
+        "1000000",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let log = stderr(&o);
+    let warning = log
+        .lines()
+        .find(|l| l.contains("fell behind the time budget"))
+        .unwrap_or_else(|| panic!("no lag warning in {log}"));
+    assert!(
+        warning.starts_with("warning: jump baseline:") && warning.contains("--iterations near"),
+        "{warning}"
+    );
+    let table = std::fs::read_to_string(out.join("bench.md")).unwrap();
+    assert!(table.contains(" (lagged "), "{table}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("bench.json")).unwrap()).unwrap();
+    assert!(json["runs"][0]["schedule_lagged"].as_u64().unwrap() > 0);
+}
