@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use evogs_eval::LoadedRun;
-use evogs_eval::render::{draw_points, render_at, sweep};
+use evogs_eval::render::{CONTROL_COLOUR, draw_points, render_at, sweep};
 use evogs_io::{ImageRgb, read_gaussians, read_nerfies_camera, save_png};
 use splat_raster::{Camera, Gaussians, RenderOptions, select_rasterizer};
 
@@ -255,7 +255,7 @@ pub fn render_run(run: &Path, args: &RenderArgs) -> Result<RenderReport> {
                          (those of --backbone scgs)"
                     )
                 })?;
-                let n = draw_points(&mut image, &camera, &points, [1.0, 0.1, 0.9]);
+                let n = draw_points(&mut image, &camera, &points, CONTROL_COLOUR);
                 drawn = format!(" with {n} of its {} control points in view", points.len());
             }
             evogs_io::save_png(&args.out, &image)?;

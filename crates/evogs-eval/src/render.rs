@@ -25,6 +25,10 @@ use evogs_train::run::write_json;
 
 use crate::loaded::LoadedRun;
 
+/// The colour control points are drawn in (`evogs render --show-controls`, the viewer's
+/// "control points"): magenta, apart from the colours of the D-NeRF scenes.
+pub const CONTROL_COLOUR: [f32; 3] = [1.0, 0.1, 0.9];
+
 /// Draws `points` over `image` as seen by `camera`: a filled disc of radius 2.5 px in `colour`
 /// ringed in black, for each point in front of the camera (camera-space depth above 1e-3) and
 /// inside the image (`evogs render --show-controls`: SC-GS's control points over the render).

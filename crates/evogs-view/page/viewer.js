@@ -73,8 +73,13 @@ function cameraQuery(sz) {
     `&K=${K.map(fmtNum).join(',')}&w=${sz.w}&h=${sz.h}`;
 }
 
+// Control points are drawn on the runs that have them (SC-GS's), when the box is ticked.
+function controlsQuery(run) {
+  return $('controls').checked && S.info.runs[run].control_points != null ? '&controls=1' : '';
+}
+
 function renderUrl(run, preview) {
-  return `/api/render?run=${run}&${cameraQuery(size(preview))}&t=${fmtNum(S.t)}${fmt}`;
+  return `/api/render?run=${run}&${cameraQuery(size(preview))}&t=${fmtNum(S.t)}${controlsQuery(run)}${fmt}`;
 }
 
 function makePanes() {
@@ -123,7 +128,8 @@ function layout() {
 function caption(i) {
   const r = S.info.runs[i];
   const psnr = Object.entries(r.psnr).map(([k, v]) => `${k} ${Number(v).toFixed(2)} dB`).join(', ');
-  return `${r.name}: ${r.method} (${r.backbone}), ${r.gaussians} Gaussians, iteration ${r.iteration}/${r.iterations}` +
+  const controls = r.control_points != null ? `, ${r.control_points} control points` : '';
+  return `${r.name}: ${r.method} (${r.backbone}), ${r.gaussians} Gaussians${controls}, iteration ${r.iteration}/${r.iterations}` +
     (r.source === 'checkpoint' ? ' (checkpoint)' : '') +
     (psnr ? `, PSNR ${psnr}` : ', no eval files') + (r.reload_error ? ` — reload failed: ${r.reload_error}` : '');
 }
@@ -138,7 +144,8 @@ function updateStats() {
     (S.error ? ` · ${S.error}` : '');
   S.panes.forEach((p, i) => { p.cap.textContent = caption(i); });
   const sz = size(false);
-  $('command').textContent = `evogs render --run ${S.info.runs[0].name} --camera camera.json --time ${fmtNum(S.t)} --out view.png` +
+  const show = controlsQuery(0) ? ' --show-controls' : '';
+  $('command').textContent = `evogs render --run ${S.info.runs[0].name} --camera camera.json --time ${fmtNum(S.t)}${show} --out view.png` +
     ` (${sz.w}×${sz.h}; "save camera" writes camera.json)`;
 }
 
@@ -343,6 +350,8 @@ async function init() {
   $('speed').addEventListener('change', () => { S.speed = Number($('speed').value); });
   $('scale').addEventListener('change', () => { S.scale = Number($('scale').value); layout(); pump(); });
   $('preview').addEventListener('change', pump);
+  $('controls-label').hidden = !S.info.runs.some((r) => r.control_points != null);
+  $('controls').addEventListener('change', () => { updateStats(); pump(); });
   $('jump').addEventListener('click', () => jump($('split').value, Number($('index').value)));
   $('reset').addEventListener('click', () => jump(start, 0));
   $('save-png').addEventListener('click', async () => {

@@ -79,6 +79,8 @@ pub struct RenderParams {
     pub height: Option<u32>,
     /// The encoding.
     pub format: Format,
+    /// `controls=1`: draw the run's control points over the view (`0` or absent: not).
+    pub controls: bool,
 }
 
 /// `GET /api/gt`: a ground-truth image of run 0's dataset.
@@ -172,6 +174,18 @@ impl Query {
             _ => Err(BadRequest::new(format!(
                 "`{key}` is `{}`; expected a whole number in 0..{limit}",
                 printable(v)
+            ))),
+        }
+    }
+
+    /// A switch: `1` on, `0` or absent off.
+    pub fn switch(&self, key: &str) -> Result<bool, BadRequest> {
+        match self.get(key) {
+            None | Some("0") => Ok(false),
+            Some("1") => Ok(true),
+            Some(other) => Err(BadRequest::new(format!(
+                "`{key}` is `{}`; expected 1 or 0",
+                printable(other)
             ))),
         }
     }
@@ -282,7 +296,9 @@ pub fn camera(query: &Query) -> Result<CameraParam, BadRequest> {
 pub fn render_params(raw: &str, runs: usize) -> Result<RenderParams, BadRequest> {
     let query = Query::parse(
         raw,
-        &["run", "cam", "R", "C", "K", "t", "w", "h", "fmt", "seq"],
+        &[
+            "run", "cam", "R", "C", "K", "t", "w", "h", "fmt", "seq", "controls",
+        ],
     )?;
     let camera = camera(&query)?;
     Ok(RenderParams {
@@ -292,6 +308,7 @@ pub fn render_params(raw: &str, runs: usize) -> Result<RenderParams, BadRequest>
         width: query.side("w")?,
         height: query.side("h")?,
         format: query.format()?,
+        controls: query.switch("controls")?,
     })
 }
 

@@ -25,7 +25,7 @@ use splat_raster::BackendChoice;
 use crate::ViewError;
 use crate::http::{Handler, Limits, Listener, Request, Response};
 use crate::params::{self, BadRequest, CameraParam, Format};
-use crate::worker::{GtError, RenderFailure, RenderJob, RunHandle, RunInfo};
+use crate::worker::{GtError, NO_CONTROLS, RenderFailure, RenderJob, RunHandle, RunInfo};
 
 /// JPEG quality of the page's views.
 pub const JPEG_QUALITY: u8 = 90;
@@ -240,11 +240,15 @@ impl Routes {
             Ok(p) => p,
             Err(e) => return bad(e),
         };
+        if p.controls && self.runs[p.run].info().control_points.is_none() {
+            return bad(BadRequest(NO_CONTROLS.to_string()));
+        }
         let job = RenderJob {
             camera: p.camera,
             time: p.time,
             width: p.width,
             height: p.height,
+            controls: p.controls,
         };
         match self.runs[p.run].render(job) {
             Ok(r) => match timed_encode(&r.image, p.format) {

@@ -18,7 +18,7 @@ use std::sync::{Arc, PoisonError, RwLock};
 use std::time::{Duration, Instant, SystemTime};
 
 use evogs_eval::LoadedRun;
-use evogs_eval::render::render_deformed;
+use evogs_eval::render::{CONTROL_COLOUR, draw_points, render_deformed};
 use evogs_io::{Frame, ImageRgb, Split};
 use evogs_train::TrainError;
 use evogs_train::data::open_dataset;
@@ -118,6 +118,9 @@ pub struct RunInfo {
     pub iterations: u64,
     /// Canonical Gaussians.
     pub gaussians: usize,
+    /// The control points that carry the motion (SC-GS's), `None` for a backbone without them;
+    /// `controls=1` draws them over a view.
+    pub control_points: Option<usize>,
     /// The backend that renders, and why.
     pub backend: String,
     /// Mean PSNR of each evaluated split (`eval_<split>.json`), by split name.
@@ -235,6 +238,10 @@ pub enum RenderFailure {
     Failed(String),
 }
 
+/// Why `controls=1` cannot be served for a run.
+pub const NO_CONTROLS: &str =
+    "`controls`: the run's backbone has no control points (those of --backbone scgs)";
+
 /// A render request.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderJob {
@@ -246,6 +253,8 @@ pub struct RenderJob {
     pub width: Option<u32>,
     /// Output size.
     pub height: Option<u32>,
+    /// Draw the run's control points over the view (a run with [`RunInfo::control_points`]).
+    pub controls: bool,
 }
 
 /// A job and where its answer goes.
@@ -394,6 +403,11 @@ impl Loaded {
                 psnr.insert(split.name().to_string(), v);
             }
         }
+        let control_points = run
+            .backbone
+            .control_points_at(0.0)
+            .map_err(TrainError::from)?
+            .map(|p| p.len());
         let info = RunInfo {
             name: root.file_name().map_or_else(
                 || root.display().to_string(),
@@ -404,6 +418,7 @@ impl Loaded {
             iteration: run.summary.iteration,
             iterations: run.summary.iterations,
             gaussians: run.canonical.len(),
+            control_points,
             backend,
             psnr,
             train_psnr: run.summary.last_psnr,
@@ -457,8 +472,18 @@ impl Loaded {
             }
         };
         let deformed = Instant::now();
-        let image = render_deformed(&self.run, g, &camera, &mut self.fwd)
+        let mut image = render_deformed(&self.run, g, &camera, &mut self.fwd)
             .map_err(|e| RenderFailure::Failed(e.to_string()))?;
+        if job.controls {
+            // `evogs render --show-controls`'s points and colour.
+            let points = self
+                .run
+                .backbone
+                .control_points_at(time)
+                .map_err(|e| RenderFailure::Failed(e.to_string()))?
+                .ok_or_else(|| RenderFailure::Bad(BadRequest(NO_CONTROLS.to_string())))?;
+            draw_points(&mut image, &camera, &points, CONTROL_COLOUR);
+        }
         let ms = |d: Duration| d.as_secs_f64() * 1e3;
         Ok(Rendered {
             image,

@@ -206,6 +206,17 @@ fn hostile_and_malformed_requests_get_4xx_with_a_reason() {
             "not a rotation",
         ),
         ("/api/render?%ff%fe=1", 400, "unknown parameter"),
+        (
+            "/api/render?cam=dataset:test:0&controls=yes",
+            400,
+            "`controls`",
+        ),
+        // The fixture is a D-3DGS run: it has no control points to draw.
+        (
+            "/api/render?cam=dataset:test:0&controls=1",
+            400,
+            "no control points",
+        ),
         ("/api/gt?split=test&index=999", 404, "does not exist"),
         ("/api/gt?split=../../etc&index=0", 400, "split"),
         (
@@ -440,6 +451,47 @@ fn watch_follows_a_training_run_from_its_checkpoints_to_its_end_of_run_files() {
     assert!(err.contains("canonical.ply"), "{now}");
     assert_eq!(now["version"], version, "{now}");
     assert_eq!(v.get(q).image(), second);
+}
+
+/// An SC-GS run: the page is told how many control points it has, and `controls=1` draws them
+/// exactly as `evogs render --show-controls` does.
+#[test]
+fn control_points_are_drawn_as_render_draws_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let scgs = [
+        "--backbone",
+        "scgs",
+        "--control-points",
+        "24",
+        "--control-width",
+        "16",
+        "--control-depth",
+        "2",
+    ];
+    let run = train_run_with(dir.path(), "scgs", 60, &scgs);
+    let v = Viewer::start(&[s(&run)]);
+    let info: serde_json::Value = serde_json::from_slice(&v.get("/api/info").body).unwrap();
+    assert_eq!(info["runs"][0]["control_points"], 24, "{info}");
+    let q = "/api/render?cam=dataset:test:1&t=0.4&fmt=png";
+    let with = v.get(&format!("{q}&controls=1")).image();
+    let without = v.get(q).image();
+    assert_ne!(with, without);
+    assert_eq!(without, render(&run, "dataset:test:1", "0.4", None));
+    let out = dir.path().join("controls.png");
+    let o = evogs(&[
+        "render",
+        "--run",
+        s(&run),
+        "--camera",
+        "dataset:test:1",
+        "--time",
+        "0.4",
+        "--show-controls",
+        "--out",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(with, png(&out));
 }
 
 #[test]
