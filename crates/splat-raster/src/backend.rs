@@ -8,7 +8,7 @@
 use std::fmt;
 
 use serde::{Deserialize, Serialize};
-use splat_core::one_word::OneWord;
+use splat_core::one_word::{OneWord, unknown_message};
 
 use crate::Rasterizer;
 use crate::cpu::CpuRasterizer;
@@ -19,7 +19,7 @@ pub type DynRasterizer = Box<dyn Rasterizer + Send + Sync>;
 
 /// The backend a user asks for, spelled `cpu`, `wgpu` or `auto`.
 #[derive(strum::Display, strum::EnumString, strum::IntoStaticStr, strum::VariantNames)]
-#[strum(serialize_all = "lowercase", parse_err_ty = RasterError, parse_err_fn = RasterError::unknown_backend)]
+#[strum(serialize_all = "lowercase", parse_err_ty = RasterError, parse_err_fn = unknown_backend)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum BackendChoice {
@@ -30,6 +30,14 @@ pub enum BackendChoice {
     Wgpu,
     /// wgpu on a hardware adapter, the CPU otherwise.
     Auto,
+}
+
+/// [`RasterError::UnknownBackend`] for `name`: the error of [`BackendChoice`]'s `from_str`.
+fn unknown_backend(name: &str) -> RasterError {
+    RasterError::UnknownBackend {
+        name: name.to_string(),
+        message: unknown_message::<BackendChoice>(name),
+    }
 }
 
 /// The noun of [`RasterError::UnknownBackend`]'s message.

@@ -1,6 +1,5 @@
 //! The rasterizer's error type: bad input is reported with the field it came from, never a panic.
 
-use splat_core::one_word::unknown_message;
 use thiserror::Error;
 
 /// Why a forward or backward pass refused its input.
@@ -85,9 +84,14 @@ pub enum RasterError {
         message: String,
     },
     /// A backend name that is not `cpu`, `wgpu` or `auto` ("unknown backend `x`; expected cpu,
-    /// wgpu or auto").
-    #[error("{}", unknown_message::<crate::BackendChoice>(.0))]
-    UnknownBackend(String),
+    /// wgpu or auto"; the error of `BackendChoice`'s `from_str`, which writes the message).
+    #[error("{message}")]
+    UnknownBackend {
+        /// The name asked for.
+        name: String,
+        /// The whole line.
+        message: String,
+    },
     /// A thread pool could not be built.
     #[error("could not build a thread pool of {threads} threads: {message}")]
     ThreadPool {
@@ -96,12 +100,4 @@ pub enum RasterError {
         /// Rayon's message.
         message: String,
     },
-}
-
-impl RasterError {
-    /// [`RasterError::UnknownBackend`] for `name` (the error of
-    /// [`BackendChoice`](crate::BackendChoice)'s `from_str`).
-    pub(crate) fn unknown_backend(name: &str) -> Self {
-        Self::UnknownBackend(name.to_string())
-    }
 }
