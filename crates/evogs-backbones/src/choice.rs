@@ -26,10 +26,12 @@ use crate::scgs::{EvolutionOn, ScgsBackbone, ScgsSettings};
 /// The deformation method (`--method`).
 #[derive(EnumString, Display, IntoStaticStr, VariantNames)]
 #[strum(serialize_all = "lowercase", parse_err_ty = BackboneError, parse_err_fn = unknown::<Self>)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Method {
-    /// The backbone's own deformation network alone (D-3DGS, 4DGaussians, Grid4D).
+    /// The backbone's own deformation network alone (D-3DGS, 4DGaussians, Grid4D, SC-GS); the
+    /// default.
+    #[default]
     Baseline,
     /// EvoGS(backbone): Φ + evolution state + Ψ (settings in [`EvoSettings`]; Φ is the tri-plane
     /// network for d3dgs, the backbone's own field at half width for 4dgs and grid4d).

@@ -27,7 +27,7 @@ pub struct AblateArgs {
     pub out: PathBuf,
 
     /// Training preset for every row.
-    #[arg(long, default_value = "cpu", value_parser = evogs_backbones::cli::words::<Preset>())]
+    #[arg(long, default_value_t = Preset::default(), value_parser = evogs_backbones::cli::words::<Preset>())]
     pub preset: Preset,
 
     /// Iterations per row (scales the preset's schedule).

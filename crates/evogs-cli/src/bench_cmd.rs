@@ -39,8 +39,8 @@ pub struct BenchArgs {
     )]
     pub methods: Vec<Method>,
 
-    /// Training preset of every run.
-    #[arg(long, default_value = "dnerf", value_parser = evogs_backbones::cli::words::<Preset>())]
+    /// Training preset of every run (the bench's own default: the D-NeRF benchmark's).
+    #[arg(long, default_value_t = Preset::Dnerf, value_parser = evogs_backbones::cli::words::<Preset>())]
     pub preset: Preset,
 
     /// Iterations per run (scales the preset's schedule) [default: the preset's].

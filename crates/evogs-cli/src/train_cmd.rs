@@ -36,7 +36,7 @@ pub struct TrainArgs {
 
     /// Deformation method: baseline (D-3DGS) or evogs (EvoGS(D-3DGS): observation network Φ
     /// at half the width, evolution state, gain network Ψ).
-    #[arg(long, default_value = "baseline", value_parser = evogs_backbones::cli::words::<evogs_train::Method>())]
+    #[arg(long, default_value_t = evogs_train::Method::default(), value_parser = evogs_backbones::cli::words::<evogs_train::Method>())]
     pub method: evogs_train::Method,
 
     /// Deformation backbone: d3dgs (Deformable-3D-Gaussians' MLP), 4dgs (4DGaussians'
@@ -55,26 +55,15 @@ pub struct TrainArgs {
     #[command(flatten)]
     pub scgs: evogs_backbones::cli::ScgsArgs,
 
-    /// Schedule iterations over which the deformation network's learning rate (D-3DGS's MLP, or
-    /// EvoGS's Φ, its planes and controls at `--grid-lr-scale` times it) decays from 8e-4 to
-    /// 1.6e-6, as D-3DGS's `deform_lr_max_steps`; counted on the run's schedule (after
-    /// `--iterations`), so the schedule's length decays it over the whole run, under a time
-    /// budget too (the dnerf preset decays it over more steps than its schedule has, so it ends
-    /// above 1.6e-6) [preset values: see --help].
+    /// Schedule iterations over which the deformation network's learning rate decays from its
+    /// start to its end value, as D-3DGS's `deform_lr_max_steps` [rates and preset values: see
+    /// --help, read from the settings].
     #[arg(
         long,
         allow_negative_numbers = true,
         value_name = "N",
         value_parser = crate::shared_args::whole::<u64>(1),
-        help = by_preset(
-            "Schedule iterations over which the deformation network's learning rate (D-3DGS's MLP, \
-             or EvoGS's Φ, its planes and controls at `--grid-lr-scale` times it) decays from 8e-4 \
-             to 1.6e-6, as D-3DGS's `deform_lr_max_steps`; counted on the run's schedule (after \
-             `--iterations`), so the schedule's length decays it over the whole run, under a time \
-             budget too (the dnerf preset decays it over more steps than its schedule has, so it \
-             ends above 1.6e-6)",
-            |c| c.lr.deform_max_steps,
-        )
+        help = net_lr_decay_help()
     )]
     pub net_lr_decay: Option<u64>,
 
@@ -108,7 +97,7 @@ pub struct TrainArgs {
     /// width and image scale [values: see --help].
     #[arg(
         long,
-        default_value = "cpu",
+        default_value_t = evogs_train::Preset::default(),
         value_parser = evogs_backbones::cli::words::<evogs_train::Preset>(),
         help = by_preset(
             "Settings preset: paper (D-3DGS's reference), cpu (2 cores), tiny (CI), dnerf (the \
@@ -233,6 +222,27 @@ fn by_preset<T: std::fmt::Display>(text: &str, value: impl Fn(&TrainConfig) -> T
         .map(|&p| format!("{p} {}", value(&TrainConfig::preset(p))))
         .collect();
     format!("{text} [preset: {}]", values.join("; "))
+}
+
+/// `--net-lr-decay`'s help, the network schedule's two ends read from the default settings.
+fn net_lr_decay_help() -> String {
+    let lr = TrainConfig::preset(evogs_train::Preset::default()).lr;
+    let schedule = evogs_train::state::network_schedule(&lr);
+    let (start, end) = (
+        schedule.at(0),
+        schedule.at(i64::try_from(lr.deform_max_steps).unwrap_or(i64::MAX)),
+    );
+    by_preset(
+        &format!(
+            "Schedule iterations over which the deformation network's learning rate (D-3DGS's \
+             MLP, or EvoGS's Φ, its planes and controls at `--grid-lr-scale` times it) decays \
+             from {start:.1e} to {end:.1e}, as D-3DGS's `deform_lr_max_steps`; counted on the \
+             run's schedule (after `--iterations`), so the schedule's length decays it over the \
+             whole run, under a time budget too (the dnerf preset decays it over more steps than \
+             its schedule has, so it ends above {end:.1e})"
+        ),
+        |c| c.lr.deform_max_steps,
+    )
 }
 
 /// `--max-gaussians`' help, its values read from the presets' caps and budgets.

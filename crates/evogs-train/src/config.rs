@@ -135,7 +135,7 @@ impl Background {
 /// A named set of settings.
 #[derive(EnumString, Display, IntoStaticStr, VariantNames)]
 #[strum(serialize_all = "lowercase", parse_err_ty = TrainError, parse_err_fn = unknown::<Self>)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Preset {
     /// D-3DGS's reference setting (network width 256, 40 000 iterations, 100 000 initial points,
@@ -143,7 +143,9 @@ pub enum Preset {
     Paper,
     /// Lego-like D-NeRF scenes at 400×400 on 2 CPU cores: width 64, 3 000 iterations (warm-up
     /// 500, SH up every 500, densification 250..2 000 every 100 with one opacity reset at 1 000,
-    /// lr decays over the whole run), 10 000 initial points.
+    /// lr decays over the whole run), 10 000 initial points. The default of `evogs train` and
+    /// `evogs ablate`.
+    #[default]
     Cpu,
     /// CI: a small synthetic scene trains in seconds (width 32, depth 4, 300 iterations, warm-up
     /// 50, densification 50..250 every 25 without opacity reset, 2 000 initial points).
@@ -378,7 +380,7 @@ impl TrainConfig {
         };
         let paper = Self {
             preset: Preset::Paper,
-            method: Method::Baseline,
+            method: Method::default(),
             backbone: BackboneKind::D3dgs,
             seed: 0,
             iterations: 40_000,
@@ -470,7 +472,7 @@ impl TrainConfig {
                 // D-3DGS's 500..15 000 of 40 000; interval and reset per step as D-3DGS. The cap
                 // is the baseline's (the preset's method); `with_method` sets EvoGS's.
                 densify: DensifyConfig {
-                    max_gaussians: preset.max_gaussians(Method::Baseline),
+                    max_gaussians: preset.max_gaussians(Method::default()),
                     ..densify_window(150, 4_500, 100, 3_000)
                 },
                 checkpoint_every: 1_000,
