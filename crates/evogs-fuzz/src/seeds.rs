@@ -297,8 +297,16 @@ pub fn write_all_seeds(dir: &Path) {
             evogs_train::state::SceneState::new(init, backbone.as_ref(), &config.lr).unwrap();
         let path = dir.join("checkpoint").join("tiny.safetensors");
         std::fs::create_dir_all(path.parent().unwrap()).unwrap();
-        evogs_train::checkpoint::save_checkpoint(&path, &state, backbone.as_ref(), 5, 0, None)
-            .unwrap();
+        evogs_train::checkpoint::save_checkpoint(
+            &path,
+            &state,
+            backbone.as_ref(),
+            5,
+            0,
+            None,
+            None,
+        )
+        .unwrap();
     }
 }
 

@@ -17,6 +17,7 @@ use evogs_backbones::Backbone;
 use crate::budget::BudgetProgress;
 use crate::error::TrainError;
 use crate::state::SceneState;
+use crate::train_log::LogInterval;
 
 /// Metadata key of the JSON header.
 const META_KEY: &str = "evogs.checkpoint";
@@ -39,6 +40,10 @@ pub struct CheckpointMeta {
     /// Where a budget run stands ([`crate::budget`]); absent in runs without a budget.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub budget: Option<BudgetProgress>,
+    /// The training log's interval at the checkpoint ([`crate::train_log`]); absent in
+    /// checkpoints written before it was kept.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub log: Option<LogInterval>,
 }
 
 fn f32_bytes(v: &[f32]) -> Vec<u8> {
@@ -50,7 +55,7 @@ fn u32_bytes(v: &[u32]) -> Vec<u8> {
 }
 
 /// Writes a checkpoint of `state` and `backbone` after `iteration` iterations (with the
-/// progress of a budget run where there is one).
+/// progress of a budget run where there is one, and the training log's interval).
 pub fn save_checkpoint(
     path: &Path,
     state: &SceneState,
@@ -58,6 +63,7 @@ pub fn save_checkpoint(
     iteration: u64,
     seed: u64,
     budget: Option<BudgetProgress>,
+    log: Option<LogInterval>,
 ) -> Result<(), TrainError> {
     let g = state.gaussians();
     let mut tensors: Vec<(String, Dtype, Vec<u8>)> = vec![
@@ -145,6 +151,7 @@ pub fn save_checkpoint(
             .map(|gr| (gr.name.clone(), gr.step))
             .collect(),
         budget,
+        log,
     };
     let meta_json = serde_json::to_string(&meta)
         .map_err(|e| TrainError::file(path, format!("cannot encode metadata: {e}")))?;

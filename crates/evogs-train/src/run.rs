@@ -263,6 +263,7 @@ fn save_resumable(
     paths: &RunPaths,
     trainer: &Trainer,
     budget: Option<BudgetProgress>,
+    log: &TrainLog,
 ) -> Result<(), TrainError> {
     let pending = paths.pending_evo_state(trainer.iteration());
     let has_state = trainer.backbone().save_state(&pending)?;
@@ -273,6 +274,7 @@ fn save_resumable(
         trainer.iteration(),
         trainer.config().seed,
         budget,
+        Some(log.interval()),
     )?;
     if has_state {
         std::fs::rename(&pending, paths.evo_state()).map_err(|e| TrainError::io(&pending, e))?;
@@ -365,6 +367,7 @@ pub fn train_with_clock(
 ) -> Result<TrainSummary, TrainError> {
     let paths = RunPaths::new(&request.out);
     let mut resumed_budget = None;
+    let mut resumed_log = None;
     let mut trainer = if request.resume {
         let mut run = read_run_config(&paths)?;
         let recorded_backend = run.train.backend;
@@ -388,6 +391,7 @@ pub fn train_with_clock(
         let (state, mut backbone, meta) = read_checkpoint(&ckpt, &run.train)?;
         settle_evo_state(&paths, meta.iteration)?;
         backbone.load_state(&paths.evo_state())?;
+        resumed_log = meta.log;
         let mut trainer =
             Trainer::from_parts(run.train.clone(), train, state, backbone, meta.iteration)?;
         if run.train.budget.is_some() {
@@ -440,6 +444,7 @@ pub fn train_with_clock(
         &paths.train_log(),
         trainer.config().log_every,
         trainer.iteration(),
+        resumed_log,
     )?;
     let start_iteration = trainer.iteration();
     let started = Instant::now();
@@ -529,7 +534,7 @@ pub fn train_with_clock(
         // The last one is written after the loop, with the final outputs.
         let budget_progress = paced.as_ref().map(|(pacer, _, _)| pacer.progress());
         if !report.last && checkpoint_follows(trainer.config(), &report) {
-            save_resumable(&paths, &trainer, budget_progress)?;
+            save_resumable(&paths, &trainer, budget_progress, &log)?;
         }
         let is_last = report.last;
         last = Some(report);
@@ -542,7 +547,7 @@ pub fn train_with_clock(
         .as_ref()
         .map(|(pacer, _, _)| pacer.progress())
         .or(resumed_budget);
-    save_resumable(&paths, &trainer, budget_progress)?;
+    save_resumable(&paths, &trainer, budget_progress, &log)?;
     evogs_io::write_ply(&paths.canonical(), trainer.state().gaussians().view())?;
     trainer.backbone().save(&paths.weights())?;
     let done = trainer.iteration() - start_iteration;

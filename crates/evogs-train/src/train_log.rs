@@ -3,6 +3,12 @@
 //! process's peak resident memory and, for EvoGS, statistics of the gain K of the interval's
 //! last step. A resumed run keeps the lines up to its checkpoint and continues after them.
 //!
+//! A process that stops between two lines (`--stop-after`, a budget) writes an interim line
+//! for the iterations so far, and its checkpoint keeps the interval's sums ([`LogInterval`]):
+//! resumed from it, the run drops the interim line and adds the rest of the interval to those
+//! sums, so its lines (iterations, loss, PSNR, Gaussians) are those of the same run made in one
+//! process, bit for bit. The times (`seconds`, iterations/s, peak memory) are each process's.
+//!
 //! Written whole through a temporary file and a rename at every line (the file is small: one
 //! line per interval), so a kill never leaves half a line. Not a metrics store: evaluation
 //! scores are in `eval_<split>.json`.
@@ -60,13 +66,26 @@ pub fn read_log(path: &Path) -> Result<Vec<LogLine>, TrainError> {
         .collect()
 }
 
+/// The sums of the iterations since the last regular line, kept in a checkpoint
+/// (`CheckpointMeta::log`) so that a resumed run's next line covers the whole interval.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LogInterval {
+    /// Sum of the losses.
+    pub loss_sum: f64,
+    /// Sum of the training-view PSNRs.
+    pub psnr_sum: f64,
+    /// Iterations summed.
+    pub count: u64,
+}
+
 /// The log of a run being trained: the lines so far and the current interval.
 pub struct TrainLog {
     lines: Vec<LogLine>,
     every: u64,
-    loss_sum: f64,
-    psnr_sum: f64,
-    count: u64,
+    interval: LogInterval,
+    /// Iterations of this process in the interval, and when it started for this process (the
+    /// speed is this process's).
+    timed: u64,
     interval_start: Instant,
     seconds_before: f64,
 }
@@ -74,23 +93,45 @@ pub struct TrainLog {
 impl TrainLog {
     /// A log writing a line every `every` iterations, continuing the lines of `path` up to
     /// `iteration` (a resumed run; lines past its checkpoint are dropped) or starting empty.
-    pub fn open(path: &Path, every: u64, iteration: u64) -> Result<Self, TrainError> {
+    /// `carried` is the interval the checkpoint kept: with it, an interim line (one not at a
+    /// multiple of `every`) at the end of the kept lines is dropped and the interval continues
+    /// from those sums. Without it (a checkpoint written before it was kept) the interval starts
+    /// empty.
+    pub fn open(
+        path: &Path,
+        every: u64,
+        iteration: u64,
+        carried: Option<LogInterval>,
+    ) -> Result<Self, TrainError> {
+        let every = every.max(1);
         let mut lines = if iteration > 0 && path.is_file() {
             read_log(path)?
         } else {
             Vec::new()
         };
         lines.retain(|l| l.iteration <= iteration);
+        // The run's time counts the interim line's process too.
         let seconds_before = lines.last().map_or(0.0, |l| l.seconds);
+        if carried.is_some()
+            && lines
+                .last()
+                .is_some_and(|l| !l.iteration.is_multiple_of(every))
+        {
+            lines.pop();
+        }
         Ok(Self {
             lines,
-            every: every.max(1),
-            loss_sum: 0.0,
-            psnr_sum: 0.0,
-            count: 0,
+            every,
+            interval: carried.unwrap_or_default(),
+            timed: 0,
             interval_start: Instant::now(),
             seconds_before,
         })
+    }
+
+    /// The sums of the interval since the last regular line (for the checkpoint).
+    pub fn interval(&self) -> LogInterval {
+        self.interval
     }
 
     /// The lines so far.
@@ -98,8 +139,10 @@ impl TrainLog {
         &self.lines
     }
 
-    /// Adds one iteration; at a multiple of `every`, or when `last`, writes the line (the whole
-    /// file, atomically) to `path`.
+    /// Adds one iteration; at a multiple of `every` writes the line (the whole file,
+    /// atomically) to `path` and starts the next interval; when `last` (the process's last
+    /// iteration) and not at such a multiple, writes an interim line and keeps the interval's
+    /// sums (module docs).
     #[allow(clippy::too_many_arguments)]
     pub fn record(
         &mut self,
@@ -111,30 +154,33 @@ impl TrainLog {
         gain: Option<GainStats>,
         last: bool,
     ) -> Result<(), TrainError> {
-        self.loss_sum += loss;
-        self.psnr_sum += psnr;
-        self.count += 1;
-        if !(iteration.is_multiple_of(self.every) || last) {
+        self.interval.loss_sum += loss;
+        self.interval.psnr_sum += psnr;
+        self.interval.count += 1;
+        self.timed += 1;
+        let regular = iteration.is_multiple_of(self.every);
+        if !(regular || last) {
             return Ok(());
         }
         let elapsed = self.interval_start.elapsed().as_secs_f64();
         let seconds = self.seconds_before + elapsed;
-        let n = self.count as f64;
+        let n = self.interval.count as f64;
         self.lines.push(LogLine {
             iteration,
             seconds,
-            loss: self.loss_sum / n,
-            psnr: self.psnr_sum / n,
+            loss: self.interval.loss_sum / n,
+            psnr: self.interval.psnr_sum / n,
             gaussians,
-            iterations_per_second: n / elapsed.max(1e-9),
+            iterations_per_second: self.timed as f64 / elapsed.max(1e-9),
             peak_rss_bytes: peak_rss_bytes(),
             gain,
         });
-        self.loss_sum = 0.0;
-        self.psnr_sum = 0.0;
-        self.count = 0;
-        self.interval_start = Instant::now();
-        self.seconds_before = seconds;
+        if regular {
+            self.interval = LogInterval::default();
+            self.timed = 0;
+            self.interval_start = Instant::now();
+            self.seconds_before = seconds;
+        }
         let mut text = String::new();
         for line in &self.lines {
             let json = serde_json::to_string(line)
