@@ -131,7 +131,8 @@ function caption(i) {
   const controls = r.control_points != null ? `, ${r.control_points} control points` : '';
   return `${r.name}: ${r.method} (${r.backbone}), ${r.gaussians} Gaussians${controls}, iteration ${r.iteration}/${r.iterations}` +
     (r.source === 'checkpoint' ? ' (checkpoint)' : '') +
-    (psnr ? `, PSNR ${psnr}` : ', no eval files') + (r.reload_error ? ` — reload failed: ${r.reload_error}` : '');
+    (psnr ? `, PSNR ${psnr}` : ', no eval files') + (r.note ? ` — ${r.note}` : '') +
+    (r.reload_error ? ` — reload failed: ${r.reload_error}` : '');
 }
 
 function updateStats() {

@@ -42,7 +42,9 @@ pub enum Source {
 
 impl Source {
     /// The checkpoint when it is newer than `train_metrics.json` (the last end-of-run file a
-    /// run writes) or when that file does not exist; the end-of-run files otherwise.
+    /// run writes) or when that file does not exist; the end-of-run files otherwise (and, when
+    /// that checkpoint cannot be read but the end-of-run files are there, those: what `evogs
+    /// eval` and `render` read).
     pub fn of(root: &Path) -> Self {
         let paths = evogs_train::RunPaths::new(root);
         let modified = |p: PathBuf| std::fs::metadata(p).and_then(|m| m.modified()).ok();
@@ -131,6 +133,9 @@ pub struct RunInfo {
     pub source: Source,
     /// Loads so far (1 after start; each `--watch` reload adds one).
     pub version: u64,
+    /// What the viewer chose that the user should know (a newer checkpoint it could not read,
+    /// so the end-of-run files are shown).
+    pub note: Option<String>,
     /// Why the last reload failed, if it did (the previous model is still shown).
     pub reload_error: Option<String>,
     /// The run's resolution (its first training camera's size).
@@ -371,8 +376,24 @@ fn stamps(root: &Path) -> Vec<Option<(SystemTime, u64)>> {
 impl Loaded {
     fn load(root: &Path, backend: BackendChoice, version: u64) -> Result<Self, TrainError> {
         let before = stamps(root);
-        let source = Source::of(root);
-        let mut run = source.open(root)?;
+        let mut source = Source::of(root);
+        let mut note = None;
+        let mut run = match source.open(root) {
+            Ok(run) => run,
+            // One rule with `evogs eval` and `render`: a run whose end-of-run files are there
+            // is shown from them when its newer checkpoint cannot be read.
+            Err(e)
+                if source == Source::Checkpoint
+                    && evogs_train::RunPaths::new(root).train_metrics().is_file() =>
+            {
+                note = Some(format!(
+                    "its newer checkpoint could not be read ({e}); showing the end-of-run files"
+                ));
+                source = Source::EndOfRun;
+                source.open(root)?
+            }
+            Err(e) => return Err(e),
+        };
         let backend = run.use_backend(backend)?.to_string();
         let mut cameras = std::collections::BTreeMap::new();
         let mut split_cams = std::collections::BTreeMap::new();
@@ -424,6 +445,7 @@ impl Loaded {
             train_psnr: run.summary.last_psnr,
             source,
             version,
+            note,
             reload_error: None,
             width,
             height,

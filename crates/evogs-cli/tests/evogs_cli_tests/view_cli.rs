@@ -494,6 +494,31 @@ fn control_points_are_drawn_as_render_draws_them() {
     assert_eq!(with, png(&out));
 }
 
+/// One rule for view, eval and render: a finished run whose checkpoint was cut short after its
+/// end (newer than its end-of-run files) is read from its end-of-run files by all three; the
+/// viewer says why in the run's note.
+#[test]
+fn a_truncated_newer_checkpoint_falls_back_to_the_end_of_run_files_everywhere() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = train_run(dir.path(), "cut", 20);
+    let ckpt = run.join("checkpoint.safetensors");
+    let bytes = std::fs::read(&ckpt).unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(20));
+    std::fs::write(&ckpt, &bytes[..bytes.len() / 3]).unwrap();
+    let o = evogs(&["eval", "--run", s(&run), "--split", "test"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let expected = render(&run, "dataset:test:0", "0.3", None);
+    let v = Viewer::start(&[s(&run)]);
+    let info = info0(&v);
+    assert_eq!(info["source"], "end_of_run", "{info}");
+    let note = info["note"].as_str().unwrap_or_default();
+    assert!(note.contains("checkpoint.safetensors"), "{info}");
+    let view = v
+        .get("/api/render?cam=dataset:test:0&t=0.3&fmt=png")
+        .image();
+    assert_eq!(view, expected);
+}
+
 #[test]
 fn two_runs_side_by_side_share_camera_and_time() {
     let f = fixture();
