@@ -4,7 +4,7 @@ use std::process::ExitCode;
 
 use clap::Parser;
 use clap::error::ErrorKind;
-use evogs_cli::error_line::one_line;
+use evogs_cli::error_line::{one_line, with_causes};
 use evogs_cli::eval_cmd::run_eval;
 use evogs_cli::export_cmd::run_export;
 use evogs_cli::render::run_render;
@@ -174,7 +174,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("evogs: error: {}", one_line(&format!("{err:#}")));
+            eprintln!("evogs: error: {}", one_line(&with_causes(&err)));
             ExitCode::FAILURE
         }
     }

@@ -175,6 +175,13 @@ pub fn plan_frames(
             keys.sample(frames.unwrap_or(keys.cameras().len()))
         }
         PathSpec::File(file) => {
+            if !file.is_file() {
+                return Err(TrainError::file(
+                    file,
+                    "no such camera-path file (--path takes orbit, spiral, dataset:SPLIT, \
+                     dataset:SPLIT:INDEX or a JSON list of cameras)",
+                ));
+            }
             let cameras = read_camera_path(file)?
                 .into_iter()
                 .map(|c| (c.info.camera, c.time))

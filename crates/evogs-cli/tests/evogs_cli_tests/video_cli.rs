@@ -391,6 +391,29 @@ fn bad_input_gives_one_line_errors_and_writes_nothing() {
         s(&dir.join("p.gif")),
     ]));
     assert!(e.contains("cams.json"), "{e}");
+    // A word that is neither a path name nor a file: the line lists what --path takes.
+    let e = one_line_error(&video(&["--path", "bogus", "--out", s(&dir.join("b.gif"))]));
+    assert!(
+        e.contains("bogus") && e.contains("orbit, spiral, dataset:SPLIT"),
+        "{e}"
+    );
+    // A missing network file is named once (its cause quoted in the message is not repeated).
+    let elsewhere = tempfile::tempdir().unwrap();
+    let broken = elsewhere.path().join("broken");
+    std::fs::create_dir_all(&broken).unwrap();
+    for name in ["config.json", "canonical.ply", "train_metrics.json"] {
+        std::fs::copy(f.run.join(name), broken.join(name)).unwrap();
+    }
+    let e = one_line_error(&evogs(&[
+        "render",
+        "--run",
+        s(&broken),
+        "--camera",
+        "dataset:test:0",
+        "--out",
+        s(&elsewhere.path().join("n.png")),
+    ]));
+    assert_eq!(e.matches("deform.safetensors").count(), 1, "{e}");
     // ffmpeg missing: the error says so and an existing video is untouched.
     let mp4 = dir.join("old.mp4");
     std::fs::write(&mp4, b"old").unwrap();
