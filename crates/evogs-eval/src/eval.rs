@@ -199,7 +199,7 @@ pub fn evaluate(
 ) -> Result<EvalReport, TrainError> {
     let cfg = run.run.train.clone();
     let views = load_split(
-        &run.run.data,
+        run.data()?,
         split,
         cfg.time_from,
         cfg.background.rgb(),

@@ -32,6 +32,12 @@ pub struct LoadedRun {
 }
 
 impl LoadedRun {
+    /// The run's dataset directory, or an error naming `config.json`'s `data` when it is no
+    /// longer there ([`evogs_train::run::run_data`]).
+    pub fn data(&self) -> Result<&Path, TrainError> {
+        evogs_train::run::run_data(&self.paths, &self.run)
+    }
+
     /// Opens a run directory written by [`evogs_train::train`].
     pub fn open(root: &Path) -> Result<Self, TrainError> {
         let (paths, run) = read_run_file(root)?;

@@ -320,6 +320,25 @@ pub fn read_checkpoint(
     Ok((state, backbone, meta))
 }
 
+/// The dataset of the run whose `config.json` is `run` (the run at `paths`), when it is still
+/// where the run was trained from; otherwise an error naming `config.json`'s field `data` and
+/// saying how to point the run at the dataset's new place (the path is recorded as it was when
+/// training started).
+pub fn run_data<'a>(paths: &RunPaths, run: &'a RunFile) -> Result<&'a Path, TrainError> {
+    if run.data.is_dir() {
+        return Ok(&run.data);
+    }
+    Err(TrainError::field(
+        paths.config(),
+        "data",
+        format!(
+            "the run's dataset {} is not there (moved or deleted?); write its new location \
+             into this field",
+            run.data.display()
+        ),
+    ))
+}
+
 /// The paths of the run directory `root` and its validated `config.json`: what opening a run,
 /// from its end-of-run files or its checkpoint, starts with.
 pub fn read_run_file(root: &Path) -> Result<(RunPaths, RunFile), TrainError> {
@@ -375,7 +394,7 @@ pub fn train_with_clock(
             run.train.backend = backend;
         }
         let train = load_split(
-            &run.data,
+            run_data(&paths, &run)?,
             Split::Train,
             run.train.time_from,
             run.train.background.rgb(),

@@ -345,7 +345,7 @@ pub fn resize_camera(camera: Camera, width: Option<u32>, height: Option<u32>) ->
 /// (the dataset's cameras scaled by its downscale factor, as training and evaluation load them).
 /// Errors name the dataset file when the split is empty.
 pub fn split_cameras(run: &LoadedRun, split: Split) -> Result<Vec<(Camera, f32)>, TrainError> {
-    let root = &run.run.data;
+    let root = run.data()?;
     let dataset = open_dataset(root, run.run.train.time_from)?;
     let frames = dataset.split(split);
     if frames.is_empty() {

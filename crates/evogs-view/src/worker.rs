@@ -398,7 +398,7 @@ impl Loaded {
         let mut cameras = std::collections::BTreeMap::new();
         let mut split_cams = std::collections::BTreeMap::new();
         let mut frames = std::collections::BTreeMap::new();
-        let dataset = open_dataset(&run.run.data, run.run.train.time_from)?;
+        let dataset = open_dataset(run.data()?, run.run.train.time_from)?;
         for split in Split::ALL {
             // A split the dataset does not have is simply empty here.
             let cams = split_cameras(&run, split).unwrap_or_default();

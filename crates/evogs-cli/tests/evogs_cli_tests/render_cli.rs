@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use evogs_io::{CameraInfo, Distortion, write_nerfies_camera, write_ply};
 use glam::Vec3;
 use splat_raster::{Camera, Gaussians};
-use support::{evogs, s};
+use support::{evogs, s, stderr};
 
 /// A small scene: a grid of Gaussians at SH degree 1 in front of the camera.
 fn small_scene(n: usize) -> Gaussians {
@@ -383,4 +383,42 @@ fn control_characters_from_a_file_are_escaped_in_the_error_line() {
     assert_eq!(e.trim_end().lines().count(), 1, "{e}");
     assert!(e.contains("evil.ply"), "{e}");
     assert!(!e.trim_end().chars().any(char::is_control), "{e:?}");
+}
+
+/// A run whose dataset was moved away: every command that reads the dataset says, in one line,
+/// that `config.json`'s `data` no longer holds it and what to do.
+#[test]
+fn a_moved_dataset_is_named_with_the_field_that_points_at_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = support::rigid_scene(dir.path(), 32, 4);
+    let run = dir.path().join("run");
+    let o = support::train_tiny(&data, &run, &["--iterations", "3"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::rename(&data, dir.path().join("moved")).unwrap();
+    let image = dir.path().join("r.png");
+    for args in [
+        vec![
+            "render",
+            "--run",
+            s(&run),
+            "--camera",
+            "dataset:test:0",
+            "--out",
+            s(&image),
+        ],
+        vec!["train", "--out", s(&run), "--resume"],
+        vec![
+            "video",
+            "--run",
+            s(&run),
+            "--out",
+            s(&dir.path().join("v.gif")),
+        ],
+    ] {
+        let e = support::one_line_error(&evogs(&args));
+        assert!(
+            e.contains("config.json") && e.contains("field `data`") && e.contains("new location"),
+            "{args:?}: {e}"
+        );
+    }
 }
