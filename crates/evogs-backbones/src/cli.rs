@@ -219,8 +219,8 @@ pub struct ScgsArgs {
     #[arg(long, default_value_t = scgs_defaults().follow_densify)]
     pub control_follow_densify: bool,
 
-    /// EvoGS(SC-GS): keep the evolution state on every Gaussian (the paper's wording) or on the
-    /// control points (their translation, rotation and scale before the skinning).
+    /// EvoGS(SC-GS): keep the evolution state on the control points (their translation,
+    /// rotation and scale before the skinning) or on every Gaussian (the paper's wording).
     #[arg(long, value_parser = words::<EvolutionOn>(), default_value_t = scgs_defaults().evolution_on)]
     pub evolution_on: EvolutionOn,
 }

@@ -11,6 +11,7 @@
 use std::path::{Path, PathBuf};
 
 use clap::Parser;
+use evogs_backbones::EvolutionOn;
 use evogs_cli::train_cmd::config_from_args;
 use evogs_cli::{Cli, Command};
 use evogs_eval::LoadedRun;
@@ -125,7 +126,7 @@ fn lego() -> PathBuf {
 #[test]
 fn old_configs_load_as_the_same_flags_give_and_are_written_back_in_todays_format() {
     for ((name, flags), old) in FIXTURES.into_iter().flat_map(|f| OLD.map(|old| (f, old))) {
-        let (_, run) = fixture(old, name);
+        let (old_text, run) = fixture(old, name);
         let (current_text, current) = fixture(CURRENT, name);
         let mut argv = vec!["evogs", "train", "--data", "d", "--out", "o"];
         argv.extend_from_slice(flags);
@@ -133,14 +134,30 @@ fn old_configs_load_as_the_same_flags_give_and_are_written_back_in_todays_format
             unreachable!("parsed a train command")
         };
         let today = config_from_args(&args).unwrap();
-        assert_eq!(run.train, today, "{old}/{name}");
+        // The one setting whose meaning in a file without it differs from today's default:
+        // EvoGS(SC-GS)'s state was on every Gaussian before `scgs.evolution_on` existed (a file
+        // from before SC-GS itself, without `scgs`, takes SC-GS's defaults whole).
+        let mut then = today.clone();
+        let had_scgs = old_text.contains(r#""scgs""#);
+        if had_scgs {
+            then.scgs.evolution_on = EvolutionOn::recorded_before_the_choice();
+        }
+        assert_eq!(run.train, then, "{old}/{name}");
         assert_eq!(current.train, today, "{name}");
         // Today's format: an old file is written back as its current twin, byte for byte, and
         // the twin as itself. (The format changed three times since 6068508: in the order of the
         // `evogs` object's keys, evo-state's config embedded first; then `triplane_combine`;
         // then SC-GS's `scgs` object.)
         let text = serde_json::to_string_pretty(&run).unwrap();
-        assert_eq!(text, current_text, "{old}/{name}");
+        let then_text = if had_scgs {
+            current_text.replace(
+                r#""evolution_on": "controls""#,
+                r#""evolution_on": "gaussians""#,
+            )
+        } else {
+            current_text.clone()
+        };
+        assert_eq!(text, then_text, "{old}/{name}");
         assert_eq!(
             serde_json::to_string_pretty(&current).unwrap(),
             current_text,

@@ -77,10 +77,12 @@ fn resumed_scgs_run_matches_uninterrupted_run_bit_for_bit() {
     resumes_bit_for_bit(BackboneKind::Scgs, Method::Baseline);
 }
 
-/// EvoGS(SC-GS): the evolution state beside the control points.
+/// EvoGS(SC-GS) with the evolution state on every Gaussian, beside the control points.
 #[test]
 fn resumed_evogs_scgs_run_matches_uninterrupted_run_bit_for_bit() {
-    resumes_bit_for_bit(BackboneKind::Scgs, Method::Evogs);
+    let mut c = config_with(BackboneKind::Scgs, Method::Evogs);
+    c.scgs.evolution_on = evogs_backbones::EvolutionOn::Gaussians;
+    resumes_config_bit_for_bit(&c);
 }
 
 /// EvoGS(SC-GS) with the evolution state on the control points, placed again after each
