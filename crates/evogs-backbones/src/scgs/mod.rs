@@ -45,7 +45,8 @@ use std::path::Path;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
-use splat_core::GaussiansView;
+use splat_core::{GaussiansView, Layout};
+use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 use tiny_nn::{DeformCache, DeformConfig, DeformNet, Parameters, Precision, StoreMut, StoreRef};
 
 use self::knn::Neighbours;
@@ -53,8 +54,6 @@ use self::skinning::{Controls, NODE_OUTPUT, TRANSLATION};
 use crate::backbone::{Backbone, no_training_forward};
 use crate::error::BackboneError;
 use crate::one_word::{OneWord, unknown};
-use splat_core::Layout;
-use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 
 /// Most control points a run may ask for.
 pub const MAX_CONTROL_POINTS: usize = 1 << 16;
