@@ -112,10 +112,20 @@ fn assert_same_end(straight: &Path, run: &Path) {
         let a = std::fs::read(straight.join(name)).unwrap();
         let b = std::fs::read(run.join(name)).unwrap();
         if name.ends_with(".safetensors") {
-            assert!(
-                safetensors_content(&a) == safetensors_content(&b),
-                "{name} differs from the uninterrupted run's"
+            let (ta, ma) = safetensors_content(&a);
+            let (tb, mb) = safetensors_content(&b);
+            assert_eq!(
+                ma, mb,
+                "{name}'s metadata differs from the uninterrupted run's"
             );
+            for (x, y) in ta.iter().zip(&tb) {
+                assert!(
+                    x == y,
+                    "{name}: tensor `{}` differs from the uninterrupted run's",
+                    x.0
+                );
+            }
+            assert_eq!(ta.len(), tb.len(), "{name}'s tensors");
         } else {
             assert!(a == b, "{name} differs from the uninterrupted run's");
         }
