@@ -73,6 +73,86 @@ pub fn observation_config(
     }
 }
 
+/// The evolution state of `config` before a run sizes it (no frames, no rows), Ψ initialised from
+/// the run's `seed`: what an EvoGS backbone is built with.
+pub(crate) fn unsized_state(config: EvoConfig, seed: u64) -> Result<EvoState, BackboneError> {
+    let placeholder = Frames::from_timestamps([0.0])
+        .map_err(|e| BackboneError::config("frames", e.to_string()))?;
+    Ok(EvoState::new(config, placeholder, 0, seed ^ 0x9A1_0000)?)
+}
+
+/// A state of `config` at the scene's `extent` for the training `frame_times` and `rows` rows,
+/// nothing committed, Ψ that of `like` ([`PerGaussianState::prepare`]).
+pub(crate) fn sized_state(
+    config: EvoConfig,
+    frame_times: &[f32],
+    rows: usize,
+    extent: f32,
+    like: &EvoState,
+) -> Result<EvoState, BackboneError> {
+    let frames = Frames::from_timestamps(frame_times.iter().copied())
+        .map_err(|e| BackboneError::config("frames", e.to_string()))?;
+    empty_state(EvoConfig { extent, ..config }, frames, rows, like)
+}
+
+/// A state of `config` over `frames` with `rows` rows and nothing committed, Ψ that of `like`.
+pub(crate) fn empty_state(
+    config: EvoConfig,
+    frames: Frames,
+    rows: usize,
+    like: &EvoState,
+) -> Result<EvoState, BackboneError> {
+    let mut evo = EvoState::new(config, frames, rows, 0)?;
+    evo.psi_mut().set_params(&like.psi().params())?;
+    Ok(evo)
+}
+
+/// Writes `evo` to `path` ([`PerGaussianState::save_state`]); an error names the file once.
+pub(crate) fn save_state_file(evo: &EvoState, path: &Path) -> Result<(), BackboneError> {
+    evo.save(path).map_err(|e| match e {
+        EvoError::Io { path, source } => BackboneError::file(path, source.to_string()),
+        e => BackboneError::file(path, e.to_string()),
+    })
+}
+
+/// Reads the state at `path` of a run whose evolution settings are `config` (the extent is the
+/// scene's, saved with the state) and whose Ψ has the shape of `like`'s
+/// ([`PerGaussianState::load_state`]); a mismatch names the file and the field.
+pub(crate) fn load_state_file(
+    path: &Path,
+    config: &EvoConfig,
+    like: &EvoState,
+) -> Result<EvoState, BackboneError> {
+    if !path.is_file() {
+        return Err(BackboneError::file(
+            path,
+            "missing: an evogs run keeps its evolution state here",
+        ));
+    }
+    let evo = EvoState::load(path).map_err(|e| BackboneError::file(path, e.to_string()))?;
+    let want = EvoConfig {
+        extent: evo.config().extent,
+        ..*config
+    };
+    if *evo.config() != want {
+        return Err(BackboneError::file(
+            path,
+            format!(
+                "field `config`: evolution settings {:?} differ from the run's {:?}",
+                evo.config(),
+                want
+            ),
+        ));
+    }
+    if evo.psi().param_count() != like.psi().param_count() {
+        return Err(BackboneError::file(
+            path,
+            "field `psi`: Ψ has another shape",
+        ));
+    }
+    Ok(evo)
+}
+
 /// What the last training forward kept for its backward.
 struct Training<C> {
     step: Step,
@@ -133,15 +213,8 @@ impl<P: Observer> EvoBackbone<P> {
                 ),
             ));
         }
-        let placeholder = Frames::from_timestamps([0.0])
-            .map_err(|e| BackboneError::config("frames", e.to_string()))?;
         // The extent is the scene's: `prepare` builds the state again with it.
-        let evo = Planned(EvoState::new(
-            settings.evo,
-            placeholder,
-            0,
-            seed ^ 0x9A1_0000,
-        )?);
+        let evo = Planned(unsized_state(settings.evo, seed)?);
         Ok(Self {
             settings,
             phi,
@@ -426,15 +499,7 @@ impl<P: Observer> PerGaussianState for EvoBackbone<P> {
         if self.ready {
             return self.check_ready(rows);
         }
-        let frames = Frames::from_timestamps(frame_times.iter().copied())
-            .map_err(|e| BackboneError::config("frames", e.to_string()))?;
-        let psi = self.evo.psi().params();
-        let config = EvoConfig {
-            extent,
-            ..self.settings.evo
-        };
-        let mut evo = EvoState::new(config, frames, rows, 0)?;
-        evo.psi_mut().set_params(&psi)?;
+        let evo = sized_state(self.settings.evo, frame_times, rows, extent, &self.evo)?;
         self.evo = Planned(evo);
         self.ready = true;
         Ok(())
@@ -486,42 +551,11 @@ impl<P: Observer> PerGaussianState for EvoBackbone<P> {
     }
 
     fn save_state(&self, path: &Path) -> Result<(), BackboneError> {
-        self.evo.save(path).map_err(|e| match e {
-            // The message names the file once.
-            EvoError::Io { path, source } => BackboneError::file(path, source.to_string()),
-            e => BackboneError::file(path, e.to_string()),
-        })
+        save_state_file(&self.evo, path)
     }
 
     fn load_state(&mut self, path: &Path) -> Result<(), BackboneError> {
-        if !path.is_file() {
-            return Err(BackboneError::file(
-                path,
-                "missing: an evogs run keeps its evolution state here",
-            ));
-        }
-        let evo = EvoState::load(path).map_err(|e| BackboneError::file(path, e.to_string()))?;
-        // The extent is the scene's, saved with the state.
-        let want = EvoConfig {
-            extent: evo.config().extent,
-            ..self.settings.evo
-        };
-        if *evo.config() != want {
-            return Err(BackboneError::file(
-                path,
-                format!(
-                    "field `config`: evolution settings {:?} differ from the run's {:?}",
-                    evo.config(),
-                    want
-                ),
-            ));
-        }
-        if evo.psi().param_count() != self.evo.psi().param_count() {
-            return Err(BackboneError::file(
-                path,
-                "field `psi`: Ψ has another shape",
-            ));
-        }
+        let evo = load_state_file(path, &self.settings.evo, &self.evo)?;
         self.evo = Planned(evo);
         self.ready = true;
         self.training = None;

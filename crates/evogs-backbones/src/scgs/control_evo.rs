@@ -26,7 +26,7 @@
 use std::path::Path;
 
 use densify::{Deformation, PerGaussian};
-use evo_state::{Backward, EvoConfig, EvoError, EvoState, Frames, HistoryMode, Step};
+use evo_state::{Backward, EvoState, HistoryMode, Step};
 use splat_core::{GaussiansView, Layout, RowPlan};
 use tiny_nn::{DeformCache, LrSchedule, Parameters, StoreMut, StoreRef};
 
@@ -35,6 +35,9 @@ use super::skinning::{self, NODE_OUTPUT, ROW};
 use super::{ScgsParams, ScgsSettings, add_into, arap_partner, evolved_columns, moved};
 use crate::backbone::{Backbone, DensifyCues, GainStats, PerGaussianState, no_training_forward};
 use crate::error::BackboneError;
+use crate::evo_backbone::{
+    empty_state, load_state_file, save_state_file, sized_state, unsized_state,
+};
 use crate::evo_settings::EvoSettings;
 
 /// What the last training forward kept for its backward.
@@ -113,9 +116,7 @@ impl ScgsControlEvo {
         let evogs = evogs.clone();
         evogs.validate()?;
         let columns = evolved_columns(evogs.evo.layout)?;
-        let placeholder = Frames::from_timestamps([0.0])
-            .map_err(|e| BackboneError::config("frames", e.to_string()))?;
-        let evo = EvoState::new(evogs.evo, placeholder, 0, seed ^ 0x9A1_0000)?;
+        let evo = unsized_state(evogs.evo, seed)?;
         Ok(Self {
             settings: *settings,
             evogs,
@@ -220,14 +221,8 @@ impl ScgsControlEvo {
         if !self.ready {
             return Ok(());
         }
-        let psi = self.evo.psi().params();
-        let mut evo = EvoState::new(
-            *self.evo.config(),
-            self.evo.frames().clone(),
-            self.control_count(),
-            0,
-        )?;
-        evo.psi_mut().set_params(&psi)?;
+        let frames = self.evo.frames().clone();
+        let evo = empty_state(*self.evo.config(), frames, self.control_count(), &self.evo)?;
         self.evo = evo;
         self.training = None;
         Ok(())
@@ -479,15 +474,8 @@ impl PerGaussianState for ScgsControlEvo {
         if self.ready {
             return self.check_ready();
         }
-        let frames = Frames::from_timestamps(frame_times.iter().copied())
-            .map_err(|e| BackboneError::config("frames", e.to_string()))?;
-        let psi = self.evo.psi().params();
-        let config = EvoConfig {
-            extent,
-            ..self.evogs.evo
-        };
-        let mut evo = EvoState::new(config, frames, self.control_count(), 0)?;
-        evo.psi_mut().set_params(&psi)?;
+        let m = self.control_count();
+        let evo = sized_state(self.evogs.evo, frame_times, m, extent, &self.evo)?;
         self.evo = evo;
         self.ready = true;
         Ok(())
@@ -532,40 +520,11 @@ impl PerGaussianState for ScgsControlEvo {
     }
 
     fn save_state(&self, path: &Path) -> Result<(), BackboneError> {
-        self.evo.save(path).map_err(|e| match e {
-            EvoError::Io { path, source } => BackboneError::file(path, source.to_string()),
-            e => BackboneError::file(path, e.to_string()),
-        })
+        save_state_file(&self.evo, path)
     }
 
     fn load_state(&mut self, path: &Path) -> Result<(), BackboneError> {
-        if !path.is_file() {
-            return Err(BackboneError::file(
-                path,
-                "missing: an evogs run keeps its evolution state here",
-            ));
-        }
-        let evo = EvoState::load(path).map_err(|e| BackboneError::file(path, e.to_string()))?;
-        let want = EvoConfig {
-            extent: evo.config().extent,
-            ..self.evogs.evo
-        };
-        if *evo.config() != want {
-            return Err(BackboneError::file(
-                path,
-                format!(
-                    "field `config`: evolution settings {:?} differ from the run's {:?}",
-                    evo.config(),
-                    want
-                ),
-            ));
-        }
-        if evo.psi().param_count() != self.evo.psi().param_count() {
-            return Err(BackboneError::file(
-                path,
-                "field `psi`: Ψ has another shape",
-            ));
-        }
+        let evo = load_state_file(path, &self.evogs.evo, &self.evo)?;
         if evo.rows() != self.control_count() {
             return Err(BackboneError::file(
                 path,
