@@ -145,7 +145,9 @@ impl ScgsControlEvo {
     /// The observation `z` at `time`: the evolved columns of the network's outputs at every
     /// control point (M × D, in the evolution layout's order).
     pub fn observations_at(&self, time: f32) -> Result<Vec<f32>, BackboneError> {
-        let nodes = self.node_outputs(time, &mut DeformCache::default())?;
+        let nodes = self
+            .params
+            .node_outputs(time, &mut DeformCache::default())?;
         Ok(gather(&nodes, NODE_OUTPUT, &self.columns))
     }
 
@@ -173,17 +175,6 @@ impl ScgsControlEvo {
         Ok(())
     }
 
-    /// The network's outputs at every control point at `time` (M × [`NODE_OUTPUT`]).
-    fn node_outputs(&self, time: f32, cache: &mut DeformCache) -> Result<Vec<f32>, BackboneError> {
-        let m = self.control_count();
-        Ok(self.params.net.forward_into(
-            self.params.positions.as_flattened(),
-            &vec![time; m],
-            m,
-            cache,
-        )?)
-    }
-
     /// evo-state's forward at `time` with observations `z`; with re-queried history the network
     /// is asked at the history times, and `keep` keeps those queries' caches.
     fn evolve(
@@ -202,7 +193,7 @@ impl ScgsControlEvo {
                      out: &mut [f32]|
                      -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
                         let mut cache = DeformCache::default();
-                        let nodes = self.node_outputs(t, &mut cache)?;
+                        let nodes = self.params.node_outputs(t, &mut cache)?;
                         out.copy_from_slice(&gather(&nodes, NODE_OUTPUT, &self.columns));
                         if keep {
                             caches.push((t, cache));
@@ -280,7 +271,9 @@ impl Backbone for ScgsControlEvo {
 
     fn control_points_at(&mut self, time: f32) -> Result<Option<Vec<[f32; 3]>>, BackboneError> {
         self.check_ready()?;
-        let nodes = self.node_outputs(time, &mut DeformCache::default())?;
+        let nodes = self
+            .params
+            .node_outputs(time, &mut DeformCache::default())?;
         let z = gather(&nodes, NODE_OUTPUT, &self.columns);
         let mut step = Step::empty();
         self.evolve(time, &z, &mut step, false)?;
@@ -302,27 +295,19 @@ impl Backbone for ScgsControlEvo {
             .as_mut()
             .map(|t| std::mem::take(&mut t.net))
             .unwrap_or_default();
-        let nodes = self.node_outputs(time, &mut net)?;
+        let nodes = self.params.node_outputs(time, &mut net)?;
         let z = gather(&nodes, NODE_OUTPUT, &self.columns);
         let mut step = kept.map_or_else(Step::empty, |t| t.step);
         let history = self.evolve(time, &z, &mut step, training)?;
         let mut blended = nodes.clone();
         scatter(&mut blended, NODE_OUTPUT, &self.columns, step.corrected());
-        let neighbours = self
-            .neighbours
-            .update(
-                &self.params.positions,
-                canonical.means,
-                self.settings.neighbours,
-            )?
-            .clone();
-        skinning::skin_into(
+        let neighbours = self.params.skin(
+            &mut self.neighbours,
+            self.settings.neighbours,
             canonical.means,
-            &neighbours,
-            self.params.controls(),
             &blended,
             out,
-        );
+        )?;
         if training {
             self.training = Some(Training {
                 time,
@@ -374,9 +359,10 @@ impl Backbone for ScgsControlEvo {
             .backward_into(&t.step, &t.z, &d_corrected, &vec![1.0; m], &mut bw)?;
         // (`t` holds `self.training`: the setting is read field by field.)
         let want = self.settings.position_lr_scale > 0.0;
-        let mut d_nodes = skin.nodes.clone();
-        scatter(&mut d_nodes, NODE_OUTPUT, &self.columns, &bw.dz);
-        let mut grads = self.params.node_gradients(&t.net, &d_nodes, skin, want)?;
+        // The evolved columns' gradient becomes the evolution's dL/dz; the others pass through.
+        let mut skin = skin;
+        scatter(&mut skin.nodes, NODE_OUTPUT, &self.columns, &bw.dz);
+        let mut grads = self.params.node_gradients(&t.net, skin, want)?;
         // Re-queried history: the prior is a function of the network at the history times.
         for hg in &bw.history {
             let (_, cache) = t

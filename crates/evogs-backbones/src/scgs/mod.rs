@@ -296,6 +296,39 @@ impl ScgsParams {
 }
 
 impl ScgsParams {
+    /// The network's outputs at every control point at `time` (M × [`NODE_OUTPUT`]), its
+    /// activations in `cache`.
+    fn node_outputs(&self, time: f32, cache: &mut DeformCache) -> Result<Vec<f32>, BackboneError> {
+        let m = self.positions.len();
+        Ok(self
+            .net
+            .forward_into(self.positions.as_flattened(), &vec![time; m], m, cache)?)
+    }
+
+    /// The control points' positions at `time` (canonical + the network's translation).
+    fn controls_at(&self, time: f32) -> Result<Vec<[f32; 3]>, BackboneError> {
+        let nodes = self.node_outputs(time, &mut DeformCache::default())?;
+        Ok(moved(&self.positions, &nodes))
+    }
+
+    /// Skins `means` with the control points' outputs `nodes` into `out` (N × [`skinning::ROW`]),
+    /// their `k` nearest control points found through `cache`; returns those neighbours (for
+    /// the backward).
+    fn skin(
+        &self,
+        cache: &mut knn::NeighbourCache,
+        k: usize,
+        means: &[[f32; 3]],
+        nodes: &[f32],
+        out: &mut Vec<f32>,
+    ) -> Result<Neighbours, BackboneError> {
+        let neighbours = cache.update(&self.positions, means, k)?.clone();
+        skinning::skin_into(means, &neighbours, self.controls(), nodes, out);
+        Ok(neighbours)
+    }
+}
+
+impl ScgsParams {
     /// Places the control points again on `points` (farthest-point sampling), each keeping the
     /// radius and weight logit of the old control point nearest to it; returns those old
     /// points, one per new point (none when there is nothing to place on).
@@ -336,21 +369,19 @@ impl ScgsParams {
         want_positions: bool,
     ) -> Result<Vec<Vec<f32>>, BackboneError> {
         let skin = skinning::skin_backward(means, neighbours, self.controls(), nodes, d_rows);
-        let d_nodes = skin.nodes.clone();
-        self.node_gradients(net, &d_nodes, skin, want_positions)
+        self.node_gradients(net, skin, want_positions)
     }
 
     /// [`ScgsParams::gradients`] from the control points' side: the network's backward of
-    /// `d_nodes` (M × [`NODE_OUTPUT`], the gradient of its outputs) joined with the skinning's
-    /// gradients of the control points' shape (`skin`; its `nodes` are not read).
+    /// `skin.nodes` (M × [`NODE_OUTPUT`], the gradient of its outputs, which a caller may have
+    /// changed) joined with the skinning's gradients of the control points' shape.
     fn node_gradients(
         &self,
         net: &DeformCache,
-        d_nodes: &[f32],
         skin: skinning::SkinGrads,
         want_positions: bool,
     ) -> Result<Vec<Vec<f32>>, BackboneError> {
-        let g = self.net.backward(net, d_nodes, want_positions)?;
+        let g = self.net.backward(net, &skin.nodes, want_positions)?;
         let mut d_positions = skin.positions;
         match &g.positions {
             Some(p) => add_into(&mut d_positions, p),
@@ -377,12 +408,7 @@ impl ScgsParams {
             return Ok(0.0);
         }
         let mut net1 = DeformCache::default();
-        let nodes1 = self.net.forward_into(
-            self.positions.as_flattened(),
-            &vec![partner; m],
-            m,
-            &mut net1,
-        )?;
+        let nodes1 = self.node_outputs(partner, &mut net1)?;
         let a = arap::arap(
             &moved(&self.positions, nodes),
             &moved(&self.positions, &nodes1),
@@ -426,7 +452,6 @@ pub struct ScgsBackbone {
     arap_loss: f64,
     /// The K nearest control points, searched again only where they may have changed.
     neighbours: knn::NeighbourCache,
-    times: Vec<f32>,
 }
 
 impl ScgsBackbone {
@@ -445,7 +470,6 @@ impl ScgsBackbone {
             cache: None,
             arap_loss: 0.0,
             neighbours: knn::NeighbourCache::default(),
-            times: Vec::new(),
         })
     }
 
@@ -460,26 +484,8 @@ impl ScgsBackbone {
     }
 
     /// The control points' positions at `time` (canonical + the network's translation).
-    pub fn controls_at(&mut self, time: f32) -> Result<Vec<[f32; 3]>, BackboneError> {
-        let nodes = self.node_outputs(time, &mut DeformCache::default())?;
-        Ok(moved(&self.params.positions, &nodes))
-    }
-
-    /// The network's outputs at every control point at `time` (M × [`NODE_OUTPUT`]).
-    fn node_outputs(
-        &mut self,
-        time: f32,
-        cache: &mut DeformCache,
-    ) -> Result<Vec<f32>, BackboneError> {
-        let m = self.params.positions.len();
-        self.times.clear();
-        self.times.resize(m, time);
-        Ok(self.params.net.forward_into(
-            self.params.positions.as_flattened(),
-            &self.times,
-            m,
-            cache,
-        )?)
+    pub fn controls_at(&self, time: f32) -> Result<Vec<[f32; 3]>, BackboneError> {
+        self.params.controls_at(time)
     }
 
     fn learns_positions(&self) -> bool {
@@ -570,22 +576,14 @@ impl Backbone for ScgsBackbone {
         out: &mut Vec<f32>,
     ) -> Result<(), BackboneError> {
         let mut net = self.cache.take().map(|c| c.net).unwrap_or_default();
-        let nodes = self.node_outputs(time, &mut net)?;
-        let neighbours = self
-            .neighbours
-            .update(
-                &self.params.positions,
-                canonical.means,
-                self.settings.neighbours,
-            )?
-            .clone();
-        skinning::skin_into(
+        let nodes = self.params.node_outputs(time, &mut net)?;
+        let neighbours = self.params.skin(
+            &mut self.neighbours,
+            self.settings.neighbours,
             canonical.means,
-            &neighbours,
-            self.params.controls(),
             &nodes,
             out,
-        );
+        )?;
         if training {
             self.cache = Some(Cache {
                 time,

@@ -12,7 +12,7 @@ use tiny_nn::{DeformCache, Parameters, StoreMut, StoreRef};
 
 use super::knn::{self, Neighbours};
 use super::skinning::{self, ROW};
-use super::{ScgsParams, ScgsSettings, arap_partner, evolved_columns, moved};
+use super::{ScgsParams, ScgsSettings, arap_partner, evolved_columns};
 use crate::error::BackboneError;
 use crate::evo_settings::EvoSettings;
 use crate::observer::Observer;
@@ -52,17 +52,6 @@ impl ScgsPhi {
             params: ScgsParams::new(settings, half_extent, seed)?,
             columns,
         })
-    }
-
-    /// The network's outputs at every control point at `time`.
-    fn node_outputs(&self, time: f32, cache: &mut DeformCache) -> Result<Vec<f32>, BackboneError> {
-        let m = self.params.positions.len();
-        Ok(self.params.net.forward_into(
-            self.params.positions.as_flattened(),
-            &vec![time; m],
-            m,
-            cache,
-        )?)
     }
 
     fn learns_positions(&self) -> bool {
@@ -121,7 +110,7 @@ impl Observer for ScgsPhi {
             &cache.means,
             self.settings.neighbours,
         )?;
-        cache.nodes = self.node_outputs(time, &mut cache.net)?;
+        cache.nodes = self.params.node_outputs(time, &mut cache.net)?;
         let mut full = Vec::new();
         skinning::skin_into(
             &cache.means,
@@ -200,7 +189,6 @@ impl Observer for ScgsPhi {
     }
 
     fn control_points_at(&mut self, time: f32) -> Result<Option<Vec<[f32; 3]>>, BackboneError> {
-        let nodes = self.node_outputs(time, &mut DeformCache::default())?;
-        Ok(Some(moved(&self.params.positions, &nodes)))
+        self.params.controls_at(time).map(Some)
     }
 }
