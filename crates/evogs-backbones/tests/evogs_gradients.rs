@@ -12,6 +12,9 @@
 //! HexPlane field ([`HexPhi`], its plane regularisers) and EvoGS(SC-GS)'s skinning
 //! ([`ScgsPhi`], its ARAP loss), at small sizes.
 
+mod common;
+
+use common::Lcg;
 use evogs_backbones::evo_backbone::observation_config;
 use evogs_backbones::scgs::phi::ScgsPhi;
 use evogs_backbones::{
@@ -24,28 +27,8 @@ use tiny_nn::ObservationNet;
 const TIMES: [f32; 5] = [0.0, 0.25, 0.5, 0.75, 1.0];
 const N: usize = 5;
 
-/// A small deterministic generator in [-1, 1).
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> f32 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-    }
-}
-
 fn gaussians(rng: &mut Lcg) -> Gaussians {
-    let mut g = Gaussians::with_degree(0);
-    for _ in 0..N {
-        g.means.push([rng.next(), rng.next(), rng.next()]);
-        g.log_scales.push([-2.0; 3]);
-        g.rotations.push([1.0, 0.0, 0.0, 0.0]);
-        g.opacity_logits.push(2.0 * rng.next());
-        g.sh.extend([0.1, 0.2, 0.3]);
-    }
-    g
+    common::gaussians(N, rng)
 }
 
 /// What a run hands the backbone: its EvoGS settings, the baseline network's width, the half

@@ -11,6 +11,9 @@
 //! ([`ScgsBackbone`] with the same seed and parameters). Re-queried history adds the paths
 //! through d̂ (L_prior's d̂ held: the stop-gradient).
 
+mod common;
+
+use common::Lcg;
 use evogs_backbones::{
     Backbone, EvoSettings, EvolutionOn, Gain, HistoryMode, Layout, PerGaussianState, ScgsBackbone,
     ScgsControlEvo, ScgsSettings,
@@ -25,28 +28,8 @@ const M: usize = 4;
 const HALF_EXTENT: f32 = 1.3;
 const SEED: u64 = 0;
 
-/// A small deterministic generator in [-1, 1).
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> f32 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-    }
-}
-
 fn gaussians(rng: &mut Lcg) -> Gaussians {
-    let mut g = Gaussians::with_degree(0);
-    for _ in 0..N {
-        g.means.push([rng.next(), rng.next(), rng.next()]);
-        g.log_scales.push([-2.0; 3]);
-        g.rotations.push([1.0, 0.0, 0.0, 0.0]);
-        g.opacity_logits.push(2.0 * rng.next());
-        g.sh.extend([0.1, 0.2, 0.3]);
-    }
-    g
+    common::gaussians(N, rng)
 }
 
 fn settings() -> ScgsSettings {

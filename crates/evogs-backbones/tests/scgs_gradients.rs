@@ -5,6 +5,9 @@
 //! coincident control points, a radius going to zero, one control point, a degenerate local
 //! rotation) stay finite.
 
+mod common;
+
+use common::Lcg;
 use evogs_backbones::scgs::knn::{self, Neighbours};
 use evogs_backbones::scgs::skinning::{
     Controls, LOCAL, NODE_OUTPUT, ROW, SkinGrads, skin_backward, skin_into,
@@ -12,18 +15,6 @@ use evogs_backbones::scgs::skinning::{
 use evogs_backbones::{Backbone, EvolutionOn, ScgsBackbone, ScgsSettings};
 use splat_core::Gaussians;
 use tiny_nn::StoreMut;
-
-/// A small deterministic generator in [-1, 1).
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> f32 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-    }
-}
 
 /// Control points, their outputs and Gaussians for a skinning check.
 struct Scene {
