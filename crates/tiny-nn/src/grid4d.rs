@@ -196,6 +196,79 @@ impl Grid4dConfig {
     pub fn output_width(&self) -> usize {
         self.heads.iter().map(|h| h.width()).sum()
     }
+
+    /// The decoder's networks, seeded seed + 1, + 2, … in the order attention, temporal
+    /// layer, trunk, heads.
+    fn mlps(&self) -> Grid4dMlps {
+        let w = self.width;
+        let mut seed = self.seed;
+        let mut next_seed = || {
+            seed = seed.wrapping_add(1);
+            seed
+        };
+        let attention = MlpConfig::new(self.spatial.output_width(), w, 0, w)
+            .output_activation(Activation::Sigmoid)
+            .precision(self.precision)
+            .seed(next_seed());
+        let temporal = MlpConfig::new(3 * self.temporal.output_width(), w, 0, w)
+            .output_activation(Activation::Relu)
+            .precision(self.precision)
+            .seed(next_seed());
+        let trunk = (self.depth > 0).then(|| {
+            MlpConfig::new(w, w, self.depth - 1, w)
+                .output_activation(Activation::Relu)
+                .precision(self.precision)
+                .seed(next_seed())
+        });
+        let heads = self
+            .heads
+            .iter()
+            .map(|h| {
+                MlpConfig::new(w, w, 0, h.linear_width())
+                    .zero_output(self.zero_heads)
+                    .precision(self.precision)
+                    .seed(next_seed())
+            })
+            .collect();
+        Grid4dMlps {
+            attention,
+            temporal,
+            trunk,
+            heads,
+        }
+    }
+
+    /// The field's parameters (the four grids and the decoder), without allocating them
+    /// (checked arithmetic: an overflow is an error).
+    pub fn param_count(&self) -> Result<usize, NnError> {
+        let mlps = self.mlps();
+        let grids = [
+            self.spatial.param_count()?,
+            self.temporal.param_count()?,
+            self.temporal.param_count()?,
+            self.temporal.param_count()?,
+        ];
+        let mut nets = vec![mlps.attention.param_count()?, mlps.temporal.param_count()?];
+        if let Some(trunk) = &mlps.trunk {
+            nets.push(trunk.param_count()?);
+        }
+        for head in &mlps.heads {
+            nets.push(head.param_count()?);
+        }
+        grids
+            .into_iter()
+            .chain(nets)
+            .try_fold(0usize, usize::checked_add)
+            .ok_or_else(|| NnError::Config("Grid4D field: parameter count overflows".into()))
+    }
+}
+
+/// The decoder networks of a [`Grid4dNet`], before they are built.
+struct Grid4dMlps {
+    attention: MlpConfig,
+    temporal: MlpConfig,
+    trunk: Option<MlpConfig>,
+    heads: Vec<MlpConfig>,
 }
 
 /// The Grid4D deformation field.
@@ -380,43 +453,14 @@ impl Grid4dNet {
             c.seed(seed).build()
         };
         let temporal = [temporal_grid(1)?, temporal_grid(2)?, temporal_grid(3)?];
-        let w = config.width;
-        let mut seed = config.seed;
-        let mut next_seed = || {
-            seed = seed.wrapping_add(1);
-            seed
-        };
-        let attention = MlpConfig::new(spatial.output_width(), w, 0, w)
-            .output_activation(Activation::Sigmoid)
-            .precision(config.precision)
-            .seed(next_seed())
-            .build()?;
-        let temporal_mlp = MlpConfig::new(3 * temporal[0].output_width(), w, 0, w)
-            .output_activation(Activation::Relu)
-            .precision(config.precision)
-            .seed(next_seed())
-            .build()?;
-        let trunk = if config.depth > 0 {
-            Some(
-                MlpConfig::new(w, w, config.depth - 1, w)
-                    .output_activation(Activation::Relu)
-                    .precision(config.precision)
-                    .seed(next_seed())
-                    .build()?,
-            )
-        } else {
-            None
-        };
-        let heads = config
+        let mlps = config.mlps();
+        let attention = mlps.attention.build()?;
+        let temporal_mlp = mlps.temporal.build()?;
+        let trunk = mlps.trunk.map(MlpConfig::build).transpose()?;
+        let heads = mlps
             .heads
-            .iter()
-            .map(|h| {
-                MlpConfig::new(w, w, 0, h.linear_width())
-                    .zero_output(config.zero_heads)
-                    .precision(config.precision)
-                    .seed(next_seed())
-                    .build()
-            })
+            .into_iter()
+            .map(MlpConfig::build)
             .collect::<Result<Vec<_>, _>>()?;
         Ok(Self {
             config,

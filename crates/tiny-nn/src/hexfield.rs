@@ -66,6 +66,36 @@ impl HexDeformConfig {
     }
 }
 
+impl HexDeformConfig {
+    /// The feature layer (the HexPlane's features in) and the position, rotation and scale
+    /// heads.
+    fn mlps(&self) -> [MlpConfig; 4] {
+        let w = self.width;
+        let trunk = MlpConfig::new(self.hexplane.output_width(), w, 0, w)
+            .output_activation(Activation::Relu)
+            .precision(self.precision)
+            .seed(self.seed);
+        let head = |i: usize| {
+            MlpConfig::new(w, w, 1, HEADS[i])
+                .precision(self.precision)
+                .seed(self.seed + 1 + i as u64)
+        };
+        [trunk, head(0), head(1), head(2)]
+    }
+
+    /// The field's parameters (HexPlane and MLPs), without allocating them (checked
+    /// arithmetic: an overflow is an error).
+    pub fn param_count(&self) -> Result<usize, NnError> {
+        let mut total = self.hexplane.param_count()?;
+        for mlp in self.mlps() {
+            total = total.checked_add(mlp.param_count()?).ok_or_else(|| {
+                NnError::Config("4DGaussians field: parameter count overflows".into())
+            })?;
+        }
+        Ok(total)
+    }
+}
+
 /// The 4DGaussians deformation field.
 #[derive(Clone, Debug)]
 pub struct HexDeformNet {
@@ -110,23 +140,11 @@ impl HexDeformNet {
         if config.width == 0 {
             return Err(NnError::Config("4DGaussians field: width 0".into()));
         }
-        let hexplane = config.hexplane.build()?;
-        let w = config.width;
-        let trunk = MlpConfig::new(hexplane.output_width(), w, 0, w)
-            .output_activation(Activation::Relu)
-            .precision(config.precision)
-            .seed(config.seed)
-            .build()?;
-        let head = |i: usize| {
-            MlpConfig::new(w, w, 1, HEADS[i])
-                .precision(config.precision)
-                .seed(config.seed + 1 + i as u64)
-                .build()
-        };
+        let [trunk, h0, h1, h2] = config.mlps();
         Ok(Self {
-            hexplane,
-            trunk,
-            heads: [head(0)?, head(1)?, head(2)?],
+            hexplane: config.hexplane.build()?,
+            trunk: trunk.build()?,
+            heads: [h0.build()?, h1.build()?, h2.build()?],
         })
     }
 

@@ -137,6 +137,62 @@ impl MlpConfig {
     pub fn build(self) -> Result<Mlp, NnError> {
         Mlp::new(self)
     }
+
+    /// The parameters the network will have, without allocating them (sizes multiply with
+    /// checked arithmetic: an overflow is an error). The same layout [`Mlp::new`] builds.
+    pub fn param_count(&self) -> Result<usize, NnError> {
+        Ok(self.layout()?.1)
+    }
+
+    /// Checks the shape and lays the layers out in the flat parameter buffer: the layers and
+    /// the buffer's length.
+    fn layout(&self) -> Result<(Vec<LayerShape>, usize), NnError> {
+        if self.input == 0 || self.output == 0 {
+            return Err(NnError::Config(
+                "MLP input and output widths must be > 0".into(),
+            ));
+        }
+        if self.hidden_layers > 0 && self.width == 0 {
+            return Err(NnError::Config("MLP hidden width must be > 0".into()));
+        }
+        if let Some(s) = self.skip_after
+            && s >= self.hidden_layers
+        {
+            return Err(NnError::Config(format!(
+                "skip_after = {s} but the MLP has {} hidden layers",
+                self.hidden_layers
+            )));
+        }
+        let too_large = || NnError::Config("MLP parameter count overflows".into());
+        let mut layers = Vec::with_capacity(self.hidden_layers.saturating_add(1).min(1 << 16));
+        let mut offset: usize = 0;
+        for l in 0..=self.hidden_layers {
+            let skip_input = l > 0 && self.skip_after == Some(l - 1);
+            let input = match (l, skip_input) {
+                (0, _) => self.input,
+                (_, true) => self.width.checked_add(self.input).ok_or_else(too_large)?,
+                _ => self.width,
+            };
+            let output = if l == self.hidden_layers {
+                self.output
+            } else {
+                self.width
+            };
+            let weights = input.checked_mul(output).ok_or_else(too_large)?;
+            layers.push(LayerShape {
+                input,
+                output,
+                weight_offset: offset,
+                bias_offset: offset.checked_add(weights).ok_or_else(too_large)?,
+                skip_input,
+            });
+            offset = weights
+                .checked_add(output)
+                .and_then(|n| n.checked_add(offset))
+                .ok_or_else(too_large)?;
+        }
+        Ok((layers, offset))
+    }
 }
 
 /// One linear layer's place in the flat parameter buffer.
@@ -203,45 +259,7 @@ impl Mlp {
     /// layer `W, b ~ U(-1/√in, 1/√in)` (PyTorch's `nn.Linear` default), or the hidden layers He
     /// with zero bias ([`Init::He`]); the output layer is zero when `config.zero_output`.
     pub fn new(config: MlpConfig) -> Result<Self, NnError> {
-        if config.input == 0 || config.output == 0 {
-            return Err(NnError::Config(
-                "MLP input and output widths must be > 0".into(),
-            ));
-        }
-        if config.hidden_layers > 0 && config.width == 0 {
-            return Err(NnError::Config("MLP hidden width must be > 0".into()));
-        }
-        if let Some(s) = config.skip_after
-            && s >= config.hidden_layers
-        {
-            return Err(NnError::Config(format!(
-                "skip_after = {s} but the MLP has {} hidden layers",
-                config.hidden_layers
-            )));
-        }
-        let mut layers = Vec::with_capacity(config.hidden_layers + 1);
-        let mut offset = 0;
-        for l in 0..=config.hidden_layers {
-            let skip_input = l > 0 && config.skip_after == Some(l - 1);
-            let input = match (l, skip_input) {
-                (0, _) => config.input,
-                (_, true) => config.width + config.input,
-                _ => config.width,
-            };
-            let output = if l == config.hidden_layers {
-                config.output
-            } else {
-                config.width
-            };
-            layers.push(LayerShape {
-                input,
-                output,
-                weight_offset: offset,
-                bias_offset: offset + input * output,
-                skip_input,
-            });
-            offset += input * output + output;
-        }
+        let (layers, offset) = config.layout()?;
         let mut values = vec![0f32; offset];
         let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
         for (l, shape) in layers.iter().enumerate() {

@@ -34,6 +34,30 @@ pub struct ObservationConfig {
     pub seed: u64,
 }
 
+impl ObservationConfig {
+    /// The decoder: the two encoders' features in, `output` values out, starting at zero.
+    fn decoder(&self) -> MlpConfig {
+        let input = self.triplane.output_width() + self.bspline.width;
+        MlpConfig::new(input, self.width, self.hidden_layers, self.output)
+            .zero_output(true)
+            .precision(self.precision)
+            .seed(self.seed + 2)
+    }
+
+    /// The parameters of Φ (tri-plane, B-spline and decoder), without allocating them (checked
+    /// arithmetic: an overflow is an error).
+    pub fn param_count(&self) -> Result<usize, NnError> {
+        [
+            self.triplane.param_count()?,
+            self.bspline.param_count()?,
+            self.decoder().param_count()?,
+        ]
+        .into_iter()
+        .try_fold(0usize, usize::checked_add)
+        .ok_or_else(|| NnError::Config("observation network: parameter count overflows".into()))
+    }
+}
+
 /// The observation network Φ. Its decoder's output layer starts at zero, so Φ starts at 0.
 #[derive(Clone, Debug)]
 pub struct ObservationNet {
@@ -101,12 +125,7 @@ impl ObservationNet {
             .precision(config.precision)
             .seed(config.seed + 1)
             .build()?;
-        let input = triplane.output_width() + bspline.output_width();
-        let mlp = MlpConfig::new(input, config.width, config.hidden_layers, config.output)
-            .zero_output(true)
-            .precision(config.precision)
-            .seed(config.seed + 2)
-            .build()?;
+        let mlp = config.decoder().build()?;
         Ok(Self {
             triplane,
             bspline,
@@ -426,6 +445,32 @@ pub struct DeformConfig {
 }
 
 impl DeformConfig {
+    /// The MLP of a network with `outputs` output columns: the encoded position and time in.
+    fn mlp_config(&self, outputs: usize) -> Result<MlpConfig, NnError> {
+        let xyz = Sinusoidal::new(3, self.xyz_freqs)?;
+        let t = Sinusoidal::new(1, self.t_freqs)?;
+        let mut mc = MlpConfig::new(
+            xyz.output_width() + t.output_width(),
+            self.width,
+            self.depth,
+            outputs,
+        )
+        .init(self.init)
+        .zero_output(self.zero_heads)
+        .precision(self.precision)
+        .seed(self.seed);
+        if let Some(s) = self.skip_after {
+            mc = mc.skip_after(s);
+        }
+        Ok(mc)
+    }
+
+    /// The parameters of the network with `outputs` output columns
+    /// ([`DeformNet::with_outputs`]), without allocating them.
+    pub fn param_count(&self, outputs: usize) -> Result<usize, NnError> {
+        self.mlp_config(outputs)?.param_count()
+    }
+
     /// D-3DGS's reference setting: width 256, depth 8, skip after layer 4, L = 10 and 6.
     pub fn d3dgs() -> Self {
         Self {
@@ -481,25 +526,10 @@ impl DeformNet {
     /// Builds the network with `outputs` output columns (SC-GS's control-point network adds a
     /// fourth head, 14 outputs); the columns' meaning is the caller's.
     pub fn with_outputs(config: DeformConfig, outputs: usize) -> Result<Self, NnError> {
-        let xyz = Sinusoidal::new(3, config.xyz_freqs)?;
-        let t = Sinusoidal::new(1, config.t_freqs)?;
-        let mut mc = MlpConfig::new(
-            xyz.output_width() + t.output_width(),
-            config.width,
-            config.depth,
-            outputs,
-        )
-        .init(config.init)
-        .zero_output(config.zero_heads)
-        .precision(config.precision)
-        .seed(config.seed);
-        if let Some(s) = config.skip_after {
-            mc = mc.skip_after(s);
-        }
         Ok(Self {
-            xyz,
-            t,
-            mlp: mc.build()?,
+            xyz: Sinusoidal::new(3, config.xyz_freqs)?,
+            t: Sinusoidal::new(1, config.t_freqs)?,
+            mlp: config.mlp_config(outputs)?.build()?,
         })
     }
 

@@ -65,6 +65,14 @@ impl BSplineConfig {
     pub fn build(self) -> Result<BSplineTime, NnError> {
         BSplineTime::new(self)
     }
+
+    /// The parameters the encoder will have (`M · E`), without allocating them (an overflow is
+    /// an error).
+    pub fn param_count(&self) -> Result<usize, NnError> {
+        self.controls
+            .checked_mul(self.width)
+            .ok_or_else(|| NnError::Config("B-spline parameter count overflows".into()))
+    }
 }
 
 /// The B-spline encoder.
@@ -125,7 +133,7 @@ impl BSplineTime {
         }
         let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
         let s = config.init_scale.abs();
-        let values: Vec<f32> = (0..config.controls * config.width)
+        let values: Vec<f32> = (0..config.param_count()?)
             .map(|_| {
                 if s > 0.0 {
                     rng.random_range(-s..s)

@@ -199,6 +199,77 @@ impl HashGridConfig {
     pub fn build(self) -> Result<HashGrid, NnError> {
         HashGrid::new(self)
     }
+
+    /// Features per row, `L · F` (what [`HashGrid::output_width`] returns once built).
+    pub fn output_width(&self) -> usize {
+        self.levels * self.features
+    }
+
+    /// The parameters the grid will have (table entries × F), without allocating them. Expects
+    /// a configuration [`HashGrid::new`] accepts (the sizes are checked there first).
+    pub fn param_count(&self) -> Result<usize, NnError> {
+        let (_, entries) = self.level_layout()?;
+        entries
+            .checked_mul(self.features)
+            .ok_or_else(|| NnError::Config("hash grid: parameter count overflows".into()))
+    }
+
+    /// Each level's resolution and place in the table, and the table's entries in all.
+    fn level_layout(&self) -> Result<(Vec<HashLevel>, usize), NnError> {
+        let config = self;
+        let d = config.dims.min(MAX_DIMS);
+        let bad = |m: String| Err(NnError::Config(format!("hash grid: {m}")));
+        if config.base_resolution.len() < d || config.finest_resolution.len() < d {
+            return bad(format!("resolutions for fewer than {d} dims"));
+        }
+        if !(1..=MAX_LOG2_TABLE).contains(&config.log2_table) {
+            return bad(format!(
+                "log2_table {} is not in 1..={MAX_LOG2_TABLE}",
+                config.log2_table
+            ));
+        }
+        let table = 1usize << config.log2_table;
+        let mut levels = Vec::with_capacity(config.levels.min(64));
+        let mut offset = 0usize;
+        for l in 0..config.levels {
+            let mut scale = [0f32; MAX_DIMS];
+            let mut resolution = [1u32; MAX_DIMS];
+            let mut vertices = 1u64;
+            for a in 0..d {
+                let (n0, n1) = (
+                    config.base_resolution[a] as f64,
+                    config.finest_resolution[a] as f64,
+                );
+                let log2_growth = if config.levels > 1 {
+                    (n1 / n0).log2() / (config.levels - 1) as f64
+                } else {
+                    0.0
+                };
+                let s = (n0 * (l as f64 * log2_growth).exp2() - 1.0) as f32;
+                let r = s.ceil() as f64 + 1.0;
+                if r > u32::MAX as f64 {
+                    return bad(format!("level {l} axis {a}: resolution {r} is too large"));
+                }
+                scale[a] = s;
+                resolution[a] = r as u32;
+                vertices = vertices.saturating_mul(resolution[a] as u64);
+            }
+            let dense = vertices <= table as u64;
+            let entries = if dense { vertices as usize } else { table };
+            levels.push(HashLevel {
+                scale,
+                resolution,
+                offset,
+                entries,
+                dense,
+            });
+            offset = match offset.checked_add(entries) {
+                Some(o) => o,
+                None => return bad("parameter count overflows".into()),
+            };
+        }
+        Ok((levels, offset))
+    }
 }
 
 /// One level's grid and its part of the table.
@@ -301,12 +372,6 @@ impl HashGrid {
         if config.levels == 0 || config.features == 0 {
             return bad("needs at least one level and one feature".into());
         }
-        if !(1..=MAX_LOG2_TABLE).contains(&config.log2_table) {
-            return bad(format!(
-                "log2_table {} is not in 1..={MAX_LOG2_TABLE}",
-                config.log2_table
-            ));
-        }
         for (what, v) in [
             ("base_resolution", &config.base_resolution),
             ("finest_resolution", &config.finest_resolution),
@@ -333,46 +398,12 @@ impl HashGrid {
             }
             *inv = 1.0 / (hi - lo);
         }
-        let table = 1usize << config.log2_table;
-        let mut levels = Vec::with_capacity(config.levels);
-        let mut offset = 0usize;
-        for l in 0..config.levels {
-            let mut scale = [0f32; MAX_DIMS];
-            let mut resolution = [1u32; MAX_DIMS];
-            let mut vertices = 1u64;
-            for a in 0..d {
-                let (n0, n1) = (
-                    config.base_resolution[a] as f64,
-                    config.finest_resolution[a] as f64,
-                );
-                let log2_growth = if config.levels > 1 {
-                    (n1 / n0).log2() / (config.levels - 1) as f64
-                } else {
-                    0.0
-                };
-                let s = (n0 * (l as f64 * log2_growth).exp2() - 1.0) as f32;
-                let r = s.ceil() as f64 + 1.0;
-                if r > u32::MAX as f64 {
-                    return bad(format!("level {l} axis {a}: resolution {r} is too large"));
-                }
-                scale[a] = s;
-                resolution[a] = r as u32;
-                vertices = vertices.saturating_mul(resolution[a] as u64);
-            }
-            let dense = vertices <= table as u64;
-            let entries = if dense { vertices as usize } else { table };
-            levels.push(HashLevel {
-                scale,
-                resolution,
-                offset,
-                entries,
-                dense,
-            });
-            offset += entries;
-        }
+        let (levels, offset) = config.level_layout()?;
         let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
         let (lo, hi) = config.init_range;
-        let values: Vec<f32> = (0..offset * config.features)
+        let values: Vec<f32> = (0..offset
+            .checked_mul(config.features)
+            .ok_or_else(|| NnError::Config("hash grid: parameter count overflows".into()))?)
             .map(|_| {
                 if hi > lo {
                     rng.random_range(lo..hi)
@@ -404,7 +435,7 @@ impl HashGrid {
     }
     /// Features per row, `L · F`.
     pub fn output_width(&self) -> usize {
-        self.config.levels * self.config.features
+        self.config.output_width()
     }
     /// Number of parameters (table entries × F).
     pub fn param_count(&self) -> usize {

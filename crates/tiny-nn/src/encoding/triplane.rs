@@ -201,6 +201,52 @@ impl TriPlaneConfig {
     pub fn build(self) -> Result<TriPlane, NnError> {
         TriPlane::new(self)
     }
+
+    /// The planes' axes of one scale: the three space planes, or with a time axis the six
+    /// planes of a HexPlane.
+    fn axes(&self) -> &'static [(usize, usize)] {
+        if self.time.is_some() {
+            &HEX_AXES
+        } else {
+            &TRI_AXES
+        }
+    }
+
+    /// Features per row (what [`TriPlane::output_width`] returns once built).
+    pub fn output_width(&self) -> usize {
+        let per = match self.combine {
+            PlaneCombine::Concat => self.axes().len() * self.channels,
+            PlaneCombine::Product => self.channels,
+        };
+        per * self.resolutions.len()
+    }
+
+    /// The parameters the encoder will have, without allocating them (checked arithmetic: an
+    /// overflow is an error).
+    pub fn param_count(&self) -> Result<usize, NnError> {
+        Ok(self.plane_layout()?.1)
+    }
+
+    /// Each plane's offset in the parameter buffer (scale by scale, planes in the order of
+    /// [`TriPlane::plane_axes`]) and the buffer's length.
+    fn plane_layout(&self) -> Result<(Vec<usize>, usize), NnError> {
+        let too_large = || NnError::Config("tri-plane parameter count overflows".into());
+        let time_res = self.time.as_ref().map_or(0, |t| t.resolution);
+        let mut offsets = Vec::with_capacity(self.resolutions.len() * self.axes().len());
+        let mut total: usize = 0;
+        for &r in &self.resolutions {
+            for &(a, b) in self.axes() {
+                let res = |axis: usize| if axis == 3 { time_res } else { r };
+                offsets.push(total);
+                let n = res(a)
+                    .checked_mul(res(b))
+                    .and_then(|n| n.checked_mul(self.channels))
+                    .ok_or_else(too_large)?;
+                total = total.checked_add(n).ok_or_else(too_large)?;
+            }
+        }
+        Ok((offsets, total))
+    }
 }
 
 /// The tri-plane (or, with a time axis, HexPlane) encoder.
@@ -275,31 +321,26 @@ impl TriPlane {
                 &format!("box axis {a}"),
             )?;
         }
-        let axes: &'static [(usize, usize)] = match &config.time {
-            None => &TRI_AXES,
-            Some(t) => {
-                if t.resolution < 2 || !t.init.is_finite() {
-                    return Err(NnError::Config(format!(
-                        "tri-plane time axis: resolution {} < 2 or initial value {} not finite",
-                        t.resolution, t.init
-                    )));
-                }
-                interval(3, t.min, t.max, "time axis")?;
-                &HEX_AXES
+        if let Some(t) = &config.time {
+            if t.resolution < 2 || !t.init.is_finite() {
+                return Err(NnError::Config(format!(
+                    "tri-plane time axis: resolution {} < 2 or initial value {} not finite",
+                    t.resolution, t.init
+                )));
             }
-        };
-        let time_res = config.time.as_ref().map_or(0, |t| t.resolution);
-        let mut offsets = Vec::new();
-        let mut total = 0;
-        let mut is_time = Vec::new();
-        for &r in &config.resolutions {
-            for &(a, b) in axes {
-                let res = |axis: usize| if axis == 3 { time_res } else { r };
-                offsets.push(total);
-                let n = res(a) * res(b) * config.channels;
-                is_time.extend(std::iter::repeat_n(b == 3, n));
-                total += n;
-            }
+            interval(3, t.min, t.max, "time axis")?;
+        }
+        let axes = config.axes();
+        let (offsets, total) = config.plane_layout()?;
+        // Whether each value belongs to a plane with a time axis (those start at the time
+        // axis's initial value).
+        let mut is_time = Vec::with_capacity(total);
+        for (k, &start) in offsets.iter().enumerate() {
+            let end = offsets.get(k + 1).copied().unwrap_or(total);
+            is_time.extend(std::iter::repeat_n(
+                axes[k % axes.len()].1 == 3,
+                end - start,
+            ));
         }
         let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
         let (lo_init, hi_init) = config.init_range;
@@ -345,11 +386,7 @@ impl TriPlane {
     }
     /// Features per row.
     pub fn output_width(&self) -> usize {
-        let per = match self.config.combine {
-            PlaneCombine::Concat => self.axes.len() * self.config.channels,
-            PlaneCombine::Product => self.config.channels,
-        };
-        per * self.config.resolutions.len()
+        self.config.output_width()
     }
     /// Number of parameters.
     pub fn param_count(&self) -> usize {

@@ -12,3 +12,4 @@ mod hexfield;
 mod hexplane;
 mod mlp;
 mod nets;
+mod param_count;
