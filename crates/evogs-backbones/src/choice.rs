@@ -12,7 +12,7 @@ use strum::{Display, EnumString, IntoStaticStr, VariantNames};
 use crate::backbone::Backbone;
 use crate::d3dgs::{D3dgsBackbone, NetSettings};
 use crate::error::BackboneError;
-use crate::evo_backbone::EvoBackbone;
+use crate::evo_backbone::{EvoBackbone, observation_config, unsized_state};
 use crate::evo_settings::EvoSettings;
 use crate::grid4d_backbone::{Grid4dBackbone, Grid4dLr, Grid4dRun};
 use crate::grid4d_phi::Grid4dPhi;
@@ -103,6 +103,40 @@ impl BackboneRun<'_> {
             seed: self.seed,
         }
     }
+}
+
+/// The floats in the parameters of the backbone `run` asks for (what [`Backbone::params`] of
+/// [`make_backbone`]'s result holds), computed from the settings without allocating the
+/// networks, with checked arithmetic: what a memory estimate reads before anything is
+/// allocated. (Ψ, a few hundred values whatever the settings, is built to be counted.)
+pub fn parameter_count(run: &BackboneRun<'_>) -> Result<usize, BackboneError> {
+    let (evogs, h, seed) = (run.evogs, run.half_extent, run.seed);
+    let own = match (run.method, run.kind) {
+        (Method::Baseline, BackboneKind::D3dgs) => {
+            D3dgsBackbone::config(run.net, seed).param_count(tiny_nn::DeformNet::OUTPUT)?
+        }
+        (Method::Baseline, BackboneKind::FourDgs) => HexBackbone::config(h, seed).param_count()?,
+        (Method::Baseline, BackboneKind::Grid4d) => {
+            Grid4dBackbone::config(&run.grid4d()).param_count()?
+        }
+        (_, BackboneKind::Scgs) => crate::scgs::ScgsParams::param_count(run.scgs, seed)?,
+        (Method::Evogs, BackboneKind::D3dgs) => {
+            observation_config(evogs, run.net.width, h, seed).param_count()?
+        }
+        (Method::Evogs, BackboneKind::FourDgs) => HexPhi::config(evogs, h, seed).param_count()?,
+        (Method::Evogs, BackboneKind::Grid4d) => {
+            Grid4dPhi::config(&run.grid4d(), evogs).param_count()?
+        }
+    };
+    let psi = match run.method {
+        Method::Baseline => 0,
+        Method::Evogs => {
+            evogs.validate()?;
+            unsized_state(evogs.evo, seed)?.psi().mlp().param_count()
+        }
+    };
+    own.checked_add(psi)
+        .ok_or_else(|| BackboneError::config("net", "too many parameters"))
 }
 
 /// The backbone a run asks for, initialised from its seed.
@@ -221,6 +255,59 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// [`parameter_count`] (read before anything is allocated) is the parameter count of the
+    /// backbone [`make_backbone`] builds, for every method, backbone and SC-GS state placement,
+    /// at two network shapes; sizes that overflow are errors.
+    #[test]
+    fn the_parameter_count_is_the_built_backbones() {
+        for (width, depth, skip_after) in [(16, 2, None), (24, 6, Some(3))] {
+            let net = NetSettings {
+                width,
+                depth,
+                skip_after,
+                xyz_freqs: 2,
+                t_freqs: 2,
+                init: crate::NetInit::Torch,
+            };
+            let evogs = EvoSettings::default();
+            for name in BackboneKind::VARIANTS {
+                let kind: BackboneKind = name.parse().unwrap();
+                for method in [Method::Baseline, Method::Evogs] {
+                    for evolution_on in [EvolutionOn::Gaussians, EvolutionOn::Controls] {
+                        let scgs = ScgsSettings {
+                            width,
+                            depth,
+                            evolution_on,
+                            ..*run(method, kind, &net, &evogs).scgs
+                        };
+                        let r = BackboneRun {
+                            scgs: &scgs,
+                            ..run(method, kind, &net, &evogs)
+                        };
+                        let built: usize = make_backbone(&r)
+                            .unwrap()
+                            .params()
+                            .iter()
+                            .map(|(_, p)| p.len())
+                            .sum();
+                        assert_eq!(parameter_count(&r).unwrap(), built, "{method} {kind}");
+                    }
+                }
+            }
+        }
+        let huge = NetSettings {
+            width: usize::MAX / 4,
+            depth: 2,
+            skip_after: None,
+            xyz_freqs: 2,
+            t_freqs: 2,
+            init: crate::NetInit::Torch,
+        };
+        let evogs = EvoSettings::default();
+        let r = run(Method::Baseline, BackboneKind::D3dgs, &huge, &evogs);
+        assert!(parameter_count(&r).is_err());
     }
 
     /// The one-word spellings, and the one message for a word that spells none.

@@ -56,7 +56,20 @@ pub struct D3dgsBackbone {
 impl D3dgsBackbone {
     /// The network of the given shape, initialised from `seed`.
     pub fn new(settings: &NetSettings, seed: u64) -> Result<Self, BackboneError> {
-        let net = DeformNet::new(DeformConfig {
+        let net = DeformNet::new(Self::config(settings, seed))?;
+        Ok(Self {
+            net,
+            cache: None,
+            positions: Vec::new(),
+            times: Vec::new(),
+        })
+    }
+}
+
+impl D3dgsBackbone {
+    /// The network [`D3dgsBackbone::new`] builds.
+    pub(crate) fn config(settings: &NetSettings, seed: u64) -> DeformConfig {
+        DeformConfig {
             width: settings.width,
             depth: settings.depth,
             skip_after: settings.skip_after,
@@ -69,13 +82,7 @@ impl D3dgsBackbone {
             zero_heads: settings.init == NetInit::He,
             precision: Precision::F32,
             seed,
-        })?;
-        Ok(Self {
-            net,
-            cache: None,
-            positions: Vec::new(),
-            times: Vec::new(),
-        })
+        }
     }
 }
 

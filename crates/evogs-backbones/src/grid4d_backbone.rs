@@ -219,16 +219,7 @@ impl Grid4dBackbone {
     /// Grid4D's field for `run` at its width, initialised from its seed.
     pub fn new(run: &Grid4dRun) -> Result<Self, BackboneError> {
         let seed = run.seed ^ 0x6D4D_0000;
-        let net = Grid4dNet::new(run.field(
-            run.width,
-            vec![
-                Grid4dHead::Position,
-                Grid4dHead::Rotation,
-                Grid4dHead::Scale,
-            ],
-            false,
-            seed,
-        ))?;
+        let net = Grid4dNet::new(Self::config(run))?;
         Ok(Self {
             field: Field::new(net, &run.lr, seed ^ 0x5EED),
             cache: None,
@@ -238,6 +229,20 @@ impl Grid4dBackbone {
     /// The field.
     pub fn net(&self) -> &Grid4dNet {
         &self.field.net
+    }
+
+    /// The field [`Grid4dBackbone::new`] builds.
+    pub(crate) fn config(run: &Grid4dRun) -> tiny_nn::Grid4dConfig {
+        run.field(
+            run.width,
+            vec![
+                Grid4dHead::Position,
+                Grid4dHead::Rotation,
+                Grid4dHead::Scale,
+            ],
+            false,
+            run.seed ^ 0x6D4D_0000,
+        )
     }
 }
 

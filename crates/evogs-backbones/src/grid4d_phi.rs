@@ -21,6 +21,16 @@ impl Grid4dPhi {
     /// Φ for `run` and its EvoGS `settings` (the components, Φ's storage), initialised from the
     /// run's seed.
     pub fn new(run: &Grid4dRun, settings: &EvoSettings) -> Result<Self, BackboneError> {
+        let seed = run.seed ^ 0xE76D_4D00;
+        let net = Grid4dNet::new(Self::config(run, settings))?;
+        Ok(Self {
+            field: Field::new(net, &run.lr, seed ^ 0x5EED),
+        })
+    }
+
+    /// The field [`Grid4dPhi::new`] builds: one head per evolution component, half the
+    /// baseline's width, Φ's storage precision.
+    pub(crate) fn config(run: &Grid4dRun, settings: &EvoSettings) -> tiny_nn::Grid4dConfig {
         let heads = settings
             .evo
             .layout
@@ -34,13 +44,9 @@ impl Grid4dPhi {
                 evo_state::Component::Colour => Grid4dHead::Colour,
             })
             .collect();
-        let seed = run.seed ^ 0xE76D_4D00;
-        let mut c = run.field((run.width / 2).max(1), heads, true, seed);
+        let mut c = run.field((run.width / 2).max(1), heads, true, run.seed ^ 0xE76D_4D00);
         c.precision = settings.net_precision;
-        let net = Grid4dNet::new(c)?;
-        Ok(Self {
-            field: Field::new(net, &run.lr, seed ^ 0x5EED),
-        })
+        c
     }
 
     /// The field.

@@ -47,13 +47,20 @@ impl HexBackbone {
     /// The D-NeRF field over the initial cube `[-h, h]³` (`h = half_extent`), initialised from
     /// the run's `seed`.
     pub fn new(half_extent: f32, seed: u64) -> Result<Self, BackboneError> {
-        let h = half_extent;
-        let net = HexDeformNet::new(HexDeformConfig::dnerf([-h; 3], [h; 3], seed ^ 0x4D65_0000))?;
+        let net = HexDeformNet::new(Self::config(half_extent, seed))?;
         Ok(Self {
             net,
             cache: None,
             regularisers: 0.0,
         })
+    }
+}
+
+impl HexBackbone {
+    /// The field [`HexBackbone::new`] builds.
+    pub(crate) fn config(half_extent: f32, seed: u64) -> HexDeformConfig {
+        let h = half_extent;
+        HexDeformConfig::dnerf([-h; 3], [h; 3], seed ^ 0x4D65_0000)
     }
 }
 

@@ -39,11 +39,7 @@ impl HexPhi {
                 ),
             ));
         }
-        let h = half_extent;
-        let mut c = HexDeformConfig::dnerf([-h; 3], [h; 3], seed ^ 0xE74D_6500);
-        c.width = (c.width / 2).max(1);
-        c.precision = settings.net_precision;
-        let mut net = HexDeformNet::new(c)?;
+        let mut net = HexDeformNet::new(Self::config(settings, half_extent, seed))?;
         // Zero each head's last layer (its weights and bias: the last `W · out + out` values).
         for head in &mut net.heads {
             let mut p = head.params().to_vec_f32();
@@ -56,6 +52,15 @@ impl HexPhi {
             head.set_params(&p)?;
         }
         Ok(Self { net })
+    }
+
+    /// The field [`HexPhi::new`] builds (before its heads' last layers are zeroed).
+    pub(crate) fn config(settings: &EvoSettings, half_extent: f32, seed: u64) -> HexDeformConfig {
+        let h = half_extent;
+        let mut c = HexDeformConfig::dnerf([-h; 3], [h; 3], seed ^ 0xE74D_6500);
+        c.width = (c.width / 2).max(1);
+        c.precision = settings.net_precision;
+        c
     }
 
     /// The field.

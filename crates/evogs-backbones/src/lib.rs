@@ -56,7 +56,7 @@ pub mod one_word;
 pub mod scgs;
 
 pub use backbone::{Backbone, DensifyCues, GainStats, PerGaussianState};
-pub use choice::{BackboneKind, BackboneRun, Method, make_backbone};
+pub use choice::{BackboneKind, BackboneRun, Method, make_backbone, parameter_count};
 pub use d3dgs::{D3dgsBackbone, NetInit, NetSettings};
 pub use error::BackboneError;
 pub use evo_backbone::EvoBackbone;

@@ -1,5 +1,7 @@
 //! An estimate of a training run's peak memory, printed by `evogs train` at the start and
-//! checked against `--memory-limit` ([`MemoryEstimate::max_gaussians`]).
+//! checked, before anything of the run is allocated, against `--memory-limit`
+//! ([`MemoryEstimate::max_gaussians`]) or else the memory the machine has available
+//! ([`available_memory`]; `evogs_train::trainer::check_memory`).
 //!
 //! What it is: the peak of a checkpoint write, from the settings and the sizes known at the
 //! start. A training step holds the training images, the process's fixed cost, the per-pixel
@@ -77,7 +79,7 @@ impl MemoryEstimate {
         // A random background keeps each image's transmittance beside it, and a step's target.
         let random = u64::from(config.background == Background::Random);
         let images = (inputs.views * inputs.pixels) as u64 * (3 + random) * F32;
-        let network = inputs.network_params as u64 * 4 * F32;
+        let network = network_bytes(inputs.network_params, 4);
         let render = inputs.pixels as u64 * (BYTES_PER_PIXEL + random * 3 * F32);
         let fixed = PROCESS_BYTES + render + network + control_points(config);
         // Per Gaussian: P floats of parameters, two Adam moments, the gradients (P plus the 2-D
@@ -213,6 +215,30 @@ fn grid4d_row(width: usize, output: usize) -> usize {
     2 * features + 4 * width + 3 + 4 + 7 + output
 }
 
+/// Bytes of `params` f32 parameters held in `copies` copies (1 for evaluation; 4 for training:
+/// the values, their gradient and two Adam moments), saturating.
+pub fn network_bytes(params: usize, copies: u64) -> u64 {
+    (params as u64).saturating_mul(4 * copies)
+}
+
+/// The memory this machine has available now (Linux: `MemAvailable` of `/proc/meminfo`, the
+/// kernel's estimate of what can be allocated without swapping); `None` where it cannot be read.
+pub fn available_memory() -> Option<u64> {
+    let meminfo = std::fs::read_to_string("/proc/meminfo").ok()?;
+    parse_mem_available(&meminfo)
+}
+
+/// `MemAvailable` of a `/proc/meminfo` text, in bytes.
+fn parse_mem_available(meminfo: &str) -> Option<u64> {
+    let line = meminfo.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let mut words = line.split_whitespace().skip(1);
+    let value: u64 = words.next()?.parse().ok()?;
+    match words.next() {
+        Some("kB") => value.checked_mul(1024),
+        _ => None,
+    }
+}
+
 /// Bytes as `12.3 MiB` (binary units).
 pub fn human_bytes(bytes: u64) -> String {
     const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
@@ -270,6 +296,19 @@ mod tests {
             pixels: 400 * 400,
             frames: 50,
             network_params: 10_000,
+        }
+    }
+
+    #[test]
+    fn available_memory_is_read_from_meminfo() {
+        let meminfo =
+            "MemTotal:       24576000 kB\nMemFree:  100 kB\nMemAvailable:   20000000 kB\n";
+        assert_eq!(parse_mem_available(meminfo), Some(20_000_000 * 1024));
+        assert_eq!(parse_mem_available("MemTotal: 5 kB\n"), None);
+        assert_eq!(parse_mem_available("MemAvailable: many kB\n"), None);
+        // This machine (Linux in CI) says how much it has.
+        if cfg!(target_os = "linux") {
+            assert!(available_memory().is_some_and(|b| b > 0));
         }
     }
 

@@ -407,6 +407,9 @@ pub fn train_with_clock(
                 "no checkpoint to resume from (train the run first)",
             ));
         }
+        // The images and the network against the memory, before the checkpoint is read into a
+        // backbone (the Gaussians are checked with the rest when the trainer is made).
+        crate::trainer::check_memory(&run.train, &train, 0)?;
         let (state, mut backbone, meta) = read_checkpoint(&ckpt, &run.train)?;
         settle_evo_state(&paths, meta.iteration)?;
         backbone.load_state(&paths.evo_state())?;

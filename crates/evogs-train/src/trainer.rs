@@ -73,9 +73,82 @@ pub struct StepReport {
 }
 
 /// The backbone a config asks for ([`evogs_backbones::make_backbone`] of
-/// [`TrainConfig::backbone_run`]).
+/// [`TrainConfig::backbone_run`]), once its parameters are known to fit: the count is taken
+/// from the settings before anything is allocated ([`evogs_backbones::parameter_count`]), and
+/// a network whose parameters alone exceed `--memory-limit` or the memory this machine has
+/// available is refused with the count, not attempted. Training, resuming, evaluating,
+/// rendering and viewing a run all build their backbone here.
 pub fn make_backbone(config: &TrainConfig) -> Result<Box<dyn Backbone>, TrainError> {
+    let bytes = crate::memory::network_bytes(parameter_count(config)?, 1);
+    let (limit, whose) = match config.memory_limit {
+        Some(limit) => (Some(limit), "the memory limit (`--memory-limit`)"),
+        None => (
+            crate::memory::available_memory(),
+            "the memory this machine has available",
+        ),
+    };
+    if let Some(limit) = limit
+        && bytes > limit
+    {
+        return Err(TrainError::config(
+            "net",
+            format!(
+                "the {} {} network's parameters alone need {}, more than {whose}, {}",
+                config.method,
+                config.backbone,
+                crate::memory::human_bytes(bytes),
+                crate::memory::human_bytes(limit)
+            ),
+        ));
+    }
     Ok(evogs_backbones::make_backbone(&config.backbone_run())?)
+}
+
+/// The parameters of the backbone a config asks for, counted from its settings without
+/// allocating anything ([`evogs_backbones::parameter_count`]).
+pub fn parameter_count(config: &TrainConfig) -> Result<usize, TrainError> {
+    Ok(evogs_backbones::parameter_count(&config.backbone_run())?)
+}
+
+/// Checks the memory estimate of a run of `config` on the views `train` starting with
+/// `gaussians` Gaussians, before anything of the run is allocated: with `--memory-limit`, the
+/// estimate must fit it (and the limit becomes a cap on the Gaussians, returned); without, it
+/// must fit the memory this machine has available (where that is known), and the error names
+/// the flag that overrides it.
+pub fn check_memory(
+    config: &TrainConfig,
+    train: &SplitViews,
+    gaussians: usize,
+) -> Result<Option<usize>, TrainError> {
+    let memory = memory_estimate(config, train)?;
+    let need = memory.at(gaussians);
+    if let Some(limit) = config.memory_limit {
+        return match memory.max_gaussians(limit) {
+            Some(cap) if cap >= gaussians => Ok(Some(cap)),
+            _ => Err(TrainError::config(
+                "memory_limit",
+                format!(
+                    "{} is below the {} the run needs at the start ({})",
+                    crate::memory::human_bytes(limit),
+                    crate::memory::human_bytes(need),
+                    memory.summary(gaussians)
+                ),
+            )),
+        };
+    }
+    match crate::memory::available_memory() {
+        Some(available) if need > available => Err(TrainError::config(
+            "memory_limit",
+            format!(
+                "the run needs {} at the start, more than the {} this machine has available \
+                 ({}); lower the sizes, or pass --memory-limit to set the limit yourself",
+                crate::memory::human_bytes(need),
+                crate::memory::human_bytes(available),
+                memory.summary(gaussians)
+            ),
+        )),
+        _ => Ok(None),
+    }
 }
 
 /// Densify's configuration from the run's settings: standard 3DGS ADC for the baseline; for
@@ -101,21 +174,20 @@ pub fn densify_config(config: &TrainConfig) -> DensifyConfig {
 }
 
 /// [`MemoryEstimate`] of `config` training on `train` with `backbone`.
-fn memory_estimate(
-    config: &TrainConfig,
-    train: &SplitViews,
-    backbone: &dyn Backbone,
-) -> MemoryEstimate {
-    let first = &train.views[0].image;
-    MemoryEstimate::new(
+fn memory_estimate(config: &TrainConfig, train: &SplitViews) -> Result<MemoryEstimate, TrainError> {
+    let pixels = train
+        .views
+        .first()
+        .map_or(0, |v| v.image.width as usize * v.image.height as usize);
+    Ok(MemoryEstimate::new(
         config,
         &MemoryInputs {
             views: train.views.len(),
-            pixels: first.width as usize * first.height as usize,
+            pixels,
             frames: train.times().len(),
-            network_params: backbone.params().iter().map(|(_, p)| p.len()).sum(),
+            network_params: parameter_count(config)?,
         },
-    )
+    ))
 }
 
 /// A training run in memory.
@@ -186,6 +258,8 @@ impl Trainer {
         gaussians: splat_raster::Gaussians,
     ) -> Result<Self, TrainError> {
         config.validate()?;
+        // Before the backbone and the state are allocated.
+        check_memory(&config, &train, gaussians.len())?;
         let mut backbone = make_backbone(&config)?;
         backbone.initialise(gaussians.view())?;
         let state = SceneState::new(gaussians, backbone.as_ref(), &config.lr)?;
@@ -213,24 +287,8 @@ impl Trainer {
         densify.validate()?;
         let mut backbone = backbone;
         backbone.prepare(&train.times(), state.len(), extent)?;
-        let memory = memory_estimate(&config, &train, backbone.as_ref());
-        if let Some(limit) = config.memory_limit {
-            match memory.max_gaussians(limit) {
-                Some(cap) if cap >= state.len() => {
-                    densify.max_gaussians = Some(densify.max_gaussians.map_or(cap, |m| m.min(cap)));
-                }
-                _ => {
-                    return Err(TrainError::config(
-                        "memory_limit",
-                        format!(
-                            "{} is below the {} the run needs at the start ({})",
-                            crate::memory::human_bytes(limit),
-                            crate::memory::human_bytes(memory.at(state.len())),
-                            memory.summary(state.len())
-                        ),
-                    ));
-                }
-            }
+        if let Some(cap) = check_memory(&config, &train, state.len())? {
+            densify.max_gaussians = Some(densify.max_gaussians.map_or(cap, |m| m.min(cap)));
         }
         let (raster, backend) = select_rasterizer(config.backend)?;
         let transmittance = if config.background == Background::Random {
@@ -317,7 +375,8 @@ impl Trainer {
 
     /// The estimate of this run's peak memory ([`crate::memory`]); `at(n)` for `n` Gaussians.
     pub fn memory_estimate(&self) -> MemoryEstimate {
-        memory_estimate(&self.config, &self.train, self.backbone.as_ref())
+        // The config was counted when the trainer was made; it cannot fail now.
+        memory_estimate(&self.config, &self.train).expect("the run's parameters were counted")
     }
 
     /// The most Gaussians densification may grow to (`--max-gaussians` and `--memory-limit`),

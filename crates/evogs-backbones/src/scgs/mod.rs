@@ -183,7 +183,7 @@ impl ScgsSettings {
 }
 
 /// The learnable parts: the control-point network and the control points' shape.
-struct ScgsParams {
+pub(crate) struct ScgsParams {
     net: DeformNet,
     positions: Vec<[f32; 3]>,
     log_radii: Vec<f32>,
@@ -234,20 +234,7 @@ impl ScgsParams {
     /// placed on the Gaussians.
     fn new(settings: &ScgsSettings, half_extent: f32, seed: u64) -> Result<Self, BackboneError> {
         settings.validate()?;
-        let net = DeformNet::with_outputs(
-            DeformConfig {
-                width: settings.width,
-                depth: settings.depth,
-                skip_after: (settings.depth > 4).then_some(settings.depth / 2),
-                xyz_freqs: settings.xyz_freqs,
-                t_freqs: settings.t_freqs,
-                init: tiny_nn::Init::He,
-                zero_heads: true,
-                precision: Precision::F32,
-                seed: seed ^ 0x5C65_0000,
-            },
-            NODE_OUTPUT,
-        )?;
+        let net = DeformNet::with_outputs(Self::net_config(settings, seed), NODE_OUTPUT)?;
         let m = settings.control_points;
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5C65_C0DE);
         let h = half_extent.abs().max(f32::MIN_POSITIVE);
@@ -262,6 +249,33 @@ impl ScgsParams {
         };
         params.place(&cube, seed);
         Ok(params)
+    }
+
+    /// The control points' network [`ScgsParams::new`] builds.
+    fn net_config(settings: &ScgsSettings, seed: u64) -> DeformConfig {
+        DeformConfig {
+            width: settings.width,
+            depth: settings.depth,
+            skip_after: (settings.depth > 4).then_some(settings.depth / 2),
+            xyz_freqs: settings.xyz_freqs,
+            t_freqs: settings.t_freqs,
+            init: tiny_nn::Init::He,
+            zero_heads: true,
+            precision: Precision::F32,
+            seed: seed ^ 0x5C65_0000,
+        }
+    }
+
+    /// The parameters [`ScgsParams::new`] allocates (the network's, and per control point its
+    /// position, log radius and weight logit), without allocating them.
+    pub(crate) fn param_count(settings: &ScgsSettings, seed: u64) -> Result<usize, BackboneError> {
+        settings.validate()?;
+        let net = Self::net_config(settings, seed).param_count(NODE_OUTPUT)?;
+        settings
+            .control_points
+            .checked_mul(3 + 1 + 1)
+            .and_then(|points| points.checked_add(net))
+            .ok_or_else(|| BackboneError::config("scgs.control_points", "too many parameters"))
     }
 
     fn controls(&self) -> Controls<'_> {

@@ -300,6 +300,111 @@ fn number_after(text: &str, prefix: &str) -> Option<usize> {
     digits.parse().ok()
 }
 
+/// Runs `args` with the address space limited to `kib` KiB (`ulimit -v`): an allocation past it
+/// fails, and Rust aborts the process on a failed allocation.
+fn with_address_space_limit(kib: u64, args: &[&str]) -> Output {
+    Command::new("bash")
+        .arg("-c")
+        .arg(r#"ulimit -v "$1"; shift; exec "$@""#)
+        .arg("bash")
+        .arg(kib.to_string())
+        .arg(support::BIN)
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// The memory limit is checked before anything is allocated (issue F2: the networks were
+/// allocated first, `--net-width 99999 --memory-limit 1G` aborted allocating 120 GB): networks of
+/// 1 to 24 GiB, asked for by flags or by an edited `config.json`, are refused in one line naming
+/// the setting, by a process whose address space (800 MiB) could not have held the two larger; a
+/// network
+/// larger than the memory this machine has is refused without a limit too, naming the flag.
+#[test]
+fn the_memory_limit_refuses_large_networks_before_allocating_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = scene(dir.path());
+    let huge: [&[&str]; 3] = [
+        &["--net-width", "2048"], // 197 MiB at the tiny preset's depth
+        &[
+            "--backbone",
+            "scgs",
+            "--control-width",
+            "2048",
+            "--control-depth",
+            "64",
+        ],
+        &[
+            "--method",
+            "evogs",
+            "--triplane-resolutions",
+            "1024,1024,1024,1024",
+            "--triplane-channels",
+            "128",
+        ],
+    ];
+    for (k, extra) in huge.iter().enumerate() {
+        let out = dir.path().join(format!("huge{k}"));
+        let mut args = vec![
+            "train",
+            "--data",
+            s(&data),
+            "--out",
+            s(&out),
+            "--preset",
+            "tiny",
+        ];
+        args.extend_from_slice(extra);
+        args.extend(["--memory-limit", "100M"]);
+        let e = one_line_error(&with_address_space_limit(800 << 10, &args));
+        assert!(e.contains("memory_limit"), "{extra:?}: {e}");
+        // The two larger networks (1 and 24 GiB) could not have been allocated in the
+        // address space the process had.
+        assert!(k == 0 || e.contains("GiB"), "{extra:?}: {e}");
+        assert!(!out.join("checkpoint.safetensors").exists());
+    }
+    // 24 GiB of tri-planes without a limit: more than this machine has available (the CI
+    // machines have 24 GiB in all), so refused, naming the flag that sets the limit.
+    let out = dir.path().join("unlimited");
+    let mut args = vec![
+        "train",
+        "--data",
+        s(&data),
+        "--out",
+        s(&out),
+        "--preset",
+        "tiny",
+    ];
+    args.extend_from_slice(huge[2]);
+    let available = evogs_train::memory::available_memory().unwrap_or(u64::MAX);
+    if available < 24 << 30 {
+        let e = one_line_error(&with_address_space_limit(800 << 10, &args));
+        assert!(
+            e.contains("available") && e.contains("--memory-limit"),
+            "{e}"
+        );
+    }
+    // A trained run whose config.json was edited to a network that does not fit its recorded
+    // limit: eval and resume refuse it the same way, before allocating it.
+    let run = dir.path().join("small");
+    let mut args = train_args(&data, &run, 2, 1);
+    args.extend(["--memory-limit".into(), "1G".into()]);
+    support::ok(&support::command().args(&args).output().unwrap());
+    let config = run.join("config.json");
+    let text = std::fs::read_to_string(&config).unwrap();
+    let mut json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    json["train"]["evogs"]["triplane_channels"] = 128.into();
+    json["train"]["evogs"]["triplane_resolutions"] = serde_json::json!([1024, 1024, 1024]);
+    std::fs::write(&config, serde_json::to_string_pretty(&json).unwrap()).unwrap();
+    for args in [
+        vec!["eval", "--run", s(&run), "--split", "test"],
+        vec!["train", "--out", s(&run), "--resume"],
+    ] {
+        let e = one_line_error(&with_address_space_limit(800 << 10, &args));
+        assert!(e.contains("GiB") && e.contains("limit"), "{args:?}: {e}");
+    }
+}
+
 #[test]
 fn a_memory_limit_refuses_to_start_below_the_estimate_and_caps_densification_above_it() {
     const ITERATIONS: u64 = 40;
