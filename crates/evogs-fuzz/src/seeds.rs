@@ -24,6 +24,52 @@ pub fn tiny_config() -> evogs_train::TrainConfig {
     config
 }
 
+/// The files of a run besides its `config.json` and `train_metrics.json`, in the order of the
+/// `run` target's selector bits.
+#[cfg(feature = "checkpoint")]
+pub const RUN_FILES: [&str; 4] = [
+    "canonical.ply",
+    "deform.safetensors",
+    "evo_state.safetensors",
+    "checkpoint.safetensors",
+];
+
+/// A run of [`tiny_config`] trained for two iterations on the repository's lego fixture, EvoGS
+/// or the baseline, written once per process into a temporary folder: the files the `run`
+/// target puts beside the fuzzed `config.json`, and the source of its seeds.
+#[cfg(feature = "checkpoint")]
+pub fn template_run(evogs: bool) -> &'static Path {
+    static RUNS: OnceLock<tempfile::TempDir> = OnceLock::new();
+    let root = RUNS.get_or_init(|| {
+        let root = tempfile::Builder::new()
+            .prefix("evogs-fuzz-runs-")
+            .tempdir()
+            .expect("template runs' folder");
+        for (name, method) in [
+            ("evogs", evogs_backbones::Method::Evogs),
+            ("baseline", evogs_backbones::Method::Baseline),
+        ] {
+            let mut config = tiny_config();
+            config.method = method;
+            config.iterations = 2;
+            config.warm_up = 1;
+            let request = evogs_train::run::TrainRequest {
+                data: Path::new(DNERF_FIXTURE).to_path_buf(),
+                out: root.path().join(name),
+                config,
+                resume: false,
+                stop_after: None,
+                resume_backend: None,
+            };
+            evogs_train::run::train(&request, &mut |_, _| {}).expect("the template run trains");
+        }
+        root
+    });
+    let path = root.path().join(if evogs { "evogs" } else { "baseline" });
+    // A 'static path: the folder lives as long as the process.
+    Box::leak(path.into_boxed_path())
+}
+
 /// A fresh state and backbone of [`tiny_config`] (one Gaussian), to load a checkpoint into.
 #[cfg(feature = "checkpoint")]
 pub fn tiny_state() -> (
@@ -307,8 +353,47 @@ pub fn write_all_seeds(dir: &Path) {
             None,
         )
         .unwrap();
+
+        // config.json: the template runs' and the repository's fixtures of real runs' (every
+        // method, backbone and switch `evogs train` records, crates/evogs-cli/tests/data).
+        let fixtures = Path::new(CONFIG_FIXTURES);
+        let mut names: Vec<_> = std::fs::read_dir(fixtures)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .filter(|n| n.ends_with(".json"))
+            .collect();
+        names.sort();
+        for name in names {
+            seed(
+                dir,
+                "config",
+                &name,
+                std::fs::read(fixtures.join(&name)).unwrap(),
+            );
+        }
+        // A run's folder: each template run opened whole, from its end-of-run files and from its
+        // checkpoint (the selector byte of the `run` target).
+        for (evogs, name) in [(true, "evogs"), (false, "baseline")] {
+            let run = template_run(evogs);
+            let config = std::fs::read(run.join("config.json")).unwrap();
+            seed(dir, "config", &format!("template-{name}.json"), &config);
+            let metrics = std::fs::read(run.join("train_metrics.json")).unwrap();
+            for (selector, how) in [(0u8, "end"), (0x10, "checkpoint")] {
+                let selector = selector | if evogs { 0 } else { 0x20 };
+                let input = [&[selector][..], &config, &[0], &metrics].concat();
+                seed(dir, "run", &format!("{name}-{how}"), input);
+            }
+        }
     }
 }
+
+/// The repository's `config.json` files of real runs, in the current format (the fixtures of
+/// `evogs-cli`'s config test).
+#[cfg(feature = "checkpoint")]
+const CONFIG_FIXTURES: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../evogs-cli/tests/data/config-current"
+);
 
 /// `n` Gaussians of SH degree `degree` with distinct, unremarkable values.
 pub fn small_gaussians(n: usize, degree: u32) -> splat_core::Gaussians {

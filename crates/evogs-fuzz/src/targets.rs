@@ -48,6 +48,10 @@ pub const TARGETS: &[Target] = &[
     Target::new("weights", weights),
     #[cfg(feature = "checkpoint")]
     Target::new("checkpoint", checkpoint),
+    #[cfg(feature = "checkpoint")]
+    Target::new("config", config),
+    #[cfg(feature = "checkpoint")]
+    Target::new("run", run),
 ];
 
 /// PLY (ASCII and binary of either endianness): `read_ply_bytes`.
@@ -265,5 +269,103 @@ pub fn checkpoint(data: &[u8]) -> bool {
     };
     assert_eq!(state.gaussians().means.len(), meta.gaussians);
     assert_eq!(state.stats().grad_sum.len(), meta.gaussians);
+    true
+}
+
+/// The most parameters a network built by the `config` and `run` targets may have (16 Mi
+/// floats, 64 MiB): a valid `config.json` may ask for networks of gigabytes, which the memory
+/// checks refuse or allow by the machine's memory (F2), not by the fuzzer's; larger ones are
+/// counted but not built.
+#[cfg(feature = "checkpoint")]
+pub const MAX_BUILT_PARAMS: usize = 1 << 24;
+
+/// A run's `config.json`: `read_run_file` (parse, then every range checked), then everything a
+/// command derives from the settings before it reads anything else: the parameter count, the
+/// memory estimate on a dataset of the lego fixture's size (7 views of 100 × 100), the Gaussian
+/// cap, densification's settings, and the backbone itself when it is small
+/// ([`MAX_BUILT_PARAMS`]). None of it may panic or abort on a configuration the reader
+/// accepted (issue F2: ten edited values made `eval`, `render` or `train --resume` abort).
+#[cfg(feature = "checkpoint")]
+pub fn config(data: &[u8]) -> bool {
+    use evogs_train::memory::{MemoryEstimate, MemoryInputs};
+    let dir = crate::scratch::scratch().join("config-run");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("config.json"), data).unwrap();
+    let Ok((_, run)) = evogs_train::run::read_run_file(&dir) else {
+        return false;
+    };
+    let train = &run.train;
+    let cap = train.gaussian_cap(7);
+    let _ = evogs_train::trainer::densify_config(train).validate();
+    let Ok(params) = evogs_train::trainer::parameter_count(train) else {
+        return true;
+    };
+    let memory = MemoryEstimate::new(
+        train,
+        &MemoryInputs {
+            views: 7,
+            pixels: 100 * 100,
+            frames: 7,
+            network_params: params,
+        },
+    );
+    assert!(memory.at(train.init_points) >= memory.at(0));
+    if let Some(cap) = cap {
+        assert!(cap >= 1);
+    }
+    if params <= MAX_BUILT_PARAMS {
+        let mut limited = train.clone();
+        limited.memory_limit = Some(1 << 30);
+        if let Ok(backbone) = evogs_train::trainer::make_backbone(&limited) {
+            let built: usize = backbone.params().iter().map(|(_, p)| p.len()).sum();
+            assert_eq!(built, params, "the parameter count is the built backbone's");
+        }
+    }
+    true
+}
+
+/// A trained run's folder as a whole: the input is a selector byte, then `config.json` and
+/// `train_metrics.json` separated by a NUL byte; the run's other files come from a small run
+/// trained once per process ([`crate::seeds::template_run`]: EvoGS, or the baseline when bit 5
+/// of the selector is set), each left out when its bit (0 `canonical.ply`, 1
+/// `deform.safetensors`, 2 `evo_state.safetensors`, 3 `checkpoint.safetensors`) is set. The run
+/// is opened as `eval`, `render` and `view` open it (its end-of-run files, or with bit 4 its
+/// checkpoint) and, once open, deformed at t = 0.5: a `config.json` that disagrees with the
+/// files beside it (another backbone, other sizes) must give an error, not a panic.
+#[cfg(feature = "checkpoint")]
+pub fn run(data: &[u8]) -> bool {
+    let Some((&selector, rest)) = data.split_first() else {
+        return false;
+    };
+    let files = parts(rest, 2);
+    let dir = crate::scratch::scratch().join("run");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("config.json"), files[0]).unwrap();
+    std::fs::write(dir.join("train_metrics.json"), files[1]).unwrap();
+    let template = crate::seeds::template_run(selector & 0x20 == 0);
+    for (bit, name) in crate::seeds::RUN_FILES.iter().enumerate() {
+        if selector & (1 << bit) == 0 && template.join(name).is_file() {
+            std::fs::copy(template.join(name), dir.join(name)).unwrap();
+        }
+    }
+    // What the run's config asks for is counted before anything is built: a valid config that
+    // asks for a large network is the memory checks' to refuse, not this target's to allocate.
+    if let Ok((_, run)) = evogs_train::run::read_run_file(&dir)
+        && evogs_train::trainer::parameter_count(&run.train).is_ok_and(|n| n > MAX_BUILT_PARAMS)
+    {
+        return true;
+    }
+    let opened = if selector & 0x10 == 0 {
+        evogs_eval::LoadedRun::open(&dir)
+    } else {
+        evogs_eval::LoadedRun::open_checkpoint(&dir)
+    };
+    let Ok(mut run) = opened else {
+        return false;
+    };
+    if let Ok(g) = run.deformed(0.5) {
+        assert_eq!(g.len(), run.canonical.len());
+    }
     true
 }

@@ -36,7 +36,7 @@ fn files(dir: &Path) -> Vec<PathBuf> {
 }
 
 /// Runs `target` on `data`; a panic names the target and `what` the input was.
-fn run(target: Target, data: &[u8], what: &str) -> bool {
+fn run_target(target: Target, data: &[u8], what: &str) -> bool {
     catch_unwind(AssertUnwindSafe(|| (target.run)(data)))
         .unwrap_or_else(|_| panic!("fuzz target `{}` panicked on {what}", target.name))
 }
@@ -188,7 +188,7 @@ fn mutation_pass(target: Target, seeds: &[Vec<u8>]) -> usize {
         for _ in 0..=rng.below(4) {
             mutate(&mut rng, &mut input, other);
         }
-        run(
+        run_target(
             target,
             &input,
             &format!("mutation {k} of seed {from} ({} bytes)", input.len()),
@@ -213,13 +213,13 @@ fn replay(name: &str) {
         seed_bytes.push(bytes.clone());
         let label = seed.file_name().unwrap().to_string_lossy();
         assert!(
-            run(target, &bytes, &format!("seed {label}")),
+            run_target(target, &bytes, &format!("seed {label}")),
             "`{name}` refuses its seed {label}"
         );
         let stride = bytes.len().div_ceil(MAX_TRUNCATIONS).max(1);
         for len in (0..bytes.len()).step_by(stride) {
             truncations += 1;
-            run(
+            run_target(
                 target,
                 &bytes[..len],
                 &format!("seed {label} cut to {len} of {} bytes", bytes.len()),
@@ -229,7 +229,7 @@ fn replay(name: &str) {
     let regressions = files(&Path::new(REGRESSIONS).join(name));
     for input in &regressions {
         let bytes = std::fs::read(input).unwrap();
-        run(
+        run_target(
             target,
             &bytes,
             &format!("regression input {}", input.display()),
@@ -274,6 +274,8 @@ replay_tests!(
     compressed_ply,
     weights,
     checkpoint,
+    config,
+    run,
 );
 
 /// The same targets everywhere: `evogs_fuzz::TARGETS`, the tests above, the libFuzzer targets

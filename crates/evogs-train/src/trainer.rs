@@ -241,6 +241,9 @@ pub struct Trainer {
 impl Trainer {
     /// A new run: random initial Gaussians, fresh network and optimiser.
     pub fn new(config: TrainConfig, train: SplitViews) -> Result<Self, TrainError> {
+        // Before the initial Gaussians are allocated (up to `MAX_INIT_POINTS`).
+        config.validate()?;
+        check_memory(&config, &train, config.init_points)?;
         let gaussians = random_gaussians(
             config.init_points,
             config.init_half_extent,
