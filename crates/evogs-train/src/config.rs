@@ -632,6 +632,12 @@ impl TrainConfig {
         if self.gaussian_view_budget == Some(0) {
             return bad("gaussian_view_budget", "must be at least 1 when set");
         }
+        if self.densify.max_gaussians == Some(0) {
+            return bad(
+                "densify.max_gaussians",
+                "must be at least 1 when set (`--max-gaussians`)",
+            );
+        }
         let d = &self.densify;
         for (field, set_by, is_set) in [
             ("densify.seed", "seed", d.seed != 0),
@@ -824,6 +830,14 @@ mod tests {
                 .unwrap_err()
                 .to_string()
                 .contains("gaussian_view_budget")
+        );
+        // A cap of no Gaussians (`--max-gaussians 0`, or an edited config.json) is refused.
+        let mut zero = TrainConfig::preset(Preset::Cpu);
+        zero.densify.max_gaussians = Some(0);
+        let e = zero.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("densify.max_gaussians") && e.contains("--max-gaussians"),
+            "{e}"
         );
     }
 
