@@ -5,12 +5,12 @@
 //! for each (`OUT/<method>/sweep/strip.png`, from the first test camera), and returns a
 //! side-by-side table.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::Args;
 use evogs_eval::eval::EvalLpips;
-use evogs_experiments::ablate::train_and_evaluate;
+use evogs_experiments::ablate::train_and_evaluate_with_progress;
 use evogs_io::Split;
 use evogs_synth::{embedded_scene, write_dnerf};
 use evogs_train::data::load_split;
@@ -83,6 +83,17 @@ pub fn table(iterations: u64, rows: &[DemoRow]) -> String {
     s
 }
 
+/// Where the demo's pictures are and the command that shows them (the end of `demo.md` and of
+/// the demo's output).
+pub fn where_to_look(out: &Path) -> String {
+    let o = out.display();
+    format!(
+        "\nPictures: `{o}/baseline/sweep/` and `{o}/evogs/sweep/` (the first test camera at 8 \
+         times), `{o}/<method>/renders/test/` (every test view). Look at both runs side by side \
+         in a browser: `evogs view {o}/evogs {o}/baseline`.\n"
+    )
+}
+
 /// Runs `evogs demo`; returns the iteration budget and one row per method.
 pub fn run_demo(args: &DemoArgs) -> Result<(u64, Vec<DemoRow>)> {
     let iterations = args
@@ -103,12 +114,20 @@ pub fn run_demo(args: &DemoArgs) -> Result<(u64, Vec<DemoRow>)> {
     let (_, info) = splat_raster::select_rasterizer(args.raster.backend)?;
     eprintln!("evogs demo: {info}");
     let mut rows = Vec::new();
+    let mut progress = crate::progress::Counted::new(2 * iterations as usize, "iteration")?;
     for method in [Method::Baseline, Method::Evogs] {
         let mut config = TrainConfig::preset(Preset::Tiny).with_iterations(iterations);
         config = config.with_method(method);
         config.backend = args.raster.backend;
         let out = args.out.join(method.to_string());
-        let scores = train_and_evaluate(&data, &out, config, false, &EvalLpips::default())?;
+        let scores = train_and_evaluate_with_progress(
+            &data,
+            &out,
+            config,
+            false,
+            &EvalLpips::default(),
+            &mut |_| progress.inc(),
+        )?;
         rows.push(DemoRow {
             method,
             psnr: scores.psnr,
@@ -136,7 +155,8 @@ pub fn run_demo(args: &DemoArgs) -> Result<(u64, Vec<DemoRow>)> {
             },
         )?;
     }
-    let text = table(iterations, &rows);
+    progress.finish();
+    let text = table(iterations, &rows) + &where_to_look(&args.out);
     let path = args.out.join("demo.md");
     let tmp = args.out.join("demo.md.tmp");
     std::fs::write(&tmp, &text).with_context(|| format!("writing {}", tmp.display()))?;

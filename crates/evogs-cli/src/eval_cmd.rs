@@ -3,7 +3,7 @@
 
 use anyhow::Result;
 use evogs_eval::LoadedRun;
-use evogs_eval::eval::{EvalLpips, EvalReport, evaluate};
+use evogs_eval::eval::{EvalLpips, EvalReport, evaluate_with_progress};
 use evogs_metrics::lpips::Backbone;
 
 use std::path::PathBuf;
@@ -59,5 +59,16 @@ pub fn run_eval(args: &EvalArgs) -> Result<EvalReport> {
     for line in &lpips.missing {
         eprintln!("evogs eval: {line}; reporting the other metrics");
     }
-    Ok(evaluate(&mut run, split, &lpips)?)
+    let mut progress: Option<crate::progress::Counted> = None;
+    let report = evaluate_with_progress(&mut run, split, &lpips, &mut |done, total| {
+        let counted = progress.get_or_insert_with(|| {
+            crate::progress::Counted::new(total, "view").expect("a fixed progress template")
+        });
+        counted.inc();
+        debug_assert!(done <= total);
+    })?;
+    if let Some(p) = progress {
+        p.finish();
+    }
+    Ok(report)
 }

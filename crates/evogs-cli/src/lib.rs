@@ -26,6 +26,7 @@ pub mod error_line;
 pub mod eval_cmd;
 pub mod export_cmd;
 pub mod prepare_cmd;
+pub mod progress;
 pub mod render;
 pub mod shared_args;
 pub mod synth_cmd;

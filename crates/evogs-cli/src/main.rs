@@ -126,6 +126,7 @@ fn main() -> ExitCode {
         }),
         Command::Demo(args) => evogs_cli::demo_cmd::run_demo(args).map(|(n, rows)| {
             print!("{}", evogs_cli::demo_cmd::table(n, &rows));
+            print!("{}", evogs_cli::demo_cmd::where_to_look(&args.out));
             println!("wrote {}", args.out.display());
         }),
         Command::Ablate(args) => evogs_cli::ablate_cmd::run_ablate(args).map(|results| {

@@ -1,16 +1,15 @@
 //! `evogs video`: a trained run rendered along a camera path into an mp4, a GIF or a folder of
 //! PNG frames, optionally beside a second run (`--compare`).
 
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
+use crate::progress::Counted;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use evogs_eval::LoadedRun;
 use evogs_eval::render::render_at;
 use evogs_io::VideoWriter;
 use evogs_video::video::{PathSpec, TimeSpec, plan_frames, side_by_side};
-use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::render::{MAX_PIXELS, resize_camera};
 use crate::shared_args::RasterArgs;
@@ -149,18 +148,8 @@ pub fn run_video(args: &VideoArgs) -> Result<VideoReport> {
         label(&args.run),
         args.compare.as_deref().map(label).unwrap_or_default(),
     ];
-    let terminal = std::io::stderr().is_terminal();
-    let bar = if terminal {
-        ProgressBar::new(frames.len() as u64)
-    } else {
-        ProgressBar::hidden()
-    };
-    bar.set_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} frames {per_sec} ETA {eta}")
-            .context("progress bar template")?,
-    );
-    let every = (frames.len() / 10).max(1);
-    for (k, (camera, time)) in frames.iter().enumerate() {
+    let mut progress = Counted::new(frames.len(), "frame")?;
+    for (camera, time) in &frames {
         let a = render_at(&mut run, camera, *time)?;
         let image = match other.as_mut() {
             Some(b) => {
@@ -170,12 +159,9 @@ pub fn run_video(args: &VideoArgs) -> Result<VideoReport> {
             None => a,
         };
         writer.push(&image)?;
-        bar.inc(1);
-        if !terminal && ((k + 1) % every == 0 || k + 1 == frames.len()) {
-            eprintln!("frame {}/{}", k + 1, frames.len());
-        }
+        progress.inc();
     }
-    bar.finish_and_clear();
+    progress.finish();
     let count = writer.finish()?;
     Ok(VideoReport {
         frames: count,

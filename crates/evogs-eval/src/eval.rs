@@ -197,6 +197,16 @@ pub fn evaluate(
     split: Split,
     lpips: &EvalLpips,
 ) -> Result<EvalReport, TrainError> {
+    evaluate_with_progress(run, split, lpips, &mut |_, _| {})
+}
+
+/// [`evaluate`], calling `progress(done, total)` after each view is scored.
+pub fn evaluate_with_progress(
+    run: &mut LoadedRun,
+    split: Split,
+    lpips: &EvalLpips,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<EvalReport, TrainError> {
     let cfg = run.run.train.clone();
     let views = load_split(
         run.data()?,
@@ -261,6 +271,7 @@ pub fn evaluate(
                 pixels: clamped,
             },
         )?;
+        progress(k + 1, views.views.len());
     }
     let count = images.len().max(1) as f64;
     let mean_psnr = images.iter().map(|s| s.psnr).sum::<f64>() / count;

@@ -21,6 +21,7 @@ use evogs_eval::LoadedRun;
 use evogs_eval::eval::{EvalLpips, evaluate};
 use evogs_train::config::{Method, TrainConfig};
 use evogs_train::run::{TrainRequest, train};
+use evogs_train::trainer::StepReport;
 
 /// The ladder, in the paper's order: baseline; Φ alone; evolution with re-queried history; with
 /// the buffer; + uncertainty trigger; + deformation-aware clone/split (the full method, learned
@@ -180,6 +181,18 @@ pub fn train_and_evaluate(
     with_val: bool,
     lpips: &EvalLpips,
 ) -> Result<Scores, ExperimentError> {
+    train_and_evaluate_with_progress(data, out, config, with_val, lpips, &mut |_| {})
+}
+
+/// [`train_and_evaluate`], calling `progress` after every training iteration.
+pub fn train_and_evaluate_with_progress(
+    data: &Path,
+    out: &Path,
+    config: TrainConfig,
+    with_val: bool,
+    lpips: &EvalLpips,
+    progress: &mut dyn FnMut(&StepReport),
+) -> Result<Scores, ExperimentError> {
     let backend = config.backend;
     let summary = train(
         &TrainRequest {
@@ -190,7 +203,7 @@ pub fn train_and_evaluate(
             stop_after: None,
             resume_backend: None,
         },
-        &mut |_, _| {},
+        &mut |report, _| progress(report),
     )?;
     let mut run = LoadedRun::open(out)?;
     // Evaluated on the backend it trained on.

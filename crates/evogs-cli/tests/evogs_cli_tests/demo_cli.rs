@@ -37,6 +37,13 @@ fn demo_compares_both_methods_and_writes_renders() {
             "{m} renders"
         );
     }
+    // It ends by naming its pictures and the command that shows them.
+    let o = out.display();
+    assert!(
+        text.contains(&format!("`evogs view {o}/evogs {o}/baseline`"))
+            && text.contains(&format!("`{o}/evogs/sweep/`")),
+        "{text}"
+    );
     assert_eq!(
         std::fs::read_to_string(out.join("demo.md")).unwrap().trim(),
         text.lines()

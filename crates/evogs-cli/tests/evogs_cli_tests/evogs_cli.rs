@@ -53,11 +53,16 @@ fn evogs_run_trains_evaluates_renders_exports_and_resumes() {
             .unwrap();
     assert_eq!(metrics["iteration"], 120);
 
-    ok(&evogs(&["eval", "--run", s(&run), "--split", "test"]));
+    let o = evogs(&["eval", "--run", s(&run), "--split", "test"]);
+    ok(&o);
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(run.join("eval_test.json")).unwrap())
             .unwrap();
     assert!(report["mean_psnr"].as_f64().unwrap() > 15.0, "{report}");
+    // Progress: off a terminal, a line every tenth of the views, the last one at the end.
+    let views = report["images"].as_array().unwrap().len();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains(&format!("view {views}/{views}")), "{err}");
     // LPIPS: AlexNet by default (scripts/test installs the weights), VGG16 with the flag.
     let lpips_alex = report["mean_lpips_alex"].as_f64().unwrap();
     assert!(lpips_alex > 0.0 && lpips_alex < 1.0, "{report}");
