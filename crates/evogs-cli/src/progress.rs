@@ -46,7 +46,7 @@ impl Counted {
         self.done += 1;
         self.bar.inc(1);
         let every = (self.total / 10).max(1);
-        if !self.terminal && (self.done % every == 0 || self.done == self.total) {
+        if !self.terminal && (self.done.is_multiple_of(every) || self.done == self.total) {
             eprintln!("{} {}/{}", self.unit, self.done, self.total);
         }
     }
