@@ -164,13 +164,18 @@ impl Query {
             .transpose()
     }
 
-    /// A whole number below `limit` (default 0 when absent).
+    /// A whole number below `limit` (default 0 when absent); `usize::MAX`: no limit known here
+    /// (the caller checks it), and the message says only that a whole number is expected.
     pub fn index(&self, key: &str, limit: usize) -> Result<usize, BadRequest> {
         let Some(v) = self.get(key) else {
             return Ok(0);
         };
         match v.parse::<usize>() {
             Ok(i) if i < limit => Ok(i),
+            _ if limit == usize::MAX => Err(BadRequest::new(format!(
+                "`{key}` is `{}`; expected a whole number (0, 1, 2, ...)",
+                printable(v)
+            ))),
             _ => Err(BadRequest::new(format!(
                 "`{key}` is `{}`; expected a whole number in 0..{limit}",
                 printable(v)
@@ -442,6 +447,9 @@ mod tests {
                 .contains("`index` is missing")
         );
         assert!(gt_params("split=../x&index=0").is_err());
+        // A negative index names what is expected, not a range up to usize::MAX.
+        let e = gt_params("split=val&index=-1").unwrap_err().0;
+        assert_eq!(e, "`index` is `-1`; expected a whole number (0, 1, 2, ...)");
         assert!(matches!(camera_params(POSE), Ok(CameraParam::Pose(_))));
         assert!(camera_params("R=1").is_err());
     }
