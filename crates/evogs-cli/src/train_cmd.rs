@@ -543,11 +543,13 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
     if let (Some((n, estimate)), Some(measured)) = (peak, evogs_train::train_log::peak_rss_bytes())
     {
         use evogs_train::memory::human_bytes;
+        let error = 100.0 * (estimate as f64 / measured as f64 - 1.0);
         println!(
-            "memory: estimate {} at the most Gaussians ({n}), measured peak {} ({:+.1}%)",
-            human_bytes(estimate),
+            "memory: measured peak {}; the estimate at the most Gaussians ({n}) was {}, {:.1}% {} it",
             human_bytes(measured),
-            100.0 * (estimate as f64 / measured as f64 - 1.0)
+            human_bytes(estimate),
+            error.abs(),
+            if error < 0.0 { "below" } else { "above" }
         );
     }
     if args.gain_report {
