@@ -39,16 +39,18 @@ pub const RUN_FILES: [&str; 4] = [
 /// target puts beside the fuzzed `config.json`, and the source of its seeds.
 #[cfg(feature = "checkpoint")]
 pub fn template_run(evogs: bool) -> &'static Path {
-    static RUNS: OnceLock<tempfile::TempDir> = OnceLock::new();
-    let root = RUNS.get_or_init(|| {
+    /// The folder (removed never: a static is not dropped) and the two runs in it.
+    static RUNS: OnceLock<(tempfile::TempDir, [std::path::PathBuf; 2])> = OnceLock::new();
+    let (_, runs) = RUNS.get_or_init(|| {
         let root = tempfile::Builder::new()
             .prefix("evogs-fuzz-runs-")
             .tempdir()
             .expect("template runs' folder");
-        for (name, method) in [
+        let runs = [
             ("evogs", evogs_backbones::Method::Evogs),
             ("baseline", evogs_backbones::Method::Baseline),
-        ] {
+        ]
+        .map(|(name, method)| {
             let mut config = tiny_config();
             config.method = method;
             config.iterations = 2;
@@ -62,12 +64,11 @@ pub fn template_run(evogs: bool) -> &'static Path {
                 resume_backend: None,
             };
             evogs_train::run::train(&request, &mut |_, _| {}).expect("the template run trains");
-        }
-        root
+            request.out
+        });
+        (root, runs)
     });
-    let path = root.path().join(if evogs { "evogs" } else { "baseline" });
-    // A 'static path: the folder lives as long as the process.
-    Box::leak(path.into_boxed_path())
+    &runs[usize::from(!evogs)]
 }
 
 /// A fresh state and backbone of [`tiny_config`] (one Gaussian), to load a checkpoint into.
