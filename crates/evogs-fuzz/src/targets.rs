@@ -346,7 +346,10 @@ pub fn run(data: &[u8]) -> bool {
     let template = crate::seeds::template_run(selector & 0x20 == 0);
     for (bit, name) in crate::seeds::RUN_FILES.iter().enumerate() {
         if selector & (1 << bit) == 0 && template.join(name).is_file() {
-            std::fs::copy(template.join(name), dir.join(name)).unwrap();
+            // Read and written (std retries both on EINTR), not `fs::copy`: its
+            // copy_file_range failed with EINTR under libFuzzer's timer signal.
+            let bytes = std::fs::read(template.join(name)).unwrap();
+            std::fs::write(dir.join(name), bytes).unwrap();
         }
     }
     // What the run's config asks for is counted before anything is built: a valid config that
