@@ -184,7 +184,9 @@ fn scgs_defaults() -> ScgsSettings {
 }
 
 /// SC-GS's settings (`--backbone scgs`), each defaulting to [`ScgsSettings::default`]'s value
-/// (SC-GS's D-NeRF recipe); [`ScgsArgs::apply`] writes every one into a run's settings.
+/// (SC-GS's D-NeRF recipe); [`ScgsArgs::apply`] writes every one into a run's settings. The
+/// network's width is not here: its default depends on the trainer's preset (`--control-width`
+/// is the binary's flag).
 #[derive(Clone, Debug, PartialEq, Args)]
 pub struct ScgsArgs {
     /// SC-GS: control points that carry the motion.
@@ -194,10 +196,6 @@ pub struct ScgsArgs {
     /// SC-GS: nearest control points that move each Gaussian (K).
     #[arg(long, value_name = "K", default_value_t = scgs_defaults().neighbours)]
     pub control_neighbours: usize,
-
-    /// SC-GS: hidden width of the control points' network.
-    #[arg(long, value_name = "W", default_value_t = scgs_defaults().width)]
-    pub control_width: usize,
 
     /// SC-GS: hidden layers of the control points' network.
     #[arg(long, value_name = "D", default_value_t = scgs_defaults().depth)]
@@ -230,7 +228,6 @@ impl ScgsArgs {
     pub fn apply(&self, settings: &mut ScgsSettings) {
         settings.control_points = self.control_points;
         settings.neighbours = self.control_neighbours;
-        settings.width = self.control_width;
         settings.depth = self.control_depth;
         settings.arap_weight = self.arap_weight;
         settings.position_lr_scale = self.control_position_lr_scale;
@@ -243,7 +240,6 @@ impl ScgsArgs {
         [
             ("--control-points", self.control_points.to_string()),
             ("--control-neighbours", self.control_neighbours.to_string()),
-            ("--control-width", self.control_width.to_string()),
             ("--control-depth", self.control_depth.to_string()),
             ("--arap-weight", self.arap_weight.to_string()),
             (
@@ -291,8 +287,8 @@ mod tests {
         // The flags written back parse to the same values.
         let cli = Cli::parse_from([
             "evogs",
-            "--control-width",
-            "96",
+            "--control-depth",
+            "6",
             "--arap-weight",
             "2.5e-5",
             "--control-follow-densify",

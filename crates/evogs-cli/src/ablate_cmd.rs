@@ -38,14 +38,10 @@ pub struct AblateArgs {
     #[command(flatten)]
     pub budget: crate::shared_args::BudgetArgs,
 
-    /// Deformation backbone of every row: the baseline rows train it, the EvoGS rows use Φ built
-    /// from its field (4dgs, grid4d; d3dgs: the tri-plane Φ).
-    #[arg(long, default_value_t = evogs_train::BackboneKind::default(), value_parser = evogs_backbones::cli::words::<evogs_train::BackboneKind>())]
-    pub backbone: evogs_train::BackboneKind,
-
-    /// SC-GS's settings (`--backbone scgs`), each defaulting to `ScgsSettings::default()`'s value.
+    /// The deformation backbone of every row (the baseline rows train it, the EvoGS rows use
+    /// Φ built from it) and SC-GS's settings.
     #[command(flatten)]
-    pub scgs: evogs_backbones::cli::ScgsArgs,
+    pub backbone: crate::shared_args::BackboneArgs,
 
     /// Random seed for every row (the first seed with --seeds) [default: the preset's].
     #[arg(long, value_name = "S")]
@@ -79,8 +75,7 @@ pub fn run_ablate(args: &AblateArgs) -> Result<Vec<AblationResult>> {
     if let Some(s) = args.seed {
         config.seed = s;
     }
-    config.backbone = args.backbone;
-    args.scgs.apply(&mut config.scgs);
+    args.backbone.apply(&mut config);
     let rows = select(&args.rows)?;
     let seeds = seeds_from(config.seed, args.seeds as usize);
     let request = AblationRequest {

@@ -55,14 +55,10 @@ pub struct BenchArgs {
     #[arg(long, allow_negative_numbers = true, default_value_t = 1000, value_name = "N", value_parser = crate::shared_args::whole::<u64>(1))]
     pub eval_every: u64,
 
-    /// Deformation backbone of every run (EvoGS runs use Φ built from its field; d3dgs: the
-    /// tri-plane Φ).
-    #[arg(long, default_value_t = evogs_train::BackboneKind::default(), value_parser = evogs_backbones::cli::words::<evogs_train::BackboneKind>())]
-    pub backbone: evogs_train::BackboneKind,
-
-    /// SC-GS's settings (`--backbone scgs`), each defaulting to `ScgsSettings::default()`'s value.
+    /// The deformation backbone of every run (EvoGS runs use Φ built from it) and SC-GS's
+    /// settings.
     #[command(flatten)]
-    pub scgs: evogs_backbones::cli::ScgsArgs,
+    pub backbone: crate::shared_args::BackboneArgs,
 
     /// Seed of every run.
     #[arg(long, value_name = "S")]
@@ -99,12 +95,8 @@ fn shared_flags(args: &BenchArgs) -> Vec<String> {
         args.preset.to_string(),
         "--eval-every".to_string(),
         args.eval_every.to_string(),
-        "--backbone".to_string(),
-        args.backbone.to_string(),
     ];
-    if args.backbone == evogs_train::BackboneKind::Scgs {
-        f.extend(args.scgs.flags());
-    }
+    f.extend(args.backbone.flags(args.preset));
     if let Some(n) = args.iterations {
         f.extend(["--iterations".to_string(), n.to_string()]);
     }
@@ -204,8 +196,7 @@ pub fn run_bench_cmd(args: &BenchArgs) -> Result<Vec<BenchRun>> {
     if let Some(s) = args.seed {
         config.seed = s;
     }
-    config.backbone = args.backbone;
-    args.scgs.apply(&mut config.scgs);
+    args.backbone.apply(&mut config);
     let methods = args.methods.clone();
     let request = BenchRequest {
         scenes: args.data.iter().map(|d| BenchScene::from_dir(d)).collect(),

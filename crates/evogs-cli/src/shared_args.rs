@@ -1,6 +1,8 @@
 //! Flags several subcommands share, each declared once and flattened where it is used: the
-//! rasterizer backend ([`RasterArgs`]), a time budget ([`BudgetArgs`]), the rule for frame times
-//! ([`TimeFromArg`]), and the parsers of values the libraries do not parse themselves. The
+//! rasterizer backend ([`RasterArgs`]), a time budget ([`BudgetArgs`]), the deformation backbone
+//! with SC-GS's settings ([`BackboneArgs`]), the rule for frame times ([`TimeFromArg`]), the help
+//! of a flag whose default is the preset's ([`by_preset`]), and the parsers of values the
+//! libraries do not parse themselves. The
 //! subcommands' own flags are in their modules (`train_cmd`, `eval_cmd`, …); this module imports
 //! none of them.
 
@@ -197,5 +199,86 @@ mod tests {
         assert!(parse_background("1,x,1").unwrap_err().contains("channel 1"));
         assert!(parse_background("1,1,1.5").unwrap_err().contains("outside"));
         assert!(parse_background("NaN,0,0").unwrap_err().contains("outside"));
+    }
+}
+
+/// `text` followed by the value `value` reads from each preset's settings: the help of a flag
+/// whose default is the preset's.
+pub fn by_preset<T: std::fmt::Display>(
+    text: &str,
+    value: impl Fn(&evogs_train::TrainConfig) -> T,
+) -> String {
+    let values: Vec<String> = evogs_train::Preset::ALL
+        .iter()
+        .map(|&p| format!("{p} {}", value(&evogs_train::TrainConfig::preset(p))))
+        .collect();
+    format!("{text} [preset: {}]", values.join("; "))
+}
+
+/// The deformation backbone and SC-GS's settings, flattened into `evogs train`, `ablate` and
+/// `bench`: the backbone and the control points' network width default to the preset's (the
+/// `scgs` preset's are `scgs` and 64), SC-GS's other settings to
+/// [`evogs_backbones::ScgsSettings::default`]'s.
+#[derive(Clone, Debug, Args)]
+pub struct BackboneArgs {
+    /// Deformation backbone.
+    #[arg(
+        long,
+        value_parser = evogs_backbones::cli::words::<evogs_train::BackboneKind>(),
+        help = by_preset(
+            "Deformation backbone: d3dgs (Deformable-3D-Gaussians' MLP), 4dgs (4DGaussians' \
+             HexPlane field with its regularisers), grid4d (Grid4D's 4D decomposed hash grids \
+             with directional attention) or scgs (SC-GS's sparse control points: a network on a \
+             few hundred points, each Gaussian skinned by its nearest ones). With --method evogs, \
+             d3dgs's Φ is the tri-plane network, 4dgs's and grid4d's fields become Φ at half \
+             their width, scgs's skinning becomes Φ as it is",
+            |c| c.backbone,
+        )
+    )]
+    pub backbone: Option<evogs_train::BackboneKind>,
+
+    /// SC-GS: hidden width of the control points' network.
+    #[arg(
+        long,
+        value_name = "W",
+        allow_negative_numbers = true,
+        value_parser = whole::<usize>(1),
+        help = by_preset("SC-GS: hidden width of the control points' network", |c| c.scgs.width)
+    )]
+    pub control_width: Option<usize>,
+
+    /// SC-GS's other settings.
+    #[command(flatten)]
+    pub scgs: evogs_backbones::cli::ScgsArgs,
+}
+
+impl BackboneArgs {
+    /// Writes the flags given into `config` (made from its preset).
+    pub fn apply(&self, config: &mut evogs_train::TrainConfig) {
+        if let Some(b) = self.backbone {
+            config.backbone = b;
+        }
+        if let Some(w) = self.control_width {
+            config.scgs.width = w;
+        }
+        self.scgs.apply(&mut config.scgs);
+    }
+
+    /// The flags that give these values back under `preset` (`evogs bench --jobs` hands them to
+    /// its parts): SC-GS's only when the backbone is SC-GS.
+    pub fn flags(&self, preset: evogs_train::Preset) -> Vec<String> {
+        let mut config = evogs_train::TrainConfig::preset(preset);
+        self.apply(&mut config);
+        let mut f = Vec::new();
+        if let Some(b) = self.backbone {
+            f.extend(["--backbone".to_string(), b.to_string()]);
+        }
+        if config.backbone == evogs_train::BackboneKind::Scgs {
+            if let Some(w) = self.control_width {
+                f.extend(["--control-width".to_string(), w.to_string()]);
+            }
+            f.extend(self.scgs.flags());
+        }
+        f
     }
 }

@@ -15,7 +15,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use clap::Args;
 use splat_raster::BackendChoice;
 
-use crate::shared_args::{BudgetArgs, TimeFromArg, parse_backend};
+use crate::shared_args::{BudgetArgs, TimeFromArg, by_preset, parse_backend};
 
 /// Arguments of `evogs train`.
 #[derive(Debug, Args)]
@@ -39,21 +39,13 @@ pub struct TrainArgs {
     #[arg(long, default_value_t = evogs_train::Method::default(), value_parser = evogs_backbones::cli::words::<evogs_train::Method>())]
     pub method: evogs_train::Method,
 
-    /// Deformation backbone: d3dgs (Deformable-3D-Gaussians' MLP), 4dgs (4DGaussians'
-    /// HexPlane field with its regularisers), grid4d (Grid4D's 4D decomposed hash grids with
-    /// directional attention) or scgs (SC-GS's sparse control points: a network on a few hundred
-    /// points, each Gaussian skinned by its nearest ones). With --method evogs, 4dgs's and
-    /// grid4d's fields become Φ at half their width, scgs's skinning becomes Φ as it is.
-    #[arg(long, default_value_t = evogs_train::BackboneKind::default(), value_parser = evogs_backbones::cli::words::<evogs_train::BackboneKind>())]
-    pub backbone: evogs_train::BackboneKind,
+    /// The deformation backbone and SC-GS's settings.
+    #[command(flatten)]
+    pub backbone: crate::shared_args::BackboneArgs,
 
     /// EvoGS's switches, each defaulting to `EvoSettings::default()`'s value.
     #[command(flatten)]
     pub evo: evogs_backbones::cli::EvoArgs,
-
-    /// SC-GS's settings, each defaulting to `ScgsSettings::default()`'s value.
-    #[command(flatten)]
-    pub scgs: evogs_backbones::cli::ScgsArgs,
 
     /// Schedule iterations over which the deformation network's learning rate decays from its
     /// start to its end value, as D-3DGS's `deform_lr_max_steps` [rates and preset values: see
@@ -216,13 +208,6 @@ pub struct TrainArgs {
 
 /// `text` and the value `value` reads from each preset's settings, in [`Preset::ALL`]'s order
 /// ("[preset: paper 256; cpu 64; tiny 32; dnerf 64]"): the help's defaults come from the presets.
-fn by_preset<T: std::fmt::Display>(text: &str, value: impl Fn(&TrainConfig) -> T) -> String {
-    let values: Vec<String> = evogs_train::Preset::ALL
-        .iter()
-        .map(|&p| format!("{p} {}", value(&TrainConfig::preset(p))))
-        .collect();
-    format!("{text} [preset: {}]", values.join("; "))
-}
 
 /// `--net-lr-decay`'s help, the network schedule's two ends read from the default settings.
 fn net_lr_decay_help() -> String {
@@ -296,9 +281,8 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
         config.background = b;
     }
     config = config.with_method(args.method);
-    config.backbone = args.backbone;
+    args.backbone.apply(&mut config);
     args.evo.apply(&mut config.evogs);
-    args.scgs.apply(&mut config.scgs);
     if let Some(v) = args.net_width {
         config.net.width = v;
     }

@@ -221,7 +221,7 @@ fn bad_switch_values_name_the_setting() {
             &["--components", "velocity"][..],
             "pos, rot, scale, opacity, colour",
         ),
-        (&["--preset", "huge"][..], "paper, cpu, tiny or dnerf"),
+        (&["--preset", "huge"][..], "paper, cpu, tiny, dnerf or scgs"),
         (&["--method", "evo"][..], "baseline or evogs"),
         (&["--background", "grey"][..], "white, black or random"),
         (&["--net-lr-decay", "0"][..], "expected a whole number >= 1"),
@@ -333,4 +333,38 @@ fn the_dnerf_cap_follows_the_method_unless_given() {
         assert_eq!(cap(&given), Some(12_345), "{method}");
         assert_eq!(cap(&["--preset", "cpu", "--method", method]), None);
     }
+}
+
+/// `--preset scgs` is SC-GS's recipe: the scgs backbone at width 64 and EvoGS's cap rule for both
+/// methods; `--backbone` and `--control-width` given by hand win over it, and the other presets
+/// keep d3dgs and SC-GS's own width 256.
+#[test]
+fn the_scgs_preset_sets_the_backbone_and_width_unless_given() {
+    use evogs_train::BackboneKind;
+    use evogs_train::config::DNERF_GAUSSIAN_VIEW_BUDGET_EVOGS;
+    for method in ["baseline", "evogs"] {
+        let c = config(&["--preset", "scgs", "--method", method]).unwrap();
+        assert_eq!(c.backbone, BackboneKind::Scgs, "{method}");
+        assert_eq!(c.scgs.width, evogs_train::config::SCGS_PRESET_WIDTH);
+        assert_eq!(
+            c.gaussian_view_budget,
+            Some(DNERF_GAUSSIAN_VIEW_BUDGET_EVOGS)
+        );
+    }
+    let c = config(&[
+        "--preset",
+        "scgs",
+        "--backbone",
+        "d3dgs",
+        "--control-width",
+        "32",
+    ])
+    .unwrap();
+    assert_eq!((c.backbone, c.scgs.width), (BackboneKind::D3dgs, 32));
+    let c = config(&["--preset", "dnerf", "--backbone", "scgs"]).unwrap();
+    assert_eq!((c.backbone, c.scgs.width), (BackboneKind::Scgs, 256));
+    assert_eq!(
+        config(&["--preset", "dnerf"]).unwrap().backbone,
+        BackboneKind::D3dgs
+    );
 }
