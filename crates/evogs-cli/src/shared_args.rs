@@ -202,8 +202,9 @@ mod tests {
     }
 }
 
-/// `text` followed by the value `value` reads from each preset's settings: the help of a flag
-/// whose default is the preset's.
+/// `text` and the value `value` reads from each preset's settings, in `Preset::ALL`'s order
+/// ("[preset: paper 256; cpu 64; tiny 32; dnerf 64; scgs 64]"): the help of a flag whose default
+/// is the preset's comes from the presets.
 pub fn by_preset<T: std::fmt::Display>(
     text: &str,
     value: impl Fn(&evogs_train::TrainConfig) -> T,

@@ -206,9 +206,6 @@ pub struct TrainArgs {
     pub stop_after: Option<u64>,
 }
 
-/// `text` and the value `value` reads from each preset's settings, in [`Preset::ALL`]'s order
-/// ("[preset: paper 256; cpu 64; tiny 32; dnerf 64]"): the help's defaults come from the presets.
-
 /// `--net-lr-decay`'s help, the network schedule's two ends read from the default settings.
 fn net_lr_decay_help() -> String {
     let lr = TrainConfig::preset(evogs_train::Preset::default()).lr;
