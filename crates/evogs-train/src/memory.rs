@@ -50,6 +50,43 @@ pub struct MemoryInputs {
     pub network_params: usize,
 }
 
+/// The sizes of a run's training data the estimate depends on: read from the loaded views
+/// ([`DataSizes::of_views`]) or, before any image is loaded, from the dataset's cameras
+/// ([`crate::data::split_sizes`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DataSizes {
+    /// Training views.
+    pub views: usize,
+    /// Pixels of one training image after resizing.
+    pub pixels: usize,
+    /// Distinct training times.
+    pub frames: usize,
+}
+
+impl DataSizes {
+    /// The sizes of loaded training views (the first view's image, as every view shares it).
+    pub fn of_views(train: &crate::data::SplitViews) -> Self {
+        Self {
+            views: train.views.len(),
+            pixels: train
+                .views
+                .first()
+                .map_or(0, |v| v.image.width as usize * v.image.height as usize),
+            frames: train.times().len(),
+        }
+    }
+
+    /// The estimate's inputs with a network of `network_params` floats.
+    pub fn with_network(self, network_params: usize) -> MemoryInputs {
+        MemoryInputs {
+            views: self.views,
+            pixels: self.pixels,
+            frames: self.frames,
+            network_params,
+        }
+    }
+}
+
 /// The estimate, by part (bytes).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct MemoryEstimate {
@@ -78,10 +115,16 @@ impl MemoryEstimate {
         const F32: u64 = 4;
         // A random background keeps each image's transmittance beside it, and a step's target.
         let random = u64::from(config.background == Background::Random);
-        let images = (inputs.views * inputs.pixels) as u64 * (3 + random) * F32;
+        // Saturating: a size read from a file must not wrap the estimate below a limit.
+        let images = (inputs.views as u64)
+            .saturating_mul(inputs.pixels as u64)
+            .saturating_mul((3 + random) * F32);
         let network = network_bytes(inputs.network_params, 4);
-        let render = inputs.pixels as u64 * (BYTES_PER_PIXEL + random * 3 * F32);
-        let fixed = PROCESS_BYTES + render + network + control_points(config);
+        let render = (inputs.pixels as u64).saturating_mul(BYTES_PER_PIXEL + random * 3 * F32);
+        let fixed = PROCESS_BYTES
+            .saturating_add(render)
+            .saturating_add(network)
+            .saturating_add(control_points(config));
         // Per Gaussian: P floats of parameters, two Adam moments, the gradients (P plus the 2-D
         // means and the radius), the deformed copy of the geometry (10) and the deformation rows
         // with their gradient (at most `Layout::MAX_DIM` each: an upper bound for every layout).
@@ -111,7 +154,9 @@ impl MemoryEstimate {
     /// The estimated peak with `gaussians` Gaussians: a checkpoint write's, which holds a
     /// step's buffers and the serialised copies.
     pub fn at(&self, gaussians: usize) -> u64 {
-        self.images + self.fixed + self.peak_per_gaussian() * gaussians as u64
+        self.images
+            .saturating_add(self.fixed)
+            .saturating_add(self.peak_per_gaussian().saturating_mul(gaussians as u64))
     }
 
     /// Bytes per Gaussian at the peak: a step's and a checkpoint write's copies.
@@ -122,7 +167,7 @@ impl MemoryEstimate {
     /// The most Gaussians whose estimate stays within `limit` bytes; `None` when even the
     /// images and fixed part exceed it.
     pub fn max_gaussians(&self, limit: u64) -> Option<usize> {
-        let room = limit.checked_sub(self.images + self.fixed)?;
+        let room = limit.checked_sub(self.images.saturating_add(self.fixed))?;
         Some(usize::try_from(room / self.peak_per_gaussian().max(1)).unwrap_or(usize::MAX))
     }
 

@@ -31,7 +31,7 @@ use evogs_backbones::Backbone;
 use crate::budget::{BudgetProgress, BudgetSummary, Clock, Pacer, clock_of};
 use crate::checkpoint::{CheckpointMeta, load_checkpoint, save_checkpoint};
 use crate::config::TrainConfig;
-use crate::data::{load_dataset_split, load_split, open_dataset};
+use crate::data::{load_dataset_split, open_dataset};
 use crate::error::TrainError;
 pub use crate::run_files::{read_json, write_json, write_text};
 use crate::state::SceneState;
@@ -393,10 +393,16 @@ pub fn train_with_clock(
         if let Some(backend) = request.resume_backend {
             run.train.backend = backend;
         }
-        let train = load_split(
-            run_data(&paths, &run)?,
+        let data = run_data(&paths, &run)?;
+        let dataset = open_dataset(data, run.train.time_from)?;
+        // The images and the network against the memory before either is allocated (the
+        // Gaussians are checked with the rest when the trainer is made).
+        let sizes = crate::data::split_sizes(&dataset, Split::Train, run.train.downscale);
+        crate::trainer::check_memory(&run.train, sizes, 0)?;
+        let train = load_dataset_split(
+            &dataset,
+            data,
             Split::Train,
-            run.train.time_from,
             run.train.background.rgb(),
             run.train.downscale,
         )?;
@@ -407,9 +413,6 @@ pub fn train_with_clock(
                 "no checkpoint to resume from (train the run first)",
             ));
         }
-        // The images and the network against the memory, before the checkpoint is read into a
-        // backbone (the Gaussians are checked with the rest when the trainer is made).
-        crate::trainer::check_memory(&run.train, &train, 0)?;
         let (state, mut backbone, meta) = read_checkpoint(&ckpt, &run.train)?;
         settle_evo_state(&paths, meta.iteration)?;
         backbone.load_state(&paths.evo_state())?;
@@ -443,6 +446,9 @@ pub fn train_with_clock(
         )?;
         let c = &request.config;
         let dataset = open_dataset(&data, c.time_from)?;
+        // Before the images, the network and the Gaussians are allocated.
+        let sizes = crate::data::split_sizes(&dataset, Split::Train, c.downscale);
+        crate::trainer::check_memory(c, sizes, c.init_points)?;
         let train = load_dataset_split(
             &dataset,
             &data,

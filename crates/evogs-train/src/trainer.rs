@@ -44,7 +44,7 @@ use crate::data::SplitViews;
 use crate::error::TrainError;
 use crate::gain_report::GainReport;
 use crate::init::random_gaussians;
-use crate::memory::{MemoryEstimate, MemoryInputs};
+use crate::memory::{DataSizes, MemoryEstimate};
 use crate::state::SceneState;
 use crate::timers::{Phase, PhaseTimes};
 use evogs_backbones::{Backbone, DensifyPolicy};
@@ -110,17 +110,18 @@ pub fn parameter_count(config: &TrainConfig) -> Result<usize, TrainError> {
     Ok(evogs_backbones::parameter_count(&config.backbone_run())?)
 }
 
-/// Checks the memory estimate of a run of `config` on the views `train` starting with
-/// `gaussians` Gaussians, before anything of the run is allocated: with `--memory-limit`, the
+/// Checks the memory estimate of a run of `config` on training data of `data`'s sizes starting
+/// with `gaussians` Gaussians, before anything of the run is allocated (the images too, when the
+/// sizes come from the dataset's cameras, [`crate::data::split_sizes`]): with `--memory-limit`, the
 /// estimate must fit it (and the limit becomes a cap on the Gaussians, returned); without, it
 /// must fit the memory this machine has available (where that is known), and the error names
 /// the flag that overrides it.
 pub fn check_memory(
     config: &TrainConfig,
-    train: &SplitViews,
+    data: DataSizes,
     gaussians: usize,
 ) -> Result<Option<usize>, TrainError> {
-    let memory = memory_estimate(config, train)?;
+    let memory = memory_estimate(config, data)?;
     let need = memory.at(gaussians);
     if let Some(limit) = config.memory_limit {
         return match memory.max_gaussians(limit) {
@@ -174,19 +175,10 @@ pub fn densify_config(config: &TrainConfig) -> DensifyConfig {
 }
 
 /// [`MemoryEstimate`] of `config` training on `train` with `backbone`.
-fn memory_estimate(config: &TrainConfig, train: &SplitViews) -> Result<MemoryEstimate, TrainError> {
-    let pixels = train
-        .views
-        .first()
-        .map_or(0, |v| v.image.width as usize * v.image.height as usize);
+fn memory_estimate(config: &TrainConfig, data: DataSizes) -> Result<MemoryEstimate, TrainError> {
     Ok(MemoryEstimate::new(
         config,
-        &MemoryInputs {
-            views: train.views.len(),
-            pixels,
-            frames: train.times().len(),
-            network_params: parameter_count(config)?,
-        },
+        &data.with_network(parameter_count(config)?),
     ))
 }
 
@@ -243,7 +235,7 @@ impl Trainer {
     pub fn new(config: TrainConfig, train: SplitViews) -> Result<Self, TrainError> {
         // Before the initial Gaussians are allocated (up to `MAX_INIT_POINTS`).
         config.validate()?;
-        check_memory(&config, &train, config.init_points)?;
+        check_memory(&config, DataSizes::of_views(&train), config.init_points)?;
         let gaussians = random_gaussians(
             config.init_points,
             config.init_half_extent,
@@ -262,7 +254,7 @@ impl Trainer {
     ) -> Result<Self, TrainError> {
         config.validate()?;
         // Before the backbone and the state are allocated.
-        check_memory(&config, &train, gaussians.len())?;
+        check_memory(&config, DataSizes::of_views(&train), gaussians.len())?;
         let mut backbone = make_backbone(&config)?;
         backbone.initialise(gaussians.view())?;
         let state = SceneState::new(gaussians, backbone.as_ref(), &config.lr)?;
@@ -290,7 +282,7 @@ impl Trainer {
         densify.validate()?;
         let mut backbone = backbone;
         backbone.prepare(&train.times(), state.len(), extent)?;
-        if let Some(cap) = check_memory(&config, &train, state.len())? {
+        if let Some(cap) = check_memory(&config, DataSizes::of_views(&train), state.len())? {
             densify.max_gaussians = Some(densify.max_gaussians.map_or(cap, |m| m.min(cap)));
         }
         let (raster, backend) = select_rasterizer(config.backend)?;
@@ -379,7 +371,8 @@ impl Trainer {
     /// The estimate of this run's peak memory ([`crate::memory`]); `at(n)` for `n` Gaussians.
     pub fn memory_estimate(&self) -> MemoryEstimate {
         // The config was counted when the trainer was made; it cannot fail now.
-        memory_estimate(&self.config, &self.train).expect("the run's parameters were counted")
+        memory_estimate(&self.config, DataSizes::of_views(&self.train))
+            .expect("the run's parameters were counted")
     }
 
     /// The most Gaussians densification may grow to (`--max-gaussians` and `--memory-limit`),

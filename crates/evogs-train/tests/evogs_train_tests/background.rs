@@ -84,3 +84,22 @@ fn transmittance_errors_name_the_file() {
     let err = load_transmittance(&views, 1.0).unwrap_err().to_string();
     assert!(err.contains("absent.png"), "{err}");
 }
+
+/// The sizes the memory check reads from the dataset's cameras before any image is loaded are
+/// the loaded views' (views, pixels after resizing, distinct times), at full size and at a
+/// factor whose resize rounds.
+#[test]
+fn the_sizes_read_before_loading_are_the_loaded_views() {
+    use evogs_train::data::{open_dataset, split_sizes};
+    use evogs_train::memory::DataSizes;
+    let data = lego_fixture();
+    let dataset = open_dataset(&data, Default::default()).unwrap();
+    for factor in [1.0, 0.5, 0.37] {
+        let views = load_split(&data, Split::Train, Default::default(), [0.0; 3], factor).unwrap();
+        assert_eq!(
+            split_sizes(&dataset, Split::Train, factor),
+            DataSizes::of_views(&views),
+            "factor {factor}"
+        );
+    }
+}
