@@ -67,6 +67,30 @@ impl OneWord for BackboneKind {
     const FIELD: &'static str = "backbone";
 }
 
+impl BackboneKind {
+    /// The method the backbone comes from, as its paper names it (`D-3DGS`, `4DGaussians`,
+    /// `Grid4D`, `SC-GS`).
+    pub fn paper_name(self) -> &'static str {
+        match self {
+            BackboneKind::D3dgs => "D-3DGS",
+            BackboneKind::FourDgs => "4DGaussians",
+            BackboneKind::Grid4d => "Grid4D",
+            BackboneKind::Scgs => "SC-GS",
+        }
+    }
+}
+
+impl Method {
+    /// What a run of this method on `backbone` is called in tables and captions: the backbone's
+    /// paper name for the baseline (`SC-GS`), `EvoGS(SC-GS)` for EvoGS on it.
+    pub fn label(self, backbone: BackboneKind) -> String {
+        match self {
+            Method::Baseline => backbone.paper_name().to_string(),
+            Method::Evogs => format!("EvoGS({})", backbone.paper_name()),
+        }
+    }
+}
+
 /// What a run hands the backbone it builds: the choice, every backbone's settings, the initial
 /// cube, the seed, and Grid4D's table size and schedules (the trainer's `TrainConfig::backbone_run`
 /// fills it from the run's config).
@@ -308,6 +332,16 @@ mod tests {
         let evogs = EvoSettings::default();
         let r = run(Method::Baseline, BackboneKind::D3dgs, &huge, &evogs);
         assert!(parameter_count(&r).is_err());
+    }
+
+    /// Captions name the method as the papers do, so that EvoGS on D-3DGS does not read like
+    /// the D-3DGS baseline.
+    #[test]
+    fn labels_name_the_method_on_its_backbone() {
+        assert_eq!(Method::Baseline.label(BackboneKind::D3dgs), "D-3DGS");
+        assert_eq!(Method::Evogs.label(BackboneKind::D3dgs), "EvoGS(D-3DGS)");
+        assert_eq!(Method::Evogs.label(BackboneKind::Scgs), "EvoGS(SC-GS)");
+        assert_eq!(Method::Baseline.label(BackboneKind::FourDgs), "4DGaussians");
     }
 
     /// The one-word spellings, and the one message for a word that spells none.

@@ -129,24 +129,36 @@ function caption(i) {
   const r = S.info.runs[i];
   const psnr = Object.entries(r.psnr).map(([k, v]) => `${k} ${Number(v).toFixed(2)} dB`).join(', ');
   const controls = r.control_points != null ? `, ${r.control_points} control points` : '';
-  return `${r.name}: ${r.method} (${r.backbone}), ${r.gaussians} Gaussians${controls}, iteration ${r.iteration}/${r.iterations}` +
+  return `${r.name}: ${r.label}, ${r.gaussians} Gaussians${controls}, iteration ${r.iteration}/${r.iterations}` +
     (r.source === 'checkpoint' ? ' (checkpoint)' : '') +
     (psnr ? `, PSNR ${psnr}` : ', no eval files') + (r.note ? ` — ${r.note}` : '') +
     (r.reload_error ? ` — reload failed: ${r.reload_error}` : '');
 }
 
+// A path as one shell word: as it is when it holds only safe characters, else single-quoted.
+function shellWord(s) {
+  return /^[\w\/.,:+@%=-]+$/.test(s) ? s : `'${s.replace(/'/g, "'\\''")}'`;
+}
+
+// The first scale at which a run's images are at least 384 px wide on the page (a 64 × 64 demo
+// run is drawn at 6×, rendered at that size, not stretched); full size for larger runs.
+function autoScale(width) {
+  return [1, 1.5, 2, 4, 6].find((s) => width * s >= 384) || 6;
+}
+
 function updateStats() {
   const now = performance.now();
   S.done = S.done.filter((x) => now - x < 2000);
-  const vps = S.done.length / 2;
+  // The rate over the last 2 s; nothing drawn in them: the view is still, not slow.
+  const rate = S.done.length ? `${(S.done.length / 2).toFixed(1)} views/s` : 'idle';
   const ms = S.lastMs.map((m) => (m == null ? '–' : `${m} ms`)).join(' / ');
   const backend = S.info ? S.info.runs.map((r) => r.backend).join(' | ') : '';
-  $('stats').textContent = `${vps.toFixed(1)} views/s · render ${ms} · ${backend}` +
+  $('stats').textContent = `${rate} · render ${ms} · ${backend}` +
     (S.error ? ` · ${S.error}` : '');
   S.panes.forEach((p, i) => { p.cap.textContent = caption(i); });
   const sz = size(false);
   const show = controlsQuery(0) ? ' --show-controls' : '';
-  $('command').textContent = `evogs render --run ${S.info.runs[0].name} --camera camera.json --time ${fmtNum(S.t)}${show} --out view.png` +
+  $('command').textContent = `evogs render --run ${shellWord(S.info.runs[0].path)} --camera camera.json --time ${fmtNum(S.t)}${show} --out view.png` +
     ` (${sz.w}×${sz.h}; "save camera" writes camera.json)`;
 }
 
@@ -340,6 +352,8 @@ async function init() {
   S.lastMs = S.info.runs.map(() => null);
   const r0 = S.info.runs[0];
   S.base = { w: r0.width, h: r0.height };
+  S.scale = autoScale(r0.width);
+  $('scale').value = String(S.scale);
   S.up = v3.norm(r0.up);
   makePanes();
   const start = (r0.cameras.test || []).length ? 'test' : 'train';
@@ -376,6 +390,7 @@ window.evogsView = {
     !p.inflight && p.shown === renderUrl(S.panes.indexOf(p), false) && p.img.complete && p.img.naturalWidth > 0),
   urls: () => S.panes.map((_, i) => renderUrl(i, false)),
   state: () => ({ cam: S.cam, t: S.t, dataset: S.dataset, size: size(false) }),
+  info: () => S.info,
 };
 
 init().catch((e) => { $('stats').textContent = `cannot start: ${e}`; });

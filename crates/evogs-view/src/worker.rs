@@ -110,6 +110,11 @@ impl CameraEntry {
 pub struct RunInfo {
     /// The run directory's name.
     pub name: String,
+    /// The run directory as `evogs view` was given it, made absolute: what the page's
+    /// `evogs render --run` line names, so that the line works from any folder.
+    pub path: String,
+    /// The method on its backbone as the papers name it (`D-3DGS`, `EvoGS(D-3DGS)`, `SC-GS`).
+    pub label: String,
     /// `baseline` or `evogs`.
     pub method: serde_json::Value,
     /// The deformation backbone.
@@ -434,6 +439,11 @@ impl Loaded {
                 || root.display().to_string(),
                 |n| n.to_string_lossy().into_owned(),
             ),
+            path: std::path::absolute(root)
+                .unwrap_or_else(|_| root.to_path_buf())
+                .display()
+                .to_string(),
+            label: run.run.train.method.label(run.run.train.backbone),
             method: serde_json::to_value(run.run.train.method).unwrap_or_default(),
             backbone: serde_json::to_value(run.run.train.backbone).unwrap_or_default(),
             iteration: run.summary.iteration,

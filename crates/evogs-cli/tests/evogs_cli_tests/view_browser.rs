@@ -99,7 +99,8 @@ fn the_page_orbits_and_moves_in_time_showing_the_servers_renders() {
             .contains("cam=dataset:test:0")
     );
     let first = screenshot(&mut tab, "#img-0");
-    assert_eq!(first.dimensions(), (32, 32));
+    // A run of 32 × 32 images is drawn at 6× (rendered at that size): small runs are scaled up.
+    assert_eq!(first.dimensions(), (192, 192));
     assert_shows(&v, &mut tab, &first, "the first view");
     assert_eq!(
         tab.eval("document.getElementById('gt-figure').hidden"),
@@ -111,6 +112,20 @@ fn the_page_orbits_and_moves_in_time_showing_the_servers_renders() {
     );
     let stats = tab.eval("document.querySelector('figcaption').textContent");
     assert!(stats.as_str().unwrap().contains("Gaussians"), "{stats}");
+    // The method as the papers name it, and the render command with the run's whole path.
+    let method = tab.eval("window.evogsView.info().runs[0].label");
+    assert!(
+        stats.as_str().unwrap().contains(method.as_str().unwrap()),
+        "{stats}"
+    );
+    let command = tab.eval("document.getElementById('command').textContent");
+    assert!(
+        command
+            .as_str()
+            .unwrap()
+            .contains(&format!("--run {}", s(&f.run))),
+        "{command}"
+    );
 
     // Drag to orbit.
     let (x, y, w, h) = rect(&mut tab, "#view-0");

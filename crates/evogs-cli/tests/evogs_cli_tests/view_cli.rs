@@ -132,6 +132,11 @@ fn info_describes_the_run() {
     let info: serde_json::Value = serde_json::from_slice(&r.body).unwrap();
     let run = &info["runs"][0];
     assert_eq!(run["name"], "trained");
+    assert_eq!(run["path"], s(&std::path::absolute(&f.run).unwrap()));
+    assert!(
+        ["D-3DGS", "EvoGS(D-3DGS)"].contains(&run["label"].as_str().unwrap()),
+        "{run}"
+    );
     assert_eq!(run["iteration"], 100);
     assert!(run["gaussians"].as_u64().unwrap() > 0);
     assert!(run["method"].is_string() && run["backend"].as_str().unwrap().contains("cpu"));
@@ -285,10 +290,11 @@ fn connections_beyond_the_bound_are_refused_at_once() {
     let f = fixture();
     let v = Viewer::start(&[s(&f.run)]);
     let limits = evogs_view::http::Limits::default();
-    // Idle connections occupy the workers and the backlog; at most `workers + backlog` are held,
-    // every further one is answered 503 and closed at once (not after the read timeout).
+    // Idle connections (no request head) wait in the head reader's list; at most
+    // `limits.pending` are held, every further one is answered 503 and closed at once (not after
+    // the head deadline). The workers are never theirs to hold.
     let extra = 4;
-    let mut idle: Vec<std::net::TcpStream> = (0..limits.workers + limits.backlog + extra)
+    let mut idle: Vec<std::net::TcpStream> = (0..limits.pending + extra)
         .map(|_| std::net::TcpStream::connect(v.addr).unwrap())
         .collect();
     // The connections beyond the bound are the last ones accepted: read those first and stop
@@ -315,7 +321,7 @@ fn connections_beyond_the_bound_are_refused_at_once() {
         "{refused} of the idle connections were refused"
     );
     assert!(
-        start.elapsed() < limits.timeout,
+        start.elapsed() < limits.head_timeout,
         "the refusals were not immediate"
     );
     drop(idle);
