@@ -54,6 +54,7 @@ pub mod hex_phi;
 pub mod observer;
 pub mod one_word;
 pub mod scgs;
+pub mod working_memory;
 
 pub use backbone::{Backbone, DensifyCues, GainStats, PerGaussianState};
 pub use choice::{BackboneKind, BackboneRun, Method, make_backbone, parameter_count};
@@ -72,3 +73,4 @@ pub use observer::Observer;
 pub use one_word::{OneWord, unknown_message};
 pub use scgs::control_evo::ScgsControlEvo;
 pub use scgs::{EvolutionOn, ScgsBackbone, ScgsSettings};
+pub use working_memory::WorkingBytes;

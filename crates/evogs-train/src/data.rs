@@ -75,24 +75,6 @@ pub fn load_split(
     )
 }
 
-/// The sizes of a split the memory estimate needs, read from the dataset's cameras before any
-/// image is loaded: its frames, its distinct times, and the first frame's camera resized by
-/// `factor` (the loaded views must all share that size, [`load_dataset_split`] checks).
-pub fn split_sizes(dataset: &Dataset, split: Split, factor: f32) -> crate::memory::DataSizes {
-    let frames = dataset.split(split);
-    let mut times: Vec<f32> = frames.iter().map(|f| f.time).collect();
-    times.sort_by(f32::total_cmp);
-    times.dedup();
-    crate::memory::DataSizes {
-        views: frames.len(),
-        pixels: frames.first().map_or(0, |f| {
-            let c = f.camera.camera.scaled(factor);
-            c.width as usize * c.height as usize
-        }),
-        frames: times.len(),
-    }
-}
-
 /// Loads a split of an opened dataset: images composited over `background` and resized by
 /// `factor`. Errors name the file: an empty split (D-NeRF: its `transforms_*.json`), a missing
 /// image, an image whose size differs from the split's first image.

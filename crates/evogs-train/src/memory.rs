@@ -20,7 +20,7 @@
 //! tiles per Gaussian, and the fixed cost ([`PROCESS_BYTES`]) was measured once; the figures it
 //! was checked against are in `results/memory.md`.
 
-use crate::config::{BackboneKind, Background, Method, TrainConfig};
+use crate::config::{Background, TrainConfig};
 
 /// Bytes of a process that holds no data yet: the binary, its libraries, the thread pool and
 /// the allocator's own (peak RSS of `evogs train` under a memory limit, less the rest of the
@@ -52,7 +52,7 @@ pub struct MemoryInputs {
 
 /// The sizes of a run's training data the estimate depends on: read from the loaded views
 /// ([`DataSizes::of_views`]) or, before any image is loaded, from the dataset's cameras
-/// ([`crate::data::split_sizes`]).
+/// ([`DataSizes::of_split`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct DataSizes {
     /// Training views.
@@ -73,6 +73,24 @@ impl DataSizes {
                 .first()
                 .map_or(0, |v| v.image.width as usize * v.image.height as usize),
             frames: train.times().len(),
+        }
+    }
+
+    /// The sizes of a split read from the dataset's cameras before any image is loaded: its
+    /// frames, its distinct times, and the first frame's camera resized by `factor` (the loaded
+    /// views must all share that size, `data::load_dataset_split` checks).
+    pub fn of_split(dataset: &evogs_io::Dataset, split: evogs_io::Split, factor: f32) -> Self {
+        let frames = dataset.split(split);
+        let mut times: Vec<f32> = frames.iter().map(|f| f.time).collect();
+        times.sort_by(f32::total_cmp);
+        times.dedup();
+        Self {
+            views: frames.len(),
+            pixels: frames.first().map_or(0, |f| {
+                let c = f.camera.camera.scaled(factor);
+                c.width as usize * c.height as usize
+            }),
+            frames: times.len(),
         }
     }
 
@@ -121,10 +139,13 @@ impl MemoryEstimate {
             .saturating_mul((3 + random) * F32);
         let network = network_bytes(inputs.network_params, 4);
         let render = (inputs.pixels as u64).saturating_mul(BYTES_PER_PIXEL + random * 3 * F32);
+        // The backbone's own buffers (activations, evolution state): the backbone crate models
+        // them, so that nothing here names a backbone.
+        let backbone = config.backbone_run().working_bytes(inputs.frames);
         let fixed = PROCESS_BYTES
             .saturating_add(render)
             .saturating_add(network)
-            .saturating_add(control_points(config));
+            .saturating_add(backbone.fixed);
         // Per Gaussian: P floats of parameters, two Adam moments, the gradients (P plus the 2-D
         // means and the radius), the deformed copy of the geometry (10) and the deformation rows
         // with their gradient (at most `Layout::MAX_DIM` each: an upper bound for every layout).
@@ -136,7 +157,7 @@ impl MemoryEstimate {
         // Rasterizer: the drawn record (56 bytes), its depth rank, pair start and radius, and
         // the tile lists' two entries per touched tile.
         let raster = 56 + 4 + 8 + 4 + 8 * TILES_PER_GAUSSIAN;
-        let (network_rows, evolution) = per_row_network(config, inputs.frames);
+        let (network_rows, evolution) = (backbone.per_row, backbone.evolution_per_row);
         // The checkpoint's tensors: the parameters with their two Adam moments and the
         // statistics (stored as they are in memory).
         let kept = F32 * 3 * p + stats;
@@ -192,72 +213,6 @@ impl MemoryEstimate {
             human_bytes(self.checkpoint_per_gaussian),
         )
     }
-}
-
-/// Per Gaussian: the network's activations kept for the backward and the gradients of its
-/// inputs (f32), and EvoGS's buffer and per-frame memory.
-fn per_row_network(config: &TrainConfig, frames: usize) -> (u64, u64) {
-    const F32: u64 = 4;
-    let net = &config.net;
-    match (config.method, config.backbone) {
-        (Method::Baseline, BackboneKind::D3dgs) => {
-            // Encoded position and time, every hidden layer, the output; the positions and the
-            // input gradient.
-            let input = 3 * (1 + 2 * net.xyz_freqs) + (1 + 2 * net.t_freqs);
-            let layers = net.width * net.depth + 10;
-            (F32 * (2 * input + layers + 3) as u64, 0)
-        }
-        (Method::Baseline, BackboneKind::FourDgs) => {
-            // Plane features and the small decoder's layers.
-            (F32 * (2 * 64 + net.width * 2 + 10) as u64, 0)
-        }
-        (Method::Baseline, BackboneKind::Grid4d) => (F32 * grid4d_row(net.width, 10) as u64, 0),
-        (Method::Baseline, BackboneKind::Scgs) => {
-            // The canonical mean kept for the backward, K neighbours (index and distance), the
-            // skinned row and its gradient.
-            let k = config.scgs.neighbours;
-            (F32 * (3 + 2 * k + 2 * 10) as u64, 0)
-        }
-        (Method::Evogs, backbone) => {
-            let s = &config.evogs;
-            let dim = s.evo.dim();
-            let width = (net.width / 2).max(1);
-            let phi = if backbone == BackboneKind::Grid4d {
-                grid4d_row(width, dim)
-            } else if backbone == BackboneKind::FourDgs {
-                2 * 64 + width * 2 + dim
-            } else {
-                let planes = 3 * s.triplane_channels * s.triplane_resolutions.len();
-                let input = planes + s.bspline_width;
-                2 * input + width * s.hidden_layers + dim
-            };
-            // The step (prediction, observation, gain, corrected state and their gradients).
-            let step = 8 * dim;
-            // The buffer (history `buffer` only) and the per-frame memory, as evo-state counts them.
-            let evolution = (s.evo.buffer_bytes(1, frames) + s.evo.memory_bytes(1, frames)) as u64;
-            (F32 * (phi + step) as u64, evolution)
-        }
-    }
-}
-
-/// Bytes of SC-GS's control-point network activations for its two evaluations per step (the
-/// step's time and ARAP's partner), kept for the backward: a fixed part, whatever the Gaussians.
-fn control_points(config: &TrainConfig) -> u64 {
-    if config.backbone != BackboneKind::Scgs {
-        return 0;
-    }
-    let s = &config.scgs;
-    let input = 3 * (1 + 2 * s.xyz_freqs) + (1 + 2 * s.t_freqs);
-    let row = 2 * input + s.width * s.depth + 14;
-    2 * 4 * (s.control_points * row) as u64
-}
-
-/// f32 values per Gaussian a Grid4D field of decoder `width` and `output` values keeps for its
-/// backward: the hash features (16 · 2 spatial, 3 · 32 · 2 temporal) and their gradients, the
-/// attention and temporal activations and their product's gradient, inputs, warp and output.
-fn grid4d_row(width: usize, output: usize) -> usize {
-    let features = 16 * 2 + 3 * 32 * 2;
-    2 * features + 4 * width + 3 + 4 + 7 + output
 }
 
 /// Bytes of `params` f32 parameters held in `copies` copies (1 for evaluation; 4 for training:
@@ -333,6 +288,7 @@ pub fn parse_bytes(text: &str) -> Result<u64, String> {
 mod tests {
     use super::*;
     use crate::Preset;
+    use crate::config::Method;
     use evogs_backbones::{HistoryMode, Storage};
 
     fn inputs() -> MemoryInputs {

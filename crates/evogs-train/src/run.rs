@@ -397,7 +397,7 @@ pub fn train_with_clock(
         let dataset = open_dataset(data, run.train.time_from)?;
         // The images and the network against the memory before either is allocated (the
         // Gaussians are checked with the rest when the trainer is made).
-        let sizes = crate::data::split_sizes(&dataset, Split::Train, run.train.downscale);
+        let sizes = crate::memory::DataSizes::of_split(&dataset, Split::Train, run.train.downscale);
         crate::trainer::check_memory(&run.train, sizes, 0)?;
         let train = load_dataset_split(
             &dataset,
@@ -447,7 +447,7 @@ pub fn train_with_clock(
         let c = &request.config;
         let dataset = open_dataset(&data, c.time_from)?;
         // Before the images, the network and the Gaussians are allocated.
-        let sizes = crate::data::split_sizes(&dataset, Split::Train, c.downscale);
+        let sizes = crate::memory::DataSizes::of_split(&dataset, Split::Train, c.downscale);
         crate::trainer::check_memory(c, sizes, c.init_points)?;
         let train = load_dataset_split(
             &dataset,

@@ -112,7 +112,7 @@ pub fn parameter_count(config: &TrainConfig) -> Result<usize, TrainError> {
 
 /// Checks the memory estimate of a run of `config` on training data of `data`'s sizes starting
 /// with `gaussians` Gaussians, before anything of the run is allocated (the images too, when the
-/// sizes come from the dataset's cameras, [`crate::data::split_sizes`]): with `--memory-limit`, the
+/// sizes come from the dataset's cameras, [`DataSizes::of_split`]): with `--memory-limit`, the
 /// estimate must fit it (and the limit becomes a cap on the Gaussians, returned); without, it
 /// must fit the memory this machine has available (where that is known), and the error names
 /// the flag that overrides it.

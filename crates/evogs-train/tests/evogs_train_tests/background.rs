@@ -90,14 +90,14 @@ fn transmittance_errors_name_the_file() {
 /// factor whose resize rounds.
 #[test]
 fn the_sizes_read_before_loading_are_the_loaded_views() {
-    use evogs_train::data::{open_dataset, split_sizes};
+    use evogs_train::data::open_dataset;
     use evogs_train::memory::DataSizes;
     let data = lego_fixture();
     let dataset = open_dataset(&data, Default::default()).unwrap();
     for factor in [1.0, 0.5, 0.37] {
         let views = load_split(&data, Split::Train, Default::default(), [0.0; 3], factor).unwrap();
         assert_eq!(
-            split_sizes(&dataset, Split::Train, factor),
+            DataSizes::of_split(&dataset, Split::Train, factor),
             DataSizes::of_views(&views),
             "factor {factor}"
         );
