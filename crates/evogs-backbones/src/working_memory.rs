@@ -33,12 +33,17 @@ impl BackboneRun<'_> {
         let per_row = |values: usize| F32.saturating_mul(values as u64);
         let scgs = self.scgs;
         // SC-GS: the canonical mean kept for the backward, K neighbours (index and distance), the
-        // skinned row and its gradient; and the control points' network, twice a step.
-        let skinning = 3 + 2 * scgs.neighbours + 2 * 10;
-        let controls = {
-            let input = 3 * (1 + 2 * scgs.xyz_freqs) + (1 + 2 * scgs.t_freqs);
-            let row = 2 * input + scgs.width * scgs.depth + 14;
-            2 * per_row(scgs.control_points.saturating_mul(row))
+        // skinned row and its gradient; and the control points' network, twice a step. Counted
+        // only for SC-GS, whose settings are range-checked only when it is the backbone
+        // (saturating besides: a `config.json` edited by hand reaches here).
+        let skinning = || 3usize.saturating_add(scgs.neighbours.saturating_mul(2)) + 2 * 10;
+        let controls = || {
+            let input = 3 * (1 + 2 * scgs.xyz_freqs.min(64)) + (1 + 2 * scgs.t_freqs.min(64));
+            let row = scgs
+                .width
+                .saturating_mul(scgs.depth)
+                .saturating_add(2 * input + 14);
+            per_row(scgs.control_points.saturating_mul(row)).saturating_mul(2)
         };
         match (self.method, self.kind) {
             (Method::Baseline, BackboneKind::D3dgs) => {
@@ -61,9 +66,9 @@ impl BackboneRun<'_> {
                 ..WorkingBytes::default()
             },
             (Method::Baseline, BackboneKind::Scgs) => WorkingBytes {
-                per_row: per_row(skinning),
+                per_row: per_row(skinning()),
                 evolution_per_row: 0,
-                fixed: controls,
+                fixed: controls(),
             },
             (Method::Evogs, kind) => {
                 let s = self.evogs;
@@ -80,17 +85,17 @@ impl BackboneRun<'_> {
                 match kind {
                     BackboneKind::Scgs if scgs.evolution_on == EvolutionOn::Controls => {
                         WorkingBytes {
-                            per_row: per_row(skinning),
+                            per_row: per_row(skinning()),
                             evolution_per_row: 0,
-                            fixed: controls
-                                .saturating_add(per_row(scgs.control_points * step))
+                            fixed: controls()
+                                .saturating_add(per_row(scgs.control_points.saturating_mul(step)))
                                 .saturating_add(evolution(scgs.control_points)),
                         }
                     }
                     BackboneKind::Scgs => WorkingBytes {
-                        per_row: per_row(skinning + step),
+                        per_row: per_row(skinning() + step),
                         evolution_per_row: evolution(1),
-                        fixed: controls,
+                        fixed: controls(),
                     },
                     BackboneKind::Grid4d => WorkingBytes {
                         per_row: per_row(grid4d_row(width, dim) + step),
