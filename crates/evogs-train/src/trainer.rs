@@ -174,7 +174,8 @@ pub fn densify_config(config: &TrainConfig) -> DensifyConfig {
     }
 }
 
-/// [`MemoryEstimate`] of `config` training on `train` with `backbone`.
+/// [`MemoryEstimate`] of `config` on training data of `data`'s sizes, its network counted from
+/// the settings ([`parameter_count`]).
 fn memory_estimate(config: &TrainConfig, data: DataSizes) -> Result<MemoryEstimate, TrainError> {
     Ok(MemoryEstimate::new(
         config,
