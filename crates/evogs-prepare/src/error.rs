@@ -26,7 +26,7 @@ pub enum PrepareError {
         /// What is wrong with it.
         problem: String,
     },
-    /// An external program failed; its log is in the temporary folder, which is removed.
+    /// An external program failed (its log is kept, see [`PrepareError::WithLogs`]).
     #[error("{}: {stage} failed: {problem}", path.display())]
     Stage {
         /// The file the stage worked on (the video, the image folder).
@@ -35,6 +35,14 @@ pub enum PrepareError {
         stage: String,
         /// The exit status and the program's last message.
         problem: String,
+    },
+    /// A failure after a stage ran: the error, and where the stages' logs were kept.
+    #[error("{error}; the stages' logs are in {}", logs.display())]
+    WithLogs {
+        /// The failure.
+        error: Box<PrepareError>,
+        /// The folder the logs were moved to (`lib::failed_logs_dir`).
+        logs: PathBuf,
     },
     /// The operating system refused a read, write, create or rename.
     #[error("{}: {cause}", path.display())]

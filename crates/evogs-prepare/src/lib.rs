@@ -13,7 +13,8 @@
 //! | 6 dataset | — | `DIR/images/`, `DIR/sparse/0/`, `DIR/logs/`, `DIR/prepare.json`, read back with `evogs-io` |
 //!
 //! Everything is built in a temporary folder beside `DIR` and renamed to `DIR` at the end, so a
-//! failure leaves nothing behind; each stage's output is kept in `DIR/logs/<stage>.log`.
+//! failure leaves no dataset behind; each stage's output is kept in `DIR/logs/<stage>.log`, and
+//! after a failure in `DIR.logs/` ([`failed_logs_dir`]), named in the error.
 //!
 //! What it is not: a COLMAP binding or a GPU pipeline. The programs come from the Debian
 //! packages `ffmpeg` and `colmap`; a missing one stops with one line naming the package.
@@ -350,176 +351,216 @@ pub fn prepare(
     }
     let log = |stage: Stage| logs.join(format!("{}.log", stage.name()));
     let subject = request.source.path().to_path_buf();
-    let mut times = Vec::new();
-    let mut timed =
-        |stage: Stage, progress: &mut dyn FnMut(&Event), started: Instant, note: String| {
-            let seconds = started.elapsed().as_secs_f64();
-            times.push(StageTime { stage, seconds });
-            progress(&Event::Finished {
-                stage,
-                seconds,
-                note,
-            });
-        };
-
-    // 1. Frames.
-    progress(&Event::Started(Stage::Frames));
-    let started = Instant::now();
-    let frames_dir = work.join("frames");
-    let (frames, fps) = frames::extract(request, &frames_dir, &log(Stage::Frames))?;
-    timed(
-        Stage::Frames,
-        progress,
-        started,
-        format!("{} frames", frames.len()),
-    );
-
-    // 2–4. COLMAP.
-    let database = work.join("database.db");
-    progress(&Event::Started(Stage::Features));
-    let started = Instant::now();
-    sfm::features(&database, &frames_dir, &log(Stage::Features), &subject)?;
-    timed(Stage::Features, progress, started, String::new());
-    progress(&Event::Started(Stage::Matching));
-    let started = Instant::now();
-    sfm::matching(&database, request.matcher, &log(Stage::Matching), &subject)?;
-    timed(
-        Stage::Matching,
-        progress,
-        started,
-        request.matcher.name().to_string(),
-    );
-    progress(&Event::Started(Stage::Mapping));
-    let started = Instant::now();
-    let sparse = work.join("sparse");
-    let best = sfm::map(
-        &database,
-        &frames_dir,
-        &sparse,
-        &log(Stage::Mapping),
-        &subject,
-    )?;
-    let registered = best.as_ref().map_or(0, |(m, _)| m.images.len());
-    let needed =
-        ((request.min_registered * frames.len() as f64).ceil() as usize).max(frames::MIN_FRAMES);
-    if registered < needed {
-        return Err(PrepareError::input(
-            &subject,
-            format!(
-                "COLMAP registered {registered} of {} frames; at least {needed} are needed \
-                 (--min-registered {}); frames need still texture, overlap and some sideways \
-                 camera motion (mapper: {})",
-                frames.len(),
-                request.min_registered,
-                tools::last_message(&log(Stage::Mapping))
-            ),
-        ));
-    }
-    let Some((model, model_dir)) = best else {
-        unreachable!("registered >= 3 implies a model");
-    };
-    let registered_names: std::collections::BTreeSet<&str> =
-        model.images.iter().map(|i| i.name.as_str()).collect();
-    let unregistered: Vec<String> = frames
-        .iter()
-        .filter_map(|f| f.file_name().map(|n| n.to_string_lossy().into_owned()))
-        .filter(|n| !registered_names.contains(n.as_str()))
-        .collect();
-    timed(
-        Stage::Mapping,
-        progress,
-        started,
-        format!(
-            "{registered} of {} frames registered, {} points",
-            frames.len(),
-            model.points.len()
-        ),
-    );
-    let camera = model
-        .cameras
-        .first()
-        .map(|c| (c.model.name().to_string(), c.params.clone()))
-        .unwrap_or_default();
-
-    // 5. Undistortion, when the camera has distortion.
-    let images = root.join(IMAGES_DIR);
-    let sparse_out = root.join(SPARSE_DIR);
-    std::fs::create_dir_all(root.join("sparse")).map_err(|e| PrepareError::io(root, e))?;
-    let undistorted = sfm::has_distortion(&model);
-    if undistorted {
-        progress(&Event::Started(Stage::Undistortion));
+    // Every stage inside one closure: a failure after a stage ran keeps the stages' logs
+    // ([`failed_logs_dir`]) before the temporary folder goes.
+    let stages = || -> Result<PrepareSummary, PrepareError> {
+        let mut times = Vec::new();
+        let mut timed =
+            |stage: Stage, progress: &mut dyn FnMut(&Event), started: Instant, note: String| {
+                let seconds = started.elapsed().as_secs_f64();
+                times.push(StageTime { stage, seconds });
+                progress(&Event::Finished {
+                    stage,
+                    seconds,
+                    note,
+                });
+            };
+        // 1. Frames.
+        progress(&Event::Started(Stage::Frames));
         let started = Instant::now();
-        let undistorted_dir = work.join("undistorted");
-        sfm::undistort(
+        let frames_dir = work.join("frames");
+        let (frames, fps) = frames::extract(request, &frames_dir, &log(Stage::Frames))?;
+        timed(
+            Stage::Frames,
+            progress,
+            started,
+            format!("{} frames", frames.len()),
+        );
+
+        // 2–4. COLMAP.
+        let database = work.join("database.db");
+        progress(&Event::Started(Stage::Features));
+        let started = Instant::now();
+        sfm::features(&database, &frames_dir, &log(Stage::Features), &subject)?;
+        timed(Stage::Features, progress, started, String::new());
+        progress(&Event::Started(Stage::Matching));
+        let started = Instant::now();
+        sfm::matching(&database, request.matcher, &log(Stage::Matching), &subject)?;
+        timed(
+            Stage::Matching,
+            progress,
+            started,
+            request.matcher.name().to_string(),
+        );
+        progress(&Event::Started(Stage::Mapping));
+        let started = Instant::now();
+        let sparse = work.join("sparse");
+        let best = sfm::map(
+            &database,
             &frames_dir,
-            &model_dir,
-            &undistorted_dir,
-            &log(Stage::Undistortion),
+            &sparse,
+            &log(Stage::Mapping),
             &subject,
         )?;
-        rename(&undistorted_dir.join("images"), &images)?;
-        rename(&undistorted_dir.join("sparse"), &sparse_out)?;
-        timed(Stage::Undistortion, progress, started, String::new());
-    } else {
-        progress(&Event::Skipped {
-            stage: Stage::Undistortion,
-            reason: "the camera has no distortion".into(),
-        });
-        std::fs::create_dir_all(&images).map_err(|e| PrepareError::io(&images, e))?;
-        for name in &registered_names {
-            rename(&frames_dir.join(name), &images.join(name))?;
+        let registered = best.as_ref().map_or(0, |(m, _)| m.images.len());
+        let needed = ((request.min_registered * frames.len() as f64).ceil() as usize)
+            .max(frames::MIN_FRAMES);
+        if registered < needed {
+            return Err(PrepareError::input(
+                &subject,
+                format!(
+                    "COLMAP registered {registered} of {} frames; at least {needed} are needed \
+                     (--min-registered {}); frames need still texture, overlap and some sideways \
+                     camera motion (mapper: {})",
+                    frames.len(),
+                    request.min_registered,
+                    tools::last_message(&log(Stage::Mapping))
+                ),
+            ));
         }
-        rename(&model_dir, &sparse_out)?;
-    }
+        let Some((model, model_dir)) = best else {
+            unreachable!("registered >= 3 implies a model");
+        };
+        let registered_names: std::collections::BTreeSet<&str> =
+            model.images.iter().map(|i| i.name.as_str()).collect();
+        let unregistered: Vec<String> = frames
+            .iter()
+            .filter_map(|f| f.file_name().map(|n| n.to_string_lossy().into_owned()))
+            .filter(|n| !registered_names.contains(n.as_str()))
+            .collect();
+        timed(
+            Stage::Mapping,
+            progress,
+            started,
+            format!(
+                "{registered} of {} frames registered, {} points",
+                frames.len(),
+                model.points.len()
+            ),
+        );
+        let camera = model
+            .cameras
+            .first()
+            .map(|c| (c.model.name().to_string(), c.params.clone()))
+            .unwrap_or_default();
 
-    // 6. The dataset: the work folder goes, the result is read back as `evogs train` will.
-    progress(&Event::Started(Stage::Dataset));
-    let started = Instant::now();
-    std::fs::remove_dir_all(&work).map_err(|e| PrepareError::io(&work, e))?;
-    let dataset = evogs_io::load_dataset(root, &evogs_io::LoadOptions::default())?;
-    let size = dataset
-        .all_frames()
-        .next()
-        .map_or((0, 0), |f| (f.camera.camera.width, f.camera.camera.height));
-    let points = dataset.points.as_ref().map_or(0, |p| p.positions.len());
-    timed(Stage::Dataset, progress, started, dataset.summary());
-    let summary = PrepareSummary {
-        source: subject.clone(),
-        frames: frames.len(),
-        registered,
-        unregistered,
-        fps,
-        points,
-        camera,
-        undistorted,
-        image_size: size,
-        matcher: request.matcher,
-        tools,
-        stage_seconds: times,
+        // 5. Undistortion, when the camera has distortion.
+        let images = root.join(IMAGES_DIR);
+        let sparse_out = root.join(SPARSE_DIR);
+        std::fs::create_dir_all(root.join("sparse")).map_err(|e| PrepareError::io(root, e))?;
+        let undistorted = sfm::has_distortion(&model);
+        if undistorted {
+            progress(&Event::Started(Stage::Undistortion));
+            let started = Instant::now();
+            let undistorted_dir = work.join("undistorted");
+            sfm::undistort(
+                &frames_dir,
+                &model_dir,
+                &undistorted_dir,
+                &log(Stage::Undistortion),
+                &subject,
+            )?;
+            rename(&undistorted_dir.join("images"), &images)?;
+            rename(&undistorted_dir.join("sparse"), &sparse_out)?;
+            timed(Stage::Undistortion, progress, started, String::new());
+        } else {
+            progress(&Event::Skipped {
+                stage: Stage::Undistortion,
+                reason: "the camera has no distortion".into(),
+            });
+            std::fs::create_dir_all(&images).map_err(|e| PrepareError::io(&images, e))?;
+            for name in &registered_names {
+                rename(&frames_dir.join(name), &images.join(name))?;
+            }
+            rename(&model_dir, &sparse_out)?;
+        }
+
+        // 6. The dataset: the work folder goes, the result is read back as `evogs train` will.
+        progress(&Event::Started(Stage::Dataset));
+        let started = Instant::now();
+        std::fs::remove_dir_all(&work).map_err(|e| PrepareError::io(&work, e))?;
+        let dataset = evogs_io::load_dataset(root, &evogs_io::LoadOptions::default())?;
+        let size = dataset
+            .all_frames()
+            .next()
+            .map_or((0, 0), |f| (f.camera.camera.width, f.camera.camera.height));
+        let points = dataset.points.as_ref().map_or(0, |p| p.positions.len());
+        timed(Stage::Dataset, progress, started, dataset.summary());
+        let summary = PrepareSummary {
+            source: subject.clone(),
+            frames: frames.len(),
+            registered,
+            unregistered,
+            fps,
+            points,
+            camera,
+            undistorted,
+            image_size: size,
+            matcher: request.matcher,
+            tools,
+            stage_seconds: times,
+        };
+        let text = serde_json::to_string_pretty(&summary).map_err(|e| {
+            PrepareError::io(
+                root.join(SUMMARY_FILE),
+                std::io::Error::other(e.to_string()),
+            )
+        })?;
+        let summary_path = root.join(SUMMARY_FILE);
+        std::fs::write(&summary_path, text).map_err(|e| PrepareError::io(&summary_path, e))?;
+        // The temporary folder is private (0700); the dataset gets the usual 0755.
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(root, std::fs::Permissions::from_mode(0o755))
+                .map_err(|e| PrepareError::io(root, e))?;
+        }
+        if out.exists() {
+            // check_out allowed only an empty folder.
+            std::fs::remove_dir(&out).map_err(|e| PrepareError::io(&out, e))?;
+        }
+        std::fs::rename(root, &out).map_err(|e| PrepareError::io(&out, e))?;
+        Ok(summary)
     };
-    let text = serde_json::to_string_pretty(&summary).map_err(|e| {
-        PrepareError::io(
-            root.join(SUMMARY_FILE),
-            std::io::Error::other(e.to_string()),
-        )
-    })?;
-    let summary_path = root.join(SUMMARY_FILE);
-    std::fs::write(&summary_path, text).map_err(|e| PrepareError::io(&summary_path, e))?;
-    // The temporary folder is private (0700); the dataset gets the usual 0755.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        std::fs::set_permissions(root, std::fs::Permissions::from_mode(0o755))
-            .map_err(|e| PrepareError::io(root, e))?;
+    match stages() {
+        Ok(summary) => {
+            // Renamed: the TempDir guard must not delete anything now.
+            let _ = temp.keep();
+            Ok(summary)
+        }
+        Err(error) => Err(keep_logs(error, &logs, &out)),
     }
-    if out.exists() {
-        // check_out allowed only an empty folder.
-        std::fs::remove_dir(&out).map_err(|e| PrepareError::io(&out, e))?;
+}
+
+/// Where a failed run keeps its stages' logs: `OUT.logs` beside the output folder that was not
+/// made (replaced by the next failure of the same `--out`).
+pub fn failed_logs_dir(out: &Path) -> PathBuf {
+    let name = out
+        .file_name()
+        .map_or_else(|| "dataset".into(), |n| n.to_string_lossy().into_owned());
+    out.with_file_name(format!("{name}.logs"))
+}
+
+/// `error`, with the stages' logs moved to [`failed_logs_dir`] and named in it when a stage wrote
+/// any (a bad input found before any program ran leaves nothing).
+fn keep_logs(error: PrepareError, logs: &Path, out: &Path) -> PrepareError {
+    let wrote = std::fs::read_dir(logs).is_ok_and(|entries| {
+        entries
+            .flatten()
+            .any(|e| e.metadata().is_ok_and(|m| m.len() > 0))
+    });
+    if !wrote {
+        return error;
     }
-    std::fs::rename(root, &out).map_err(|e| PrepareError::io(&out, e))?;
-    // Renamed: the TempDir guard must not delete anything now.
-    let _ = temp.keep();
-    Ok(summary)
+    let kept = failed_logs_dir(out);
+    let _ = std::fs::remove_dir_all(&kept);
+    if std::fs::rename(logs, &kept).is_err() {
+        return error;
+    }
+    PrepareError::WithLogs {
+        error: Box::new(error),
+        logs: kept,
+    }
 }
 
 #[cfg(test)]

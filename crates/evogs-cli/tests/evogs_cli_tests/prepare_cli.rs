@@ -192,13 +192,26 @@ fn bad_inputs_are_one_line_errors_that_leave_nothing() {
     for k in 0..6 {
         capture::render_blank(&blank.join(format!("{k:02}.png")), 0.1 * k as f32);
     }
+    let logs = root.path().join("out.logs");
     check(
         &["prepare", "--images", s(&blank), "--out", s(&out)],
         &out,
         "blank",
         "COLMAP registered 0 of 6 frames",
     );
-    // Nothing but the inputs is left: no temporary folders beside the output.
+    // COLMAP's logs outlive its failure, named in the error line (checked by `check` through
+    // the folder's name), beside the output that was not made.
+    let output = evogs(&["prepare", "--images", s(&blank), "--out", s(&out)]);
+    assert!(
+        stderr(&output).contains(&format!("the stages' logs are in {}", logs.display())),
+        "{}",
+        stderr(&output)
+    );
+    for stage in ["features", "matching", "mapping"] {
+        assert!(logs.join(format!("{stage}.log")).is_file(), "{stage}.log");
+    }
+    std::fs::remove_dir_all(&logs).unwrap();
+    // Nothing else is left: no temporary folders beside the output.
     assert_only(root.path(), &["inputs"]);
     // An existing output is never overwritten.
     std::fs::create_dir_all(&out).unwrap();
