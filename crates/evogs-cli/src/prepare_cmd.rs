@@ -122,6 +122,9 @@ pub fn run_prepare(args: &PrepareArgs) -> Result<PrepareSummary> {
             eprintln!("[{}/{total}] {stage} skipped: {reason}", stage.number());
         }
     })?;
+    for warning in summary.warnings() {
+        eprintln!("warning: {warning}");
+    }
     Ok(summary)
 }
 

@@ -274,12 +274,55 @@ pub struct PrepareSummary {
     pub undistorted: bool,
     /// Image size of the dataset.
     pub image_size: (u32, u32),
+    /// Size of the extracted frames (the fitted camera's, before undistortion).
+    pub frame_size: (u32, u32),
     /// Pair selection used.
     pub matcher: Matcher,
     /// The programs' versions.
     pub tools: Vec<String>,
     /// Seconds per stage.
     pub stage_seconds: Vec<StageTime>,
+}
+
+/// Below this share of the frames registered, the dataset gets a warning (its views and times are
+/// what COLMAP kept: a clip mostly dropped trains on a handful of views).
+pub const WARN_REGISTERED_SHARE: f64 = 0.5;
+
+/// Below this share of the frames' pixels left after undistortion, the dataset gets a warning
+/// (issue 49: a 400×400 clip cropped to 80×80, 4 % of its pixels, "succeeded" silently).
+pub const WARN_PIXEL_SHARE: f64 = 0.5;
+
+impl PrepareSummary {
+    /// What a user should know before training on the dataset: most frames dropped
+    /// ([`WARN_REGISTERED_SHARE`]), frames cropped by undistortion ([`WARN_PIXEL_SHARE`]). One
+    /// line each; none when the dataset is whole.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        if (self.registered as f64) < WARN_REGISTERED_SHARE * self.frames as f64 {
+            out.push(format!(
+                "only {} of {} frames registered: the dataset holds those views and times only; \
+                 try --matcher exhaustive, a higher --fps or a clip with more texture and \
+                 sideways motion",
+                self.registered, self.frames
+            ));
+        }
+        let pixels = |(w, h): (u32, u32)| w as f64 * h as f64;
+        let share = pixels(self.image_size) / pixels(self.frame_size).max(1.0);
+        if self.undistorted && share < WARN_PIXEL_SHARE {
+            out.push(format!(
+                "undistortion cropped the frames from {}x{} to {}x{} ({:.0} % of the pixels): \
+                 COLMAP's fitted distortion ({}) is likely wrong for this clip; more frames or \
+                 --matcher exhaustive may fit a better one",
+                self.frame_size.0,
+                self.frame_size.1,
+                self.image_size.0,
+                self.image_size.1,
+                100.0 * share,
+                self.camera.0
+            ));
+        }
+        out
+    }
 }
 
 /// The dataset's sparse model folder inside `DIR`.
@@ -443,6 +486,10 @@ pub fn prepare(
             .first()
             .map(|c| (c.model.name().to_string(), c.params.clone()))
             .unwrap_or_default();
+        let frame_size = model
+            .cameras
+            .first()
+            .map_or((0, 0), |c| (c.width, c.height));
 
         // 5. Undistortion, when the camera has distortion.
         let images = root.join(IMAGES_DIR);
@@ -496,6 +543,7 @@ pub fn prepare(
             camera,
             undistorted,
             image_size: size,
+            frame_size,
             matcher: request.matcher,
             tools,
             stage_seconds: times,
@@ -565,7 +613,58 @@ fn keep_logs(error: PrepareError, logs: &Path, out: &Path) -> PrepareError {
 
 #[cfg(test)]
 mod tests {
-    use super::{Matcher, Stage};
+    use super::{Matcher, PrepareSummary, Stage};
+
+    fn summary(
+        frames: usize,
+        registered: usize,
+        frame: (u32, u32),
+        image: (u32, u32),
+    ) -> PrepareSummary {
+        PrepareSummary {
+            source: "clip.mp4".into(),
+            frames,
+            registered,
+            unregistered: Vec::new(),
+            fps: None,
+            points: 100,
+            camera: ("OPENCV".into(), Vec::new()),
+            undistorted: image != frame,
+            image_size: image,
+            frame_size: frame,
+            matcher: Matcher::Sequential,
+            tools: Vec::new(),
+            stage_seconds: Vec::new(),
+        }
+    }
+
+    /// The issue's case (10 of 50 frames, 400×400 cropped to 80×80) gets both warnings; a whole
+    /// dataset none; each alone its own.
+    #[test]
+    fn dropped_and_cropped_frames_are_warned_about() {
+        let bad = summary(50, 10, (400, 400), (80, 80)).warnings();
+        assert_eq!(bad.len(), 2, "{bad:?}");
+        assert!(
+            bad[0].starts_with("only 10 of 50 frames registered"),
+            "{bad:?}"
+        );
+        assert!(
+            bad[1].contains("from 400x400 to 80x80 (4 % of the pixels)"),
+            "{bad:?}"
+        );
+        assert!(
+            summary(50, 48, (400, 400), (400, 400))
+                .warnings()
+                .is_empty()
+        );
+        assert!(
+            summary(50, 48, (400, 400), (380, 376))
+                .warnings()
+                .is_empty()
+        );
+        assert_eq!(summary(50, 20, (400, 400), (400, 400)).warnings().len(), 1);
+        assert_eq!(summary(50, 40, (400, 400), (200, 200)).warnings().len(), 1);
+    }
 
     #[test]
     fn spellings_round_trip_and_unknown_ones_list_every_matcher() {

@@ -54,6 +54,9 @@ fn a_video_becomes_a_dataset_that_trains() {
     for stage in ["frames", "features", "matching", "mapping", "dataset"] {
         assert!(log.contains(&format!("] {stage} done in")), "{log}");
     }
+    // A clip that registers whole and is not cropped gets no warning (prepare's own tests
+    // check the dropped and cropped cases).
+    assert!(!log.contains("warning:"), "{log}");
     for name in ["frames", "features", "matching", "mapping"] {
         assert!(data.join("logs").join(format!("{name}.log")).is_file());
     }
