@@ -77,6 +77,9 @@ fn main() -> ExitCode {
                 }
             }
             println!("time per phase:\n{}", s.phases);
+            if let Some(t) = &s.traffic_per_iteration {
+                println!("host-device traffic per iteration: {t}");
+            }
         }),
         Command::Eval(args) => run_eval(args).map(|r| {
             if r.non_finite_views > 0 {

@@ -91,6 +91,7 @@ impl LoadedRun {
                 .budget
                 .zip(meta.budget)
                 .map(|(budget, p)| evogs_train::budget::BudgetSummary::new(budget, &p)),
+            traffic_per_iteration: None,
         };
         Ok(Self {
             paths,

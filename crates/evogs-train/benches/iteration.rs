@@ -10,23 +10,65 @@
 //!
 //! Measured with [`CpuTime::wall_equivalent`] (process CPU time over rayon's threads): the machine
 //! is shared. After each method's measurement the trainer's own per-phase timers over the measured
-//! iterations are printed (wall clock, so their shares, not their sums, are the comparable part).
+//! iterations are printed (wall clock, so their shares, not their sums, are the comparable part),
+//! and on a GPU backend the host–device traffic per iteration.
+//!
+//! Variants for a GPU machine (`scripts/gpu-check`), from the environment, all optional:
+//! `EVOGS_ITER_BACKEND` (`cpu`, `wgpu`, `auto`; on a GPU backend the clock is wall time, since
+//! process CPU time leaves out the GPU's work), `EVOGS_ITER_GAUSSIANS` (initial random
+//! Gaussians, default the preset's 10 000), `EVOGS_ITER_SIZE` (image side, 400 or 800: the
+//! fixture upsampled 4× or 8×), `EVOGS_ITER_SH` (active SH degree 0 to 3, default 0 as in the
+//! first 500 iterations of the preset).
 
 use std::path::Path;
 
 use bench_support::{CpuTime, clock_prefix};
-use criterion::measurement::Measurement;
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::Criterion;
+use criterion::measurement::{Measurement, WallTime};
 use evogs_io::Split;
 use evogs_train::data::load_split;
 use evogs_train::{Method, Preset, TrainConfig, Trainer};
+use splat_raster::BackendChoice;
 
 /// The fixture's training frame the bench trains on.
 const FRAME: &str = "r_24.png";
-/// Upsampling of the 100×100 fixture to 400×400.
-const FACTOR: f32 = 4.0;
 
-fn trainer(method: Method) -> Trainer {
+/// The variant the environment asks for (module doc).
+struct Variant {
+    backend: BackendChoice,
+    gaussians: Option<usize>,
+    size: u32,
+    sh: u32,
+}
+
+impl Variant {
+    fn from_env() -> Self {
+        let var = |name: &str| std::env::var(name).ok().filter(|v| !v.is_empty());
+        let parse = |name: &str, v: String| -> usize {
+            v.parse()
+                .unwrap_or_else(|_| panic!("{name}={v}: not a whole number"))
+        };
+        let backend = var("EVOGS_ITER_BACKEND").map_or(BackendChoice::Cpu, |v| {
+            v.parse()
+                .unwrap_or_else(|_| panic!("EVOGS_ITER_BACKEND={v}: cpu, wgpu or auto"))
+        });
+        let size = var("EVOGS_ITER_SIZE").map_or(400, |v| parse("EVOGS_ITER_SIZE", v)) as u32;
+        assert!(
+            size.is_multiple_of(100) && size > 0,
+            "EVOGS_ITER_SIZE={size}: a multiple of the fixture's 100"
+        );
+        let sh = var("EVOGS_ITER_SH").map_or(0, |v| parse("EVOGS_ITER_SH", v)) as u32;
+        assert!(sh <= 3, "EVOGS_ITER_SH={sh}: 0 to 3");
+        Self {
+            backend,
+            gaussians: var("EVOGS_ITER_GAUSSIANS").map(|v| parse("EVOGS_ITER_GAUSSIANS", v)),
+            size,
+            sh,
+        }
+    }
+}
+
+fn trainer(method: Method, v: &Variant) -> Trainer {
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../evogs-io/tests/data/dnerf-lego");
     let mut c = TrainConfig::preset(Preset::Cpu).with_iterations(1_000_000);
     c.method = method;
@@ -34,11 +76,20 @@ fn trainer(method: Method) -> Trainer {
     c.warm_up = 20;
     c.densify.schedule.from = 999_999;
     c.densify.schedule.until = 1_000_000;
-    let mut views = load_split(&data, Split::Train, c.time_from, c.background.rgb(), FACTOR)
+    c.backend = v.backend;
+    if let Some(n) = v.gaussians {
+        c.init_points = n;
+    }
+    // The active degree rises by one every `sh_interval` steps: reach `sh` within the 60
+    // warm-up steps and stay there.
+    c.sh_degree = v.sh;
+    c.sh_interval = 10;
+    let factor = v.size as f32 / 100.0;
+    let mut views = load_split(&data, Split::Train, c.time_from, c.background.rgb(), factor)
         .expect("the lego fixture loads");
-    views.views.retain(|v| v.path.ends_with(FRAME));
+    views.views.retain(|view| view.path.ends_with(FRAME));
     assert_eq!(views.views.len(), 1, "fixture frame {FRAME}");
-    assert_eq!(views.views[0].camera.width, 400);
+    assert_eq!(views.views[0].camera.width, v.size);
     let mut t = Trainer::new(c, views).unwrap();
     while t.iteration() < 60 {
         t.step().unwrap();
@@ -46,14 +97,24 @@ fn trainer(method: Method) -> Trainer {
     t
 }
 
-fn bench<M: Measurement>(c: &mut Criterion<M>) {
-    let mut group = c.benchmark_group(format!("{}iteration_lego_400x400_cpu", clock_prefix::<M>()));
+fn bench<M: Measurement>(c: &mut Criterion<M>, v: &Variant) {
+    let n0 = v
+        .gaussians
+        .unwrap_or(TrainConfig::preset(Preset::Cpu).init_points);
+    let mut group = c.benchmark_group(format!(
+        "{}iteration_lego_{s}x{s}_{n0}_sh{sh}_{backend}",
+        clock_prefix::<M>(),
+        s = v.size,
+        sh = v.sh,
+        backend = v.backend,
+    ));
     group.sample_size(10);
     for method in [Method::Baseline, Method::Evogs] {
-        let mut t = trainer(method);
+        let mut t = trainer(method, v);
         let n = t.state().len();
         t.reset_times();
         let start = t.iteration();
+        let traffic_start = t.traffic();
         group.bench_function(format!("{method} ({n} Gaussians)"), |b| {
             b.iter(|| t.step().unwrap());
         });
@@ -75,13 +136,30 @@ fn bench<M: Measurement>(c: &mut Criterion<M>) {
             "{method}: wall per phase, mean over {steps} iterations: {}",
             phases.join(", ")
         );
+        if let Some((end, start)) = t.traffic().zip(traffic_start) {
+            eprintln!(
+                "{method}: host-device traffic per iteration: {} ({})",
+                end.since(&start).per(steps as u64),
+                t.backend()
+            );
+        }
     }
     group.finish();
 }
 
-criterion_group! {
-    name = benches;
-    config = Criterion::default().with_measurement(CpuTime::wall_equivalent());
-    targets = bench::<CpuTime>
+fn main() {
+    let v = Variant::from_env();
+    if v.backend == BackendChoice::Cpu {
+        let mut c = Criterion::default()
+            .with_measurement(CpuTime::wall_equivalent())
+            .configure_from_args();
+        bench(&mut c, &v);
+        c.final_summary();
+    } else {
+        let mut c = Criterion::default()
+            .with_measurement(WallTime)
+            .configure_from_args();
+        bench(&mut c, &v);
+        c.final_summary();
+    }
 }
-criterion_main!(benches);

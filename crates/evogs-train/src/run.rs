@@ -199,6 +199,12 @@ pub struct TrainSummary {
     /// without a budget).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub budget: Option<BudgetSummary>,
+    /// Host–device traffic per iteration of the last process, the means over its iterations
+    /// (in-training evaluations and densification included): the wgpu backend's counts
+    /// ([`splat_raster::Traffic`]); absent on the CPU backend and in files written before it
+    /// was recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub traffic_per_iteration: Option<splat_raster::TrafficRate>,
 }
 
 impl TrainSummary {
@@ -476,6 +482,7 @@ pub fn train_with_clock(
     )?;
     let start_iteration = trainer.iteration();
     let started = Instant::now();
+    let traffic_start = trainer.traffic();
     let mut last = None;
     let mut gain = trainer.new_gain_report();
     let last_quarter_from = trainer.config().iterations - trainer.config().iterations / 4;
@@ -579,6 +586,10 @@ pub fn train_with_clock(
     evogs_io::write_ply(&paths.canonical(), trainer.state().gaussians().view())?;
     trainer.backbone().save(&paths.weights())?;
     let done = trainer.iteration() - start_iteration;
+    let traffic_per_iteration = trainer
+        .traffic()
+        .zip(traffic_start)
+        .map(|(end, start)| end.since(&start).per(done));
     let summary = TrainSummary {
         iteration: trainer.iteration(),
         iterations: trainer.config().iterations,
@@ -594,6 +605,7 @@ pub fn train_with_clock(
         budget: budget
             .zip(budget_progress)
             .map(|(budget, p)| BudgetSummary::new(budget, &p)),
+        traffic_per_iteration,
     };
     write_json(&paths.train_metrics(), &summary)?;
     Ok(summary)

@@ -387,6 +387,12 @@ impl Trainer {
         &self.backend
     }
 
+    /// The host–device traffic of the rasterizer's device since the trainer was made
+    /// ([`splat_raster::Rasterizer::traffic`]; `None` on the CPU backend).
+    pub fn traffic(&self) -> Option<splat_raster::Traffic> {
+        self.raster.traffic()
+    }
+
     /// Whether the deformation is used at iteration `i` (after the warm-up).
     pub fn deforms_at(&self, iteration: u64) -> bool {
         iteration >= self.config.warm_up

@@ -40,6 +40,7 @@ mod gpu;
 mod options;
 mod output;
 pub mod sh;
+mod traffic;
 mod validate;
 #[cfg(test)]
 mod wgsl_text;
@@ -54,6 +55,7 @@ pub use error::RasterError;
 pub use gpu::{AdapterSummary, AtomicMode, GpuContext, WgpuRasterizer};
 pub use options::{CullStats, RenderOptions};
 pub use output::{BackwardOutput, ForwardOutput, GaussianGrads, PixelGrads};
+pub use traffic::{Traffic, TrafficRate};
 /// Hooks for this crate's own benches, not part of the API: compiled only with the cargo
 /// feature `test-support`, which only the crate's dev-dependency on itself turns on.
 #[cfg(all(feature = "wgpu", feature = "test-support"))]
@@ -119,5 +121,11 @@ pub trait Rasterizer {
     ) -> Result<(), RasterError> {
         *out = self.backward(g, cam, opts, fwd, d)?;
         Ok(())
+    }
+
+    /// The host–device [`Traffic`] recorded on this backend's device since it was made, or
+    /// `None` for a backend that moves nothing between devices (the CPU one, the default).
+    fn traffic(&self) -> Option<Traffic> {
+        None
     }
 }

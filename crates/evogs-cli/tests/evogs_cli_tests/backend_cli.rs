@@ -49,6 +49,22 @@ fn wgpu_training_matches_cpu_training_and_resume_keeps_the_backend() {
         "{}",
         stdout(&o)
     );
+    // The host-device traffic is counted and recorded on wgpu (a forward's two read-backs and
+    // a backward's one per iteration at least), and absent on the CPU.
+    assert!(
+        stdout(&o).contains("host-device traffic per iteration: "),
+        "{}",
+        stdout(&o)
+    );
+    let traffic = &json(&gpu_run.join("train_metrics.json"))["traffic_per_iteration"];
+    assert!(traffic["waits"].as_f64().unwrap() >= 3.0, "{traffic}");
+    assert!(traffic["bytes_down"].as_f64().unwrap() > 0.0, "{traffic}");
+    assert!(traffic["bytes_up"].as_f64().unwrap() > 0.0, "{traffic}");
+    assert!(
+        json(&cpu_run.join("train_metrics.json"))
+            .get("traffic_per_iteration")
+            .is_none()
+    );
 
     let cpu_psnr = json(&cpu_run.join("train_metrics.json"))["last_psnr"]
         .as_f64()

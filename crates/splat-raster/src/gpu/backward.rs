@@ -39,36 +39,30 @@ impl WgpuRasterizer {
             }
         };
 
-        let device = &self.ctx.device;
-        let queue = &self.ctx.queue;
+        let ctx = &*self.ctx;
+        let device = &ctx.device;
         let max_dim = device.limits().max_compute_workgroups_per_dimension;
         let n = g.len();
         let stride = g.sh_stride();
         let mut frame = gpu.frame;
         frame.use_d_alpha = u32::from(d.alpha.is_some());
         frame.use_d_depth = u32::from(d.depth.is_some());
-        let frame_buf = uniform(device, "frame", bytemuck::bytes_of(&frame));
-        let d_color_buf = storage_init(device, "d_color", bytemuck::cast_slice(d.color))?;
-        let d_alpha_buf = storage_init(
-            device,
-            "d_alpha",
-            bytemuck::cast_slice(d.alpha.unwrap_or(&[])),
-        )?;
-        let d_depth_buf = storage_init(
-            device,
-            "d_depth",
-            bytemuck::cast_slice(d.depth.unwrap_or(&[])),
-        )?;
+        let frame_buf = uniform(ctx, "frame", bytemuck::bytes_of(&frame));
+        let d_color_buf = storage_init(ctx, "d_color", bytemuck::cast_slice(d.color))?;
+        let d_alpha_buf =
+            storage_init(ctx, "d_alpha", bytemuck::cast_slice(d.alpha.unwrap_or(&[])))?;
+        let d_depth_buf =
+            storage_init(ctx, "d_depth", bytemuck::cast_slice(d.depth.unwrap_or(&[])))?;
         let n64 = n as u64;
-        let grads = storage(device, "record_grads", n64 * RECORD_GRAD * 4)?;
-        let out = storage(device, "raw_grads", n64 * OUT_STRIDE as u64 * 4)?;
-        let sh_out = storage(device, "sh_grads", n64 * stride as u64 * 4)?;
+        let grads = storage(ctx, "record_grads", n64 * RECORD_GRAD * 4)?;
+        let out = storage(ctx, "raw_grads", n64 * OUT_STRIDE as u64 * 4)?;
+        let sh_out = storage(ctx, "sh_grads", n64 * stride as u64 * 4)?;
 
         let p = &self.pipelines;
         let mut enc = device.create_command_encoder(&Default::default());
         if n > 0 {
             let bg = bind(
-                device,
+                ctx,
                 &p.rasterize_backward,
                 &[
                     (0, &frame_buf),
@@ -84,13 +78,14 @@ impl WgpuRasterizer {
                 ],
             );
             dispatch(
+                ctx,
                 &mut enc,
                 &p.rasterize_backward,
                 &bg,
                 (frame.tiles_x, frame.tiles_y),
             );
             let bg = bind(
-                device,
+                ctx,
                 &p.project_backward,
                 &[
                     (0, &frame_buf),
@@ -102,6 +97,7 @@ impl WgpuRasterizer {
                 ],
             );
             dispatch(
+                ctx,
                 &mut enc,
                 &p.project_backward,
                 &bg,
@@ -109,8 +105,7 @@ impl WgpuRasterizer {
             );
         }
         let back = read_back(
-            device,
-            queue,
+            ctx,
             enc,
             &[
                 (&out, 0, n64 * OUT_STRIDE as u64 * 4),

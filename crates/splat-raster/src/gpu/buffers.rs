@@ -5,6 +5,7 @@ use std::num::NonZeroU64;
 
 use wgpu::util::DeviceExt;
 
+use super::context::GpuContext;
 use crate::error::RasterError;
 
 /// Usage of every storage buffer of the backend (copies both ways, so any can be cleared, read
@@ -32,13 +33,14 @@ fn too_large(device: &wgpu::Device, label: &'static str, bytes: u64) -> Result<(
 /// A zero-initialised storage buffer of `bytes` bytes (at least 64, one record, so that empty
 /// scenes still bind something).
 pub(crate) fn storage(
-    device: &wgpu::Device,
+    ctx: &GpuContext,
     label: &'static str,
     bytes: u64,
 ) -> Result<wgpu::Buffer, RasterError> {
     let bytes = bytes.max(64).next_multiple_of(4);
-    too_large(device, label, bytes)?;
-    Ok(device.create_buffer(&wgpu::BufferDescriptor {
+    too_large(&ctx.device, label, bytes)?;
+    ctx.traffic.buffer();
+    Ok(ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),
         size: bytes,
         usage: STORAGE,
@@ -48,11 +50,14 @@ pub(crate) fn storage(
 
 /// A storage buffer holding `data` (padded to at least 64 bytes).
 pub(crate) fn storage_init(
-    device: &wgpu::Device,
+    ctx: &GpuContext,
     label: &'static str,
     data: &[u8],
 ) -> Result<wgpu::Buffer, RasterError> {
+    let device = &ctx.device;
     too_large(device, label, data.len() as u64)?;
+    ctx.traffic.buffer();
+    ctx.traffic.upload(data.len().max(64) as u64);
     if data.len() < 64 {
         let mut padded = [0u8; 64];
         padded[..data.len()].copy_from_slice(data);
@@ -74,27 +79,32 @@ pub(crate) fn storage_init(
 }
 
 /// A uniform buffer holding `data`.
-pub(crate) fn uniform(device: &wgpu::Device, label: &'static str, data: &[u8]) -> wgpu::Buffer {
-    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some(label),
-        contents: data,
-        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-    })
+pub(crate) fn uniform(ctx: &GpuContext, label: &'static str, data: &[u8]) -> wgpu::Buffer {
+    ctx.traffic.buffer();
+    ctx.traffic.upload(data.len() as u64);
+    ctx.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: data,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        })
 }
 
 /// Copies `(buffer, byte offset, byte count)` regions to the host after the work already
 /// recorded in `encoder`, submits, and blocks until they are read.
 pub(crate) fn read_back(
-    device: &wgpu::Device,
-    queue: &wgpu::Queue,
+    ctx: &GpuContext,
     mut encoder: wgpu::CommandEncoder,
     regions: &[(&wgpu::Buffer, u64, u64)],
 ) -> Result<Vec<Vec<u8>>, RasterError> {
+    let (device, queue) = (&ctx.device, &ctx.queue);
     let sizes: Vec<u64> = regions
         .iter()
         .map(|&(_, _, n)| n.next_multiple_of(4))
         .collect();
     let total: u64 = sizes.iter().sum::<u64>().max(4);
+    ctx.traffic.buffer();
+    ctx.traffic.read_back(total);
     let staging = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("read-back"),
         size: total,

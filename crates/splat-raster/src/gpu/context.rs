@@ -4,6 +4,7 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::RasterError;
+use crate::traffic::Traffic;
 
 /// What the chosen adapter is.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -51,6 +52,69 @@ pub struct GpuContext {
     /// Distinguishes contexts, so that a forward output made on one device is not handed to the
     /// backward pass of another.
     pub(crate) id: u64,
+    /// Host–device traffic recorded on this context ([`GpuContext::traffic`]).
+    pub(crate) traffic: TrafficCounter,
+}
+
+/// Running [`Traffic`] totals of one context, added to by the helpers that upload, read back,
+/// submit, dispatch and create buffers or bind groups (relaxed atomics: the totals are read
+/// between calls, never used to order work).
+#[derive(Debug, Default)]
+pub(crate) struct TrafficCounter {
+    bytes_up: AtomicU64,
+    bytes_down: AtomicU64,
+    submits: AtomicU64,
+    waits: AtomicU64,
+    dispatches: AtomicU64,
+    buffers_created: AtomicU64,
+    bind_groups_created: AtomicU64,
+}
+
+impl TrafficCounter {
+    fn add(counter: &AtomicU64, n: u64) {
+        counter.fetch_add(n, Ordering::Relaxed);
+    }
+
+    /// `bytes` written into a device buffer by the host.
+    pub(crate) fn upload(&self, bytes: u64) {
+        Self::add(&self.bytes_up, bytes);
+    }
+
+    /// `bytes` read back after one submit and one wait.
+    pub(crate) fn read_back(&self, bytes: u64) {
+        Self::add(&self.bytes_down, bytes);
+        Self::add(&self.submits, 1);
+        Self::add(&self.waits, 1);
+    }
+
+    /// `n` compute dispatches recorded.
+    pub(crate) fn dispatches(&self, n: u64) {
+        Self::add(&self.dispatches, n);
+    }
+
+    /// One device buffer created.
+    pub(crate) fn buffer(&self) {
+        Self::add(&self.buffers_created, 1);
+    }
+
+    /// `n` bind groups created.
+    pub(crate) fn bind_groups(&self, n: u64) {
+        Self::add(&self.bind_groups_created, n);
+    }
+
+    /// The totals so far.
+    pub(crate) fn snapshot(&self) -> Traffic {
+        let get = |c: &AtomicU64| c.load(Ordering::Relaxed);
+        Traffic {
+            bytes_up: get(&self.bytes_up),
+            bytes_down: get(&self.bytes_down),
+            submits: get(&self.submits),
+            waits: get(&self.waits),
+            dispatches: get(&self.dispatches),
+            buffers_created: get(&self.buffers_created),
+            bind_groups_created: get(&self.bind_groups_created),
+        }
+    }
 }
 
 static NEXT_ID: AtomicU64 = AtomicU64::new(1);
@@ -129,11 +193,18 @@ impl GpuContext {
             queue,
             summary,
             id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
+            traffic: TrafficCounter::default(),
         })
     }
 
     /// What the adapter is.
     pub fn adapter(&self) -> &AdapterSummary {
         &self.summary
+    }
+
+    /// The host–device traffic recorded on this context since it was made (every rasterizer
+    /// sharing it adds to the same totals).
+    pub fn traffic(&self) -> Traffic {
+        self.traffic.snapshot()
     }
 }

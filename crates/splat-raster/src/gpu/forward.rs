@@ -55,8 +55,9 @@ impl WgpuRasterizer {
         opts: &RenderOptions,
     ) -> Result<ForwardOutput, RasterError> {
         let active = validate(&g, cam, opts)?;
-        let device = &self.ctx.device;
-        let queue = &self.ctx.queue;
+        let ctx = &*self.ctx;
+        let device = &ctx.device;
+        let queue = &ctx.queue;
         let max_dim = device.limits().max_compute_workgroups_per_dimension;
         let n = g.len();
         let n32 = u32::try_from(n).map_err(|_| RasterError::Gpu {
@@ -67,21 +68,21 @@ impl WgpuRasterizer {
         let n_tiles = frame.n_tiles();
         let npix = cam.pixel_count() as u64;
 
-        let params = storage_init(device, "params", bytemuck::cast_slice(&pack_params(&g)))?;
-        let frame_buf = uniform(device, "frame", bytemuck::bytes_of(&frame));
+        let params = storage_init(ctx, "params", bytemuck::cast_slice(&pack_params(&g)))?;
+        let frame_buf = uniform(ctx, "frame", bytemuck::bytes_of(&frame));
         let n64 = n as u64;
-        let splats = storage(device, "splats", n64 * SPLAT_BYTES)?;
-        let radii = storage(device, "radii", n64 * 4)?;
-        let depth_keys = storage(device, "depth_keys", n64 * 4)?;
-        let sort_ids = storage(device, "sort_ids", n64 * 4)?;
-        let tile_counts = storage(device, "tile_counts", n64 * 4)?;
-        let stats = storage(device, "stats", 32)?;
-        let offsets = storage(device, "offsets", n64 * 4)?;
+        let splats = storage(ctx, "splats", n64 * SPLAT_BYTES)?;
+        let radii = storage(ctx, "radii", n64 * 4)?;
+        let depth_keys = storage(ctx, "depth_keys", n64 * 4)?;
+        let sort_ids = storage(ctx, "sort_ids", n64 * 4)?;
+        let tile_counts = storage(ctx, "tile_counts", n64 * 4)?;
+        let stats = storage(ctx, "stats", 32)?;
+        let offsets = storage(ctx, "offsets", n64 * 4)?;
         // The scan's upper levels (chunk totals); the last one ends as the grand total.
         let scan_lens = level_lengths(n32);
         let scan_sums = scan_lens[1..]
             .iter()
-            .map(|&len| storage(device, "scan_sums", u64::from(len) * 4))
+            .map(|&len| storage(ctx, "scan_sums", u64::from(len) * 4))
             .collect::<Result<Vec<_>, _>>()?;
         let total = scan_sums.last().expect("at least one upper level");
 
@@ -91,7 +92,7 @@ impl WgpuRasterizer {
         let per_gaussian = groups_1d(n32, max_dim);
         if n > 0 {
             let bg = bind(
-                device,
+                ctx,
                 &p.project,
                 &[
                     (0, &frame_buf),
@@ -104,11 +105,11 @@ impl WgpuRasterizer {
                     (7, &stats),
                 ],
             );
-            dispatch(&mut enc, &p.project, &bg, per_gaussian);
+            dispatch(ctx, &mut enc, &p.project, &bg, per_gaussian);
             self.sorter
-                .encode(device, &mut enc, &depth_keys, &sort_ids, n32, 32);
+                .encode(ctx, &mut enc, &depth_keys, &sort_ids, n32, 32);
             let bg = bind(
-                device,
+                ctx,
                 &p.gather_counts,
                 &[
                     (0, &frame_buf),
@@ -117,17 +118,17 @@ impl WgpuRasterizer {
                     (5, &offsets),
                 ],
             );
-            dispatch(&mut enc, &p.gather_counts, &bg, per_gaussian);
+            dispatch(ctx, &mut enc, &p.gather_counts, &bg, per_gaussian);
             let scan = self.sorter.prefix_sum();
             let levels: Vec<&wgpu::Buffer> = std::iter::once(&offsets).chain(&scan_sums).collect();
-            let plan = scan.plan(device, &levels, &scan_lens);
+            let plan = scan.plan(ctx, &levels, &scan_lens);
             let mut cpass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("tile count scan"),
                 timestamp_writes: None,
             });
-            scan.record(&mut cpass, &plan);
+            scan.record(&ctx.traffic, &mut cpass, &plan);
         }
-        let head = read_back(device, queue, enc, &[(&stats, 0, 32), (total, 0, 4)])?;
+        let head = read_back(ctx, enc, &[(&stats, 0, 32), (total, 0, 4)])?;
         let counts = u32s(&head[0]);
         let n_isect = if n > 0 { u32s(&head[1])[0] } else { 0 };
         let stats = CullStats {
@@ -144,21 +145,23 @@ impl WgpuRasterizer {
         // Stage 2: emit the (tile, Gaussian) pairs in depth order, sort them stably by tile,
         // find each tile's range and composite.
         frame.n_isect = n_isect;
+        ctx.traffic
+            .upload(std::mem::size_of::<FrameUniform>() as u64);
         queue.write_buffer(&frame_buf, 0, bytemuck::bytes_of(&frame));
-        let isect_keys = storage(device, "isect_keys", u64::from(n_isect) * 4)?;
-        let isect_ids = storage(device, "isect_ids", u64::from(n_isect) * 4)?;
-        let ranges = storage(device, "ranges", u64::from(n_tiles) * 8)?;
-        let color = storage(device, "color", npix * 12)?;
-        let alpha = storage(device, "alpha", npix * 4)?;
-        let depth = storage(device, "depth", npix * 4)?;
+        let isect_keys = storage(ctx, "isect_keys", u64::from(n_isect) * 4)?;
+        let isect_ids = storage(ctx, "isect_ids", u64::from(n_isect) * 4)?;
+        let ranges = storage(ctx, "ranges", u64::from(n_tiles) * 8)?;
+        let color = storage(ctx, "color", npix * 12)?;
+        let alpha = storage(ctx, "alpha", npix * 4)?;
+        let depth = storage(ctx, "depth", npix * 4)?;
         let lanes = u64::from(n_tiles) * 256;
-        let final_t = storage(device, "final_t", lanes * 4)?;
-        let last = storage(device, "last", lanes * 4)?;
-        let tile_counters = storage(device, "tile_counters", u64::from(n_tiles) * 8)?;
+        let final_t = storage(ctx, "final_t", lanes * 4)?;
+        let last = storage(ctx, "last", lanes * 4)?;
+        let tile_counters = storage(ctx, "tile_counters", u64::from(n_tiles) * 8)?;
         let mut enc = device.create_command_encoder(&Default::default());
         if n_isect > 0 {
             let bg = bind(
-                device,
+                ctx,
                 &p.emit,
                 &[
                     (0, &frame_buf),
@@ -170,19 +173,25 @@ impl WgpuRasterizer {
                     (7, &isect_ids),
                 ],
             );
-            dispatch(&mut enc, &p.emit, &bg, per_gaussian);
+            dispatch(ctx, &mut enc, &p.emit, &bg, per_gaussian);
             let key_bits = (32 - (n_tiles.max(2) - 1).leading_zeros()).max(1);
             self.sorter
-                .encode(device, &mut enc, &isect_keys, &isect_ids, n_isect, key_bits);
+                .encode(ctx, &mut enc, &isect_keys, &isect_ids, n_isect, key_bits);
             let bg = bind(
-                device,
+                ctx,
                 &p.tile_ranges,
                 &[(0, &frame_buf), (2, &isect_keys), (3, &ranges)],
             );
-            dispatch(&mut enc, &p.tile_ranges, &bg, groups_1d(n_isect, max_dim));
+            dispatch(
+                ctx,
+                &mut enc,
+                &p.tile_ranges,
+                &bg,
+                groups_1d(n_isect, max_dim),
+            );
         }
         let bg = bind(
-            device,
+            ctx,
             &p.rasterize,
             &[
                 (0, &frame_buf),
@@ -197,10 +206,15 @@ impl WgpuRasterizer {
                 (10, &tile_counters),
             ],
         );
-        dispatch(&mut enc, &p.rasterize, &bg, (frame.tiles_x, frame.tiles_y));
+        dispatch(
+            ctx,
+            &mut enc,
+            &p.rasterize,
+            &bg,
+            (frame.tiles_x, frame.tiles_y),
+        );
         let out = read_back(
-            device,
-            queue,
+            ctx,
             enc,
             &[
                 (&color, 0, npix * 12),

@@ -45,13 +45,21 @@
 //! (colour off by at most 5e-4) differ.
 //!
 //! What crosses between CPU and GPU per call (d = SH degree, k = 3(d+1)² SH floats):
-//! - forward: upload `4·(11 + k)` bytes per Gaussian (raw parameters) and a 160-byte uniform;
-//!   read back 36 bytes mid-pass (cull counts, pair count), then 20 bytes per pixel (colour,
-//!   alpha, depth), 4 bytes per Gaussian (radius) and 8 bytes per tile (work counters);
-//! - backward: upload 12 bytes per pixel (the [`PixelGrads`](crate::PixelGrads) colour) plus 4
-//!   per pixel for each of its alpha and depth given; read back `4·(14 + k)` bytes per Gaussian
-//!   (gradients, means2d, a non-finite flag). The compositing record, tile lists, per-pixel `T` and last contributor
-//!   stay on the device between forward and backward (in the [`ForwardOutput`]).
+//! - forward: upload `4·(11 + k)` bytes per Gaussian (raw parameters) and a 160-byte uniform
+//!   twice (before and after the pair count is known); read back 36 bytes mid-pass (cull counts,
+//!   pair count), then 20 bytes per pixel (colour, alpha, depth), 4 bytes per Gaussian (radius)
+//!   and 8 bytes per tile (work counters);
+//! - backward: upload a 160-byte uniform, 12 bytes per pixel (the
+//!   [`PixelGrads`](crate::PixelGrads) colour) plus 4 per pixel for each of its alpha and depth
+//!   given (a 64-byte placeholder for each not given); read back `4·(14 + k)` bytes per Gaussian
+//!   (gradients, means2d, a non-finite flag). The compositing record, tile lists, per-pixel `T`
+//!   and last contributor stay on the device between forward and backward (in the
+//!   [`ForwardOutput`]).
+//!
+//! Besides these, each sort pass and scan level uploads a small parameter record. Every upload,
+//! read-back, submit, wait, dispatch, buffer and bind group is counted on the context
+//! ([`GpuContext::traffic`], [`crate::Rasterizer::traffic`]); a test checks the counts against
+//! this list.
 //!
 //! Not (yet) done here: buffer pooling across calls (buffers are allocated per call), subgroup
 //! or workgroup reductions before the gradient atomics.
@@ -194,5 +202,9 @@ impl Rasterizer for WgpuRasterizer {
         d: PixelGrads<'_>,
     ) -> Result<BackwardOutput, RasterError> {
         self.checked(|| self.backward_impl(g, cam, opts, fwd, d))
+    }
+
+    fn traffic(&self) -> Option<crate::Traffic> {
+        Some(self.ctx.traffic())
     }
 }

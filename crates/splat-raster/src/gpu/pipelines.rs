@@ -1,6 +1,7 @@
 //! The compute pipelines of the backend, compiled once per rasterizer from the WGSL sources in
 //! `shaders/` (the shared `common.wgsl` is prepended to the per-Gaussian and per-tile kernels).
 
+use super::context::GpuContext;
 use crate::error::RasterError;
 
 const COMMON: &str = include_str!("shaders/common.wgsl");
@@ -101,6 +102,7 @@ pub(crate) fn groups_1d(items: u32, max_per_dim: u32) -> (u32, u32) {
 
 /// Records one dispatch of `pipeline` with `bind_group`.
 pub(crate) fn dispatch(
+    ctx: &GpuContext,
     encoder: &mut wgpu::CommandEncoder,
     pipeline: &wgpu::ComputePipeline,
     bind_group: &wgpu::BindGroup,
@@ -113,11 +115,12 @@ pub(crate) fn dispatch(
     pass.set_pipeline(pipeline);
     pass.set_bind_group(0, bind_group, &[]);
     pass.dispatch_workgroups(groups.0, groups.1, 1);
+    ctx.traffic.dispatches(1);
 }
 
 /// A bind group for group 0 of `pipeline` from `(binding, buffer)` pairs.
 pub(crate) fn bind(
-    device: &wgpu::Device,
+    ctx: &GpuContext,
     pipeline: &wgpu::ComputePipeline,
     entries: &[(u32, &wgpu::Buffer)],
 ) -> wgpu::BindGroup {
@@ -128,7 +131,8 @@ pub(crate) fn bind(
             resource: buffer.as_entire_binding(),
         })
         .collect();
-    device.create_bind_group(&wgpu::BindGroupDescriptor {
+    ctx.traffic.bind_groups(1);
+    ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: None,
         layout: &pipeline.get_bind_group_layout(0),
         entries: &entries,

@@ -17,6 +17,7 @@ use std::num::NonZeroU64;
 use wgpu::util::DeviceExt;
 
 use super::buffers::{dynamic_uniform_entry, storage_entry, words};
+use super::context::{GpuContext, TrafficCounter};
 use super::layout::wgsl_mirror;
 
 /// Elements per chunk (one workgroup).
@@ -55,7 +56,13 @@ pub(crate) fn level_lengths(len: u32) -> Vec<u32> {
 
 /// Dispatches `groups` workgroups on a 2D grid at most `max_per_dim` wide; kernels recover the
 /// linear index as `id.x + id.y * grid.x` and skip the ones past `groups`.
-pub(crate) fn dispatch_grid(cpass: &mut wgpu::ComputePass<'_>, groups: u32, max_per_dim: u32) {
+pub(crate) fn dispatch_grid(
+    traffic: &TrafficCounter,
+    cpass: &mut wgpu::ComputePass<'_>,
+    groups: u32,
+    max_per_dim: u32,
+) {
+    traffic.dispatches(1);
     let x = groups.min(max_per_dim).max(1);
     cpass.dispatch_workgroups(x, groups.div_ceil(x), 1);
 }
@@ -126,7 +133,7 @@ impl PrefixSum {
     /// If `levels` and `lens` differ in length or there are fewer than two levels (caller bugs).
     pub(crate) fn plan(
         &self,
-        device: &wgpu::Device,
+        ctx: &GpuContext,
         levels: &[&wgpu::Buffer],
         lens: &[u32],
     ) -> ScanPlan {
@@ -146,6 +153,10 @@ impl PrefixSum {
             bytes[i * stride..i * stride + PARAMS_SIZE as usize]
                 .copy_from_slice(bytemuck::bytes_of(&record));
         }
+        let device = &ctx.device;
+        ctx.traffic.buffer();
+        ctx.traffic.upload(bytes.len() as u64);
+        ctx.traffic.bind_groups(lens.len() as u64 - 1);
         let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("prefix sum params"),
             contents: &bytes,
@@ -185,19 +196,34 @@ impl PrefixSum {
 
     /// Records `plan` into a compute pass: scan down the levels, then add the scanned chunk
     /// totals back up.
-    pub(crate) fn record(&self, cpass: &mut wgpu::ComputePass<'_>, plan: &ScanPlan) {
+    pub(crate) fn record(
+        &self,
+        traffic: &TrafficCounter,
+        cpass: &mut wgpu::ComputePass<'_>,
+        plan: &ScanPlan,
+    ) {
         let offset = |level: usize| (level as u64 * self.params_stride) as u32;
         for (level, group) in plan.groups.iter().enumerate() {
             cpass.set_pipeline(&self.scan_chunks);
             cpass.set_bind_group(0, group, &[offset(level)]);
-            dispatch_grid(cpass, plan.lens[level + 1], self.max_groups_per_dim);
+            dispatch_grid(
+                traffic,
+                cpass,
+                plan.lens[level + 1],
+                self.max_groups_per_dim,
+            );
         }
         for (level, group) in plan.groups.iter().enumerate().rev() {
             // The top level is a single chunk: its total is not an offset.
             if plan.lens[level + 1] > 1 {
                 cpass.set_pipeline(&self.add_chunk_offsets);
                 cpass.set_bind_group(0, group, &[offset(level)]);
-                dispatch_grid(cpass, plan.lens[level + 1], self.max_groups_per_dim);
+                dispatch_grid(
+                    traffic,
+                    cpass,
+                    plan.lens[level + 1],
+                    self.max_groups_per_dim,
+                );
             }
         }
     }

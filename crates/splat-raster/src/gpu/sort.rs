@@ -31,6 +31,7 @@ use wgpu::util::DeviceExt;
 pub use harness::SortHarness;
 
 use super::buffers::{dynamic_uniform_entry, storage_entry, words};
+use super::context::{GpuContext, TrafficCounter};
 use super::layout::wgsl_mirror;
 use super::scan::{self, PrefixSum, ScanPlan, dispatch_grid};
 
@@ -185,7 +186,7 @@ impl RadixSorter {
     /// If `key_bits` is outside 1..=32 or a buffer holds fewer than `n` u32 (caller bugs).
     pub(crate) fn encode(
         &self,
-        device: &wgpu::Device,
+        ctx: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
         keys: &wgpu::Buffer,
         values: &wgpu::Buffer,
@@ -206,6 +207,8 @@ impl RadixSorter {
         if n == 0 {
             return;
         }
+        let device = &ctx.device;
+        let traffic = &ctx.traffic;
         let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
         if guard.as_ref().is_none_or(|s| s.capacity < n) {
             // Grow by half again (amortised), but never past the device's buffer size limit.
@@ -214,11 +217,15 @@ impl RadixSorter {
                 .as_ref()
                 .map_or(0, |s| s.capacity.saturating_add(s.capacity / 2));
             let capacity = n.max(grown.min(max_words));
+            let levels = level_lengths(capacity);
+            for _ in 0..2 + levels.len() {
+                traffic.buffer();
+            }
             *guard = Some(Scratch {
                 capacity,
                 keys: storage_buffer(device, "radix sort keys scratch", capacity),
                 values: storage_buffer(device, "radix sort values scratch", capacity),
-                levels: level_lengths(capacity)
+                levels: levels
                     .into_iter()
                     .map(|len| storage_buffer(device, "radix sort counts", len))
                     .collect(),
@@ -247,6 +254,8 @@ impl RadixSorter {
             bytes[i * stride..i * stride + PARAMS_SIZE as usize]
                 .copy_from_slice(bytemuck::bytes_of(r));
         }
+        traffic.buffer();
+        traffic.upload(bytes.len() as u64);
         let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("radix sort params"),
             contents: &bytes,
@@ -270,6 +279,7 @@ impl RadixSorter {
                     resource: r.clone(),
                 })
                 .collect();
+            traffic.bind_groups(1);
             device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("radix sort"),
                 layout,
@@ -307,7 +317,7 @@ impl RadixSorter {
             })
             .collect();
         let levels: Vec<&wgpu::Buffer> = scratch.levels.iter().take(lens.len()).collect();
-        let scan_plan: ScanPlan = self.scan.plan(device, &levels, &lens);
+        let scan_plan: ScanPlan = self.scan.plan(ctx, &levels, &lens);
 
         {
             let mut cpass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -318,13 +328,13 @@ impl RadixSorter {
                 let from = (pass % 2) as usize;
                 cpass.set_pipeline(&self.count);
                 cpass.set_bind_group(0, &count_groups[from], &[pass_offset(pass)]);
-                self.dispatch(&mut cpass, num_blocks);
+                self.dispatch(traffic, &mut cpass, num_blocks);
 
-                self.scan.record(&mut cpass, &scan_plan);
+                self.scan.record(traffic, &mut cpass, &scan_plan);
 
                 cpass.set_pipeline(&self.scatter);
                 cpass.set_bind_group(0, &scatter_groups[from], &[pass_offset(pass)]);
-                self.dispatch(&mut cpass, num_blocks);
+                self.dispatch(traffic, &mut cpass, num_blocks);
             }
         }
         if passes % 2 == 1 {
@@ -339,8 +349,8 @@ impl RadixSorter {
     }
 
     /// Dispatches `groups` workgroups on a 2D grid; the kernels skip the ones past `groups`.
-    fn dispatch(&self, cpass: &mut wgpu::ComputePass<'_>, groups: u32) {
-        dispatch_grid(cpass, groups, self.max_groups_per_dim);
+    fn dispatch(&self, traffic: &TrafficCounter, cpass: &mut wgpu::ComputePass<'_>, groups: u32) {
+        dispatch_grid(traffic, cpass, groups, self.max_groups_per_dim);
     }
 }
 

@@ -589,3 +589,58 @@ fn the_adapter_is_described() {
         assert_eq!(native.atomics(), AtomicMode::NativeF32);
     }
 }
+
+/// The traffic counter of a context against what the backend's module doc says crosses per call
+/// (d = SH degree, k = 3(d+1)² SH floats): the read-backs exactly, the big uploads exactly, the
+/// small parameter records of the sort and scan within a bound. A fresh context, so that no other
+/// test's calls are counted.
+#[test]
+fn the_traffic_counter_counts_what_crosses_per_call() {
+    let ctx = Arc::new(GpuContext::new().unwrap());
+    let r = WgpuRasterizer::with_context(ctx.clone(), AtomicMode::CompareExchange).unwrap();
+    assert_eq!(Rasterizer::traffic(&r), Some(ctx.traffic()));
+    assert_eq!(CpuRasterizer::new().traffic(), None);
+    let mut rng = common::rng(41);
+    let (w, h, n, degree) = (61u32, 47u32, 300usize, 3u32);
+    let g = common::random_gaussians(&mut rng, n, degree, 1.0);
+    let cam = common::random_camera(&mut rng, w, h);
+    let opts = RenderOptions::default();
+    let (n, k) = (n as u64, 3 * u64::from((degree + 1) * (degree + 1)));
+    let npix = u64::from(w * h);
+    let tiles = u64::from(w.div_ceil(16) * h.div_ceil(16));
+
+    let t0 = ctx.traffic();
+    let fwd = r.forward(g.view(), &cam, &opts).unwrap();
+    let t1 = ctx.traffic();
+    let f = t1.since(&t0);
+    // Read back: cull counts and pair count (36 bytes), then colour, alpha, depth per pixel,
+    // radii per Gaussian and two work counters per tile.
+    assert_eq!(f.bytes_down, 36 + 20 * npix + 4 * n + 8 * tiles, "{f:?}");
+    assert_eq!((f.submits, f.waits), (2, 2), "{f:?}");
+    // Up: the raw parameters and the frame uniform (written twice), plus one small record per
+    // sort pass and scan level.
+    let big = 4 * (11 + k) * n + 2 * 160;
+    assert!(f.bytes_up >= big && f.bytes_up <= big + 4096, "{f:?}");
+    assert!(f.dispatches >= 7 && f.buffers_created >= 20 && f.bind_groups_created >= 5);
+
+    let (dc, da, dd) = pixel_grads(cam.pixel_count(), 5);
+    r.backward(g.view(), &cam, &opts, &fwd, PixelGrads::from_color(&dc))
+        .unwrap();
+    let t2 = ctx.traffic();
+    let b = t2.since(&t1);
+    // Up: the frame uniform, the colour gradients and a 64-byte placeholder for each of the
+    // alpha and depth gradients not given; back: the raw gradients, means2d and a flag.
+    assert_eq!(b.bytes_up, 160 + 12 * npix + 2 * 64, "{b:?}");
+    assert_eq!(b.bytes_down, 4 * (14 + k) * n, "{b:?}");
+    assert_eq!((b.submits, b.waits, b.dispatches), (1, 1, 2), "{b:?}");
+    r.backward(
+        g.view(),
+        &cam,
+        &opts,
+        &fwd,
+        PixelGrads::from_color(&dc).with_alpha(&da).with_depth(&dd),
+    )
+    .unwrap();
+    let b = ctx.traffic().since(&t2);
+    assert_eq!(b.bytes_up, 160 + 20 * npix, "{b:?}");
+}

@@ -117,7 +117,7 @@ impl SortHarness {
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
         self.sorter
-            .encode(&self.ctx.device, &mut encoder, &k, &v, n, key_bits);
+            .encode(&self.ctx, &mut encoder, &k, &v, n, key_bits);
         self.ctx.queue.submit([encoder.finish()]);
         (
             self.read_back(&k, keys.len()),
@@ -139,14 +139,14 @@ impl SortHarness {
             .collect();
         let levels: Vec<&wgpu::Buffer> = buffers.iter().collect();
         let scan = self.sorter.prefix_sum();
-        let plan = scan.plan(&self.ctx.device, &levels, &lens);
+        let plan = scan.plan(&self.ctx, &levels, &lens);
         let mut encoder = self
             .ctx
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
         {
             let mut cpass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
-            scan.record(&mut cpass, &plan);
+            scan.record(&self.ctx.traffic, &mut cpass, &plan);
         }
         self.ctx.queue.submit([encoder.finish()]);
         let total = self.read_back(buffers.last().expect("two levels"), 1)[0];
@@ -176,14 +176,8 @@ impl SortHarness {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
         encoder.copy_buffer_to_buffer(&l.original_keys, 0, &l.keys, 0, bytes);
         encoder.copy_buffer_to_buffer(&l.original_values, 0, &l.values, 0, bytes);
-        self.sorter.encode(
-            &self.ctx.device,
-            &mut encoder,
-            &l.keys,
-            &l.values,
-            l.n,
-            key_bits,
-        );
+        self.sorter
+            .encode(&self.ctx, &mut encoder, &l.keys, &l.values, l.n, key_bits);
         self.ctx.queue.submit([encoder.finish()]);
         self.ctx
             .device
