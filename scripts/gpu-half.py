@@ -1,3 +1,4 @@
+#!/usr/bin/env python3
 # Halve a D-NeRF scene's PNGs: 2x2 box filter of the colour premultiplied by alpha, stored as
 # straight RGBA (RGB = mean(rgb*a)/mean(a), A = mean(a)), so that compositing over black gives the
 # loader's composite-then-box-filter up to 8-bit rounding. Only for shipping data to the lent GPU.
