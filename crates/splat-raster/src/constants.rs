@@ -23,7 +23,7 @@ pub const TILE: u32 = 16;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::wgsl_text::const_value;
+    use gpu_core::wgsl_text::const_value;
 
     /// The kernels' declarations (read as text: no GPU or `wgpu` feature needed).
     const COMMON_WGSL: &str = include_str!("gpu/shaders/common.wgsl");

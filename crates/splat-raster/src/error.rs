@@ -101,3 +101,13 @@ pub enum RasterError {
         message: String,
     },
 }
+
+#[cfg(feature = "wgpu")]
+impl From<gpu_core::GpuError> for RasterError {
+    fn from(e: gpu_core::GpuError) -> Self {
+        RasterError::Gpu {
+            stage: e.stage,
+            message: e.message,
+        }
+    }
+}

@@ -40,10 +40,7 @@ mod gpu;
 mod options;
 mod output;
 pub mod sh;
-mod traffic;
 mod validate;
-#[cfg(test)]
-mod wgsl_text;
 
 pub use backend::{BackendChoice, BackendInfo, BackendKind, DynRasterizer, select_rasterizer};
 pub use constants::{
@@ -53,16 +50,9 @@ pub use cpu::{CpuKernel, CpuRasterizer};
 pub use error::RasterError;
 #[cfg(feature = "wgpu")]
 pub use gpu::{AdapterSummary, AtomicMode, GpuContext, WgpuRasterizer};
+pub use gpu_core::{Traffic, TrafficRate};
 pub use options::{CullStats, RenderOptions};
 pub use output::{BackwardOutput, ForwardOutput, GaussianGrads, PixelGrads};
-pub use traffic::{Traffic, TrafficRate};
-/// Hooks for this crate's own benches, not part of the API: compiled only with the cargo
-/// feature `test-support`, which only the crate's dev-dependency on itself turns on.
-#[cfg(all(feature = "wgpu", feature = "test-support"))]
-#[doc(hidden)]
-pub mod test_support {
-    pub use crate::gpu::sort::SortHarness;
-}
 /// The plain types of `splat-core` the rasterizer reads, re-exported for convenience (defined
 /// there, once).
 pub use splat_core::{Camera, Gaussians, GaussiansView, camera, gaussians, sh_coeff_count};

@@ -9,8 +9,8 @@ use crate::output::{BackendState, BackwardOutput, ForwardOutput, GaussianGrads, 
 use crate::validate::validate_backward;
 
 use super::WgpuRasterizer;
-use super::buffers::{read_back, storage, storage_init, uniform};
-use super::pipelines::{bind, dispatch, groups_1d};
+use gpu_core::buffers::{read_back, storage, storage_init, uniform};
+use gpu_core::encode::{bind, dispatch, groups_1d};
 
 /// Floats per Gaussian of the record gradient (u, v, a, b, c, opacity, r, g, b, z).
 const RECORD_GRAD: u64 = 10;
@@ -30,7 +30,7 @@ impl WgpuRasterizer {
         let st = &fwd.state;
         let mismatch = |what: &str| Err(RasterError::ForwardMismatch(what.into()));
         let gpu = match &st.backend {
-            BackendState::Gpu(gpu) if gpu.context_id == self.ctx.id => gpu,
+            BackendState::Gpu(gpu) if gpu.context_id == self.ctx.id() => gpu,
             BackendState::Gpu(_) => {
                 return mismatch("the forward pass ran on another GPU context");
             }

@@ -1,5 +1,5 @@
 //! The forward pass on the GPU: projection, depth sort, tile counts and their prefix sum
-//! (the backend's one scan, [`super::scan`]),
+//! (the backend's one scan, [`gpu_core::PrefixSum`]),
 //! intersection emission, sort by tile, tile ranges, compositing; then the read-back of the
 //! images, radii and counters.
 
@@ -11,11 +11,11 @@ use crate::output::{BackendState, BackwardState, Counters, ForwardOutput};
 use crate::validate::validate;
 
 use super::WgpuRasterizer;
-use super::buffers::{read_back, storage, storage_init, uniform};
 use super::frame::{FrameUniform, pack_params};
-use super::pipelines::{bind, dispatch, groups_1d};
-use super::scan::level_lengths;
 use super::state::GpuState;
+use gpu_core::buffers::{read_back, storage, storage_init, uniform};
+use gpu_core::encode::{bind, dispatch, groups_1d};
+use gpu_core::level_lengths;
 
 /// Bytes of one WGSL `Splat` record.
 pub(crate) const SPLAT_BYTES: u64 = 64;
@@ -254,7 +254,7 @@ impl WgpuRasterizer {
                 counters,
                 tile_pairs: n_isect as usize,
                 backend: BackendState::Gpu(Box::new(GpuState {
-                    context_id: self.ctx.id,
+                    context_id: self.ctx.id(),
                     frame,
                     params,
                     splats,

@@ -3,10 +3,10 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::layout::wgsl_mirror;
 use crate::camera::Camera;
 use crate::frame::Frame;
 use crate::gaussians::GaussiansView;
+use gpu_core::wgsl_mirror;
 
 /// Floats per Gaussian before the SH coefficients: mean 3, log-scale 3, quaternion 4, logit 1.
 pub(crate) const PARAMS_FIXED: usize = 11;

@@ -6,8 +6,8 @@
 //! Pipeline (kernels in `shaders/`):
 //! 1. `project` (one thread per Gaussian): culling in the CPU's order, counted per reason with
 //!    atomics; the compositing record, screen radius, number of touched tiles, depth key;
-//! 2. depth sort ([`sort::RadixSorter`], 32-bit keys `z.to_bits()`, values the Gaussian index);
-//! 3. tile counts gathered in depth order and scanned ([`scan::PrefixSum`], the backend's one
+//! 2. depth sort ([`gpu_core::RadixSorter`], 32-bit keys `z.to_bits()`, values the Gaussian index);
+//! 3. tile counts gathered in depth order and scanned ([`gpu_core::PrefixSum`], the backend's one
 //!    prefix sum, also the sort's); the total number of
 //!    (tile, Gaussian) pairs is read back (4 bytes, with the 32 bytes of cull counts) to size
 //!    the intersection buffers;
@@ -65,21 +65,16 @@
 //! or workgroup reductions before the gradient atomics.
 
 mod backward;
-mod buffers;
-mod context;
 mod forward;
 mod frame;
-mod layout;
 #[cfg(test)]
 mod layout_tests;
 mod pipelines;
-mod scan;
-pub(crate) mod sort;
 pub(crate) mod state;
 
 use std::sync::Arc;
 
-pub use context::{AdapterSummary, GpuContext};
+pub use gpu_core::{AdapterSummary, GpuContext};
 pub use pipelines::AtomicMode;
 
 use crate::Rasterizer;
@@ -89,8 +84,8 @@ use crate::gaussians::GaussiansView;
 use crate::options::RenderOptions;
 use crate::output::{BackwardOutput, ForwardOutput, PixelGrads};
 
+use gpu_core::RadixSorter;
 use pipelines::Pipelines;
-use sort::RadixSorter;
 
 /// The GPU rasterizer (wgpu compute kernels). Same interface and results as
 /// [`crate::CpuRasterizer`].
@@ -104,7 +99,7 @@ pub struct WgpuRasterizer {
 impl std::fmt::Debug for WgpuRasterizer {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("WgpuRasterizer")
-            .field("adapter", &self.ctx.summary)
+            .field("adapter", self.ctx.adapter())
             .field("atomics", &self.atomics)
             .finish_non_exhaustive()
     }
@@ -115,7 +110,7 @@ impl WgpuRasterizer {
     /// No adapter is an error ([`RasterError::Gpu`]), not a panic.
     pub fn new() -> Result<Self, RasterError> {
         let ctx = Arc::new(GpuContext::new()?);
-        let mode = if ctx.summary.float32_atomics {
+        let mode = if ctx.adapter().float32_atomics {
             AtomicMode::NativeF32
         } else {
             AtomicMode::CompareExchange
@@ -126,12 +121,12 @@ impl WgpuRasterizer {
     /// A rasterizer on an existing context with a chosen gradient accumulation. Asking for
     /// [`AtomicMode::NativeF32`] on an adapter without f32 atomics is an error.
     pub fn with_context(ctx: Arc<GpuContext>, atomics: AtomicMode) -> Result<Self, RasterError> {
-        if atomics == AtomicMode::NativeF32 && !ctx.summary.float32_atomics {
+        if atomics == AtomicMode::NativeF32 && !ctx.adapter().float32_atomics {
             return Err(RasterError::Gpu {
                 stage: "pipelines",
                 message: format!(
                     "adapter {} does not offer SHADER_FLOAT32_ATOMIC",
-                    ctx.summary.name
+                    ctx.adapter().name
                 ),
             });
         }
@@ -152,7 +147,7 @@ impl WgpuRasterizer {
 
     /// What the adapter is (name, backend, hardware or software, f32 atomics).
     pub fn adapter(&self) -> &AdapterSummary {
-        &self.ctx.summary
+        self.ctx.adapter()
     }
 
     /// How the backward pass accumulates gradients.

@@ -1,6 +1,6 @@
 //! Reading declarations out of the WGSL sources as text, for the tests that check the kernels
-//! against the Rust side (constants in `constants.rs`, uniform layouts in `gpu/layout_tests.rs`):
-//! no GPU and no `wgpu` feature needed.
+//! against the Rust side (constants, and the uniforms declared with [`crate::wgsl_mirror!`]
+//! through [`check_mirror`]): no GPU and no `wgpu` feature needed.
 //!
 //! What it is not: a WGSL parser. It reads `const NAME: T = EXPR;` lines (EXPR a literal or
 //! `a / b`) and `struct Name { field: type, ... }` declarations of scalars, vectors and
@@ -8,7 +8,7 @@
 
 /// The value of `const NAME: TYPE = EXPR;` in `src`, where EXPR is a literal or `a / b` (WGSL
 /// evaluates constant expressions exactly, then converts to the type).
-pub(crate) fn const_value(src: &str, name: &str) -> f64 {
+pub fn const_value(src: &str, name: &str) -> f64 {
     let prefix = format!("const {name}:");
     let line = src
         .lines()
@@ -33,11 +33,14 @@ pub(crate) fn const_value(src: &str, name: &str) -> f64 {
 
 /// One member of a WGSL struct as laid out in memory (WGSL's alignment rules).
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub(crate) struct Member {
+pub struct Member {
+    /// The member's name.
     pub name: String,
     /// The type as written, e.g. `f32`, `vec3<f32>`.
     pub ty: String,
+    /// Byte offset in the struct.
     pub offset: usize,
+    /// Size in bytes.
     pub size: usize,
 }
 
@@ -72,7 +75,7 @@ fn size_align(ty: &str) -> (usize, usize) {
 
 /// The members of `struct NAME { ... }` in `src`, in declaration order with their offsets,
 /// and the struct's size.
-pub(crate) fn struct_layout(src: &str, name: &str) -> (Vec<Member>, usize) {
+pub fn struct_layout(src: &str, name: &str) -> (Vec<Member>, usize) {
     let head = format!("struct {name} {{");
     let start = src
         .find(&head)
@@ -119,6 +122,28 @@ pub(crate) fn struct_layout(src: &str, name: &str) -> (Vec<Member>, usize) {
         max_align = max_align.max(align);
     }
     (members, end.next_multiple_of(max_align))
+}
+
+/// `(name, type, byte offset, byte size)` of each field, as [`crate::wgsl_mirror!`] records them.
+pub type Fields = &'static [(&'static str, &'static str, usize, usize)];
+
+/// Panics, naming the struct and the first difference, unless the Rust fields (`fields`, from
+/// a [`crate::wgsl_mirror!`] struct's `FIELDS`) and size equal the WGSL declaration of
+/// `wgsl_name` in `src`.
+pub fn check_mirror(fields: Fields, rust_size: usize, src: &str, wgsl_name: &str) {
+    let (members, wgsl_size) = struct_layout(src, wgsl_name);
+    let wgsl: Vec<(&str, &str, usize, usize)> = members
+        .iter()
+        .map(|m| (m.name.as_str(), m.ty.as_str(), m.offset, m.size))
+        .collect();
+    for (k, (r, w)) in fields.iter().zip(&wgsl).enumerate() {
+        assert_eq!(
+            r, w,
+            "{wgsl_name} field {k}: Rust (name, type, offset, size) vs WGSL"
+        );
+    }
+    assert_eq!(fields.len(), wgsl.len(), "{wgsl_name}: number of fields");
+    assert_eq!(rust_size, wgsl_size, "{wgsl_name}: size in bytes");
 }
 
 #[cfg(test)]

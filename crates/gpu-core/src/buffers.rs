@@ -5,22 +5,22 @@ use std::num::NonZeroU64;
 
 use wgpu::util::DeviceExt;
 
-use super::context::GpuContext;
-use crate::error::RasterError;
+use crate::context::GpuContext;
+use crate::error::GpuError;
 
 /// Usage of every storage buffer of the backend (copies both ways, so any can be cleared, read
 /// back or handed to the sort).
-pub(crate) const STORAGE: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE
+pub const STORAGE: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE
     .union(wgpu::BufferUsages::COPY_SRC)
     .union(wgpu::BufferUsages::COPY_DST);
 
-fn too_large(device: &wgpu::Device, label: &'static str, bytes: u64) -> Result<(), RasterError> {
+fn too_large(device: &wgpu::Device, label: &'static str, bytes: u64) -> Result<(), GpuError> {
     let limit = device
         .limits()
         .max_storage_buffer_binding_size
         .min(device.limits().max_buffer_size);
     if bytes > limit {
-        return Err(RasterError::Gpu {
+        return Err(GpuError {
             stage: "buffers",
             message: format!(
                 "buffer {label} needs {bytes} bytes, the device allows {limit} per binding"
@@ -32,11 +32,11 @@ fn too_large(device: &wgpu::Device, label: &'static str, bytes: u64) -> Result<(
 
 /// A zero-initialised storage buffer of `bytes` bytes (at least 64, one record, so that empty
 /// scenes still bind something).
-pub(crate) fn storage(
+pub fn storage(
     ctx: &GpuContext,
     label: &'static str,
     bytes: u64,
-) -> Result<wgpu::Buffer, RasterError> {
+) -> Result<wgpu::Buffer, GpuError> {
     let bytes = bytes.max(64).next_multiple_of(4);
     too_large(&ctx.device, label, bytes)?;
     ctx.traffic.buffer();
@@ -49,11 +49,11 @@ pub(crate) fn storage(
 }
 
 /// A storage buffer holding `data` (padded to at least 64 bytes).
-pub(crate) fn storage_init(
+pub fn storage_init(
     ctx: &GpuContext,
     label: &'static str,
     data: &[u8],
-) -> Result<wgpu::Buffer, RasterError> {
+) -> Result<wgpu::Buffer, GpuError> {
     let device = &ctx.device;
     too_large(device, label, data.len() as u64)?;
     ctx.traffic.buffer();
@@ -79,7 +79,7 @@ pub(crate) fn storage_init(
 }
 
 /// A uniform buffer holding `data`.
-pub(crate) fn uniform(ctx: &GpuContext, label: &'static str, data: &[u8]) -> wgpu::Buffer {
+pub fn uniform(ctx: &GpuContext, label: &'static str, data: &[u8]) -> wgpu::Buffer {
     ctx.traffic.buffer();
     ctx.traffic.upload(data.len() as u64);
     ctx.device
@@ -92,11 +92,11 @@ pub(crate) fn uniform(ctx: &GpuContext, label: &'static str, data: &[u8]) -> wgp
 
 /// Copies `(buffer, byte offset, byte count)` regions to the host after the work already
 /// recorded in `encoder`, submits, and blocks until they are read.
-pub(crate) fn read_back(
+pub fn read_back(
     ctx: &GpuContext,
     mut encoder: wgpu::CommandEncoder,
     regions: &[(&wgpu::Buffer, u64, u64)],
-) -> Result<Vec<Vec<u8>>, RasterError> {
+) -> Result<Vec<Vec<u8>>, GpuError> {
     let (device, queue) = (&ctx.device, &ctx.queue);
     let sizes: Vec<u64> = regions
         .iter()
@@ -125,7 +125,7 @@ pub(crate) fn read_back(
         // The receiver lives until `recv` below returns; a send error cannot happen.
         let _ = tx.send(r);
     });
-    let gpu_err = |message: String| RasterError::Gpu {
+    let gpu_err = |message: String| GpuError {
         stage: "read-back",
         message,
     };
@@ -150,7 +150,7 @@ pub(crate) fn read_back(
 }
 
 /// A compute bind-group layout entry for a storage buffer of u32/f32 words.
-pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+pub fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::COMPUTE,
@@ -165,7 +165,7 @@ pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLay
 
 /// A compute bind-group layout entry for binding 0, a uniform of `size` bytes read at a dynamic
 /// offset (one record per dispatch in one buffer).
-pub(crate) fn dynamic_uniform_entry(size: u64) -> wgpu::BindGroupLayoutEntry {
+pub fn dynamic_uniform_entry(size: u64) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding: 0,
         visibility: wgpu::ShaderStages::COMPUTE,
@@ -179,7 +179,7 @@ pub(crate) fn dynamic_uniform_entry(size: u64) -> wgpu::BindGroupLayoutEntry {
 }
 
 /// The first `words` u32 of `buffer` as a binding (at least one).
-pub(crate) fn words(buffer: &wgpu::Buffer, words: u32) -> wgpu::BindingResource<'_> {
+pub fn words(buffer: &wgpu::Buffer, words: u32) -> wgpu::BindingResource<'_> {
     wgpu::BindingResource::Buffer(wgpu::BufferBinding {
         buffer,
         offset: 0,

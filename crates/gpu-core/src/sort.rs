@@ -5,7 +5,7 @@
 //! blocks (256 invocations × 4 elements):
 //! 1. `count`: each block's 16-bin digit histogram, stored bin-major (`counts[bin · blocks +
 //!    block]`);
-//! 2. the backend's prefix sum ([`super::scan`]) of `counts` (2 levels up to 2^26 keys, 3 up to
+//! 2. the device-wide prefix sum ([`crate::PrefixSum`]) of `counts` (2 levels up to 2^26 keys, 3 up to
 //!    2^36), after which `counts[bin · blocks + block]` is where that block's first element of
 //!    that bin goes;
 //! 3. `scatter`: each block ranks its elements stably within their digit (a workgroup prefix sum
@@ -30,10 +30,10 @@ use wgpu::util::DeviceExt;
 #[cfg(any(test, feature = "test-support"))]
 pub use harness::SortHarness;
 
-use super::buffers::{dynamic_uniform_entry, storage_entry, words};
-use super::context::{GpuContext, TrafficCounter};
-use super::layout::wgsl_mirror;
-use super::scan::{self, PrefixSum, ScanPlan, dispatch_grid};
+use crate::buffers::{dynamic_uniform_entry, storage_entry, words};
+use crate::context::{GpuContext, TrafficCounter};
+use crate::encode::dispatch_grid;
+use crate::scan::{self, PrefixSum, ScanPlan};
 
 /// Elements per workgroup (block) in every kernel (`BLOCK` of sort_common.wgsl).
 pub(crate) const BLOCK: u32 = 1024;
@@ -76,7 +76,7 @@ struct Scratch {
 }
 
 /// A stable LSD radix sorter of (u32 key, u32 value) pairs on the GPU.
-pub(crate) struct RadixSorter {
+pub struct RadixSorter {
     count: wgpu::ComputePipeline,
     scatter: wgpu::ComputePipeline,
     count_layout: wgpu::BindGroupLayout,
@@ -108,13 +108,15 @@ fn storage_buffer(device: &wgpu::Device, label: &str, words: u32) -> wgpu::Buffe
 }
 
 impl RadixSorter {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+    /// Compiles the sort's kernels (and its prefix sum) on `device`, dispatching up to the
+    /// device's workgroup limit per dimension.
+    pub fn new(device: &wgpu::Device) -> Self {
         Self::with_max_groups_per_dim(device, device.limits().max_compute_workgroups_per_dimension)
     }
 
     /// As [`RadixSorter::new`], dispatching at most `max_groups_per_dim` workgroups along x (the
     /// tests lower it to exercise the 2D grid with small inputs).
-    pub(crate) fn with_max_groups_per_dim(device: &wgpu::Device, max_groups_per_dim: u32) -> Self {
+    pub fn with_max_groups_per_dim(device: &wgpu::Device, max_groups_per_dim: u32) -> Self {
         let pipeline = |layout: &wgpu::BindGroupLayout, body: &str, entry: &str, label: &str| {
             let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some(label),
@@ -184,7 +186,7 @@ impl RadixSorter {
     ///
     /// # Panics
     /// If `key_bits` is outside 1..=32 or a buffer holds fewer than `n` u32 (caller bugs).
-    pub(crate) fn encode(
+    pub fn encode(
         &self,
         ctx: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
@@ -344,7 +346,7 @@ impl RadixSorter {
     }
 
     /// The prefix sum the sorter runs, for the other scans of the backend.
-    pub(crate) fn prefix_sum(&self) -> &PrefixSum {
+    pub fn prefix_sum(&self) -> &PrefixSum {
         &self.scan
     }
 

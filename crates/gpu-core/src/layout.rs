@@ -1,18 +1,17 @@
-//! The Rust mirrors of the WGSL structs the backend uploads, checked against the shaders.
+//! The Rust mirrors of the WGSL structs a kernel uploads, checked against the shaders.
 //!
-//! Every `#[repr(C)]` struct that is uploaded as a uniform ([`FrameUniform`](super::frame::FrameUniform)
-//! as `Frame`, the sort's `Params`, the scan's `ScanParams`) is declared through
-//! [`wgsl_mirror!`], which records each field's name, type, byte offset and size; a test (in
-//! `layout_tests`, beside this module) reads the WGSL declaration from the shader source and
-//! fails when the two differ in any of them, or in the struct's size. The record layouts that
-//! exist only on the device are checked there too, by size (`Splat`) and stride (the backward's
-//! output) against the constants the Rust side sizes buffers with.
+//! Every `#[repr(C)]` struct uploaded as a uniform (the sort's `Params`, the scan's `ScanParams`
+//! here; the rasterizer's `Frame` in `splat-raster`) is declared through [`wgsl_mirror!`], which
+//! records each field's name, type, byte offset and size; a test of the crate that declares it
+//! reads the WGSL declaration from the shader source ([`crate::wgsl_text::check_mirror`]) and
+//! fails when the two differ in any of them, or in the struct's size.
 //!
 //! What it is not: a generator. The WGSL stays hand-written; the test keeps the two in step.
 
 /// Declares a struct that mirrors a WGSL struct field for field (same names, scalar types `f32`,
 /// `u32`, `i32`), as written, plus `FIELDS`: `(name, type, byte offset, byte size)` of each
-/// field in order, for the layout test (`layout_tests`; compiled for tests only).
+/// field in order, for the layout test (compiled for the declaring crate's tests only).
+#[macro_export]
 macro_rules! wgsl_mirror {
     (
         $(#[$meta:meta])*
@@ -39,5 +38,3 @@ macro_rules! wgsl_mirror {
         }
     };
 }
-
-pub(crate) use wgsl_mirror;

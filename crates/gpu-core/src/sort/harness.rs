@@ -1,13 +1,13 @@
 //! A self-contained way to run [`RadixSorter`] (and the prefix sum it runs) from the unit tests
-//! and the `gpu_sort` bench, which cannot see the crate-private sorter: its own device, upload,
+//! and the `gpu_sort` bench, with their own device, upload,
 //! sort, read back. Compiled for the tests and with the cargo feature `test-support` only.
 
 use wgpu::util::DeviceExt;
 
 use super::RadixSorter;
-use crate::error::RasterError;
-use crate::gpu::GpuContext;
-use crate::gpu::scan::level_lengths;
+use crate::context::GpuContext;
+use crate::error::GpuError;
+use crate::scan::level_lengths;
 
 /// Pairs resident on the device for repeated sorting (the bench).
 struct Loaded {
@@ -28,17 +28,17 @@ pub struct SortHarness {
 
 impl SortHarness {
     /// Opens a device ([`GpuContext::new`]) and builds a sorter on it.
-    pub fn new() -> Result<Self, RasterError> {
+    pub fn new() -> Result<Self, GpuError> {
         Self::build(None)
     }
 
     /// As [`SortHarness::new`], with at most `max_groups_per_dim` workgroups along a dispatch's
     /// x axis, to exercise the 2D grid on small inputs.
-    pub fn with_max_groups_per_dim(max_groups_per_dim: u32) -> Result<Self, RasterError> {
+    pub fn with_max_groups_per_dim(max_groups_per_dim: u32) -> Result<Self, GpuError> {
         Self::build(Some(max_groups_per_dim))
     }
 
-    fn build(max_groups_per_dim: Option<u32>) -> Result<Self, RasterError> {
+    fn build(max_groups_per_dim: Option<u32>) -> Result<Self, GpuError> {
         let ctx = GpuContext::new()?;
         let sorter = match max_groups_per_dim {
             Some(m) => RadixSorter::with_max_groups_per_dim(&ctx.device, m),

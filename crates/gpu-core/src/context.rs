@@ -1,9 +1,10 @@
-//! Adapter and device acquisition: one [`GpuContext`] per rasterizer, holding the device, its
-//! queue, what the adapter is (hardware or software) and which optional features it offers.
+//! Adapter and device acquisition: a [`GpuContext`] holds the device, its queue, what the adapter
+//! is (hardware or software), which optional features it offers, and the host–device traffic
+//! recorded on it ([`TrafficCounter`]).
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use crate::error::RasterError;
+use crate::error::GpuError;
 use crate::traffic::Traffic;
 
 /// What the chosen adapter is.
@@ -46,21 +47,23 @@ impl std::fmt::Display for AdapterSummary {
 /// A wgpu device and queue with what the adapter offers.
 #[derive(Debug)]
 pub struct GpuContext {
-    pub(crate) device: wgpu::Device,
-    pub(crate) queue: wgpu::Queue,
+    /// The device.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
     pub(crate) summary: AdapterSummary,
     /// Distinguishes contexts, so that a forward output made on one device is not handed to the
     /// backward pass of another.
     pub(crate) id: u64,
     /// Host–device traffic recorded on this context ([`GpuContext::traffic`]).
-    pub(crate) traffic: TrafficCounter,
+    pub traffic: TrafficCounter,
 }
 
 /// Running [`Traffic`] totals of one context, added to by the helpers that upload, read back,
 /// submit, dispatch and create buffers or bind groups (relaxed atomics: the totals are read
 /// between calls, never used to order work).
 #[derive(Debug, Default)]
-pub(crate) struct TrafficCounter {
+pub struct TrafficCounter {
     bytes_up: AtomicU64,
     bytes_down: AtomicU64,
     submits: AtomicU64,
@@ -76,34 +79,34 @@ impl TrafficCounter {
     }
 
     /// `bytes` written into a device buffer by the host.
-    pub(crate) fn upload(&self, bytes: u64) {
+    pub fn upload(&self, bytes: u64) {
         Self::add(&self.bytes_up, bytes);
     }
 
     /// `bytes` read back after one submit and one wait.
-    pub(crate) fn read_back(&self, bytes: u64) {
+    pub fn read_back(&self, bytes: u64) {
         Self::add(&self.bytes_down, bytes);
         Self::add(&self.submits, 1);
         Self::add(&self.waits, 1);
     }
 
     /// `n` compute dispatches recorded.
-    pub(crate) fn dispatches(&self, n: u64) {
+    pub fn dispatches(&self, n: u64) {
         Self::add(&self.dispatches, n);
     }
 
     /// One device buffer created.
-    pub(crate) fn buffer(&self) {
+    pub fn buffer(&self) {
         Self::add(&self.buffers_created, 1);
     }
 
     /// `n` bind groups created.
-    pub(crate) fn bind_groups(&self, n: u64) {
+    pub fn bind_groups(&self, n: u64) {
         Self::add(&self.bind_groups_created, n);
     }
 
     /// The totals so far.
-    pub(crate) fn snapshot(&self) -> Traffic {
+    pub fn snapshot(&self) -> Traffic {
         let get = |c: &AtomicU64| c.load(Ordering::Relaxed);
         Traffic {
             bytes_up: get(&self.bytes_up),
@@ -123,15 +126,15 @@ impl GpuContext {
     /// Acquires the default adapter (high performance preference; the backends and adapter can be
     /// pinned with wgpu's environment variables, e.g. `WGPU_BACKEND=vulkan`) and a device with
     /// the features and limits the kernels need. A missing adapter or a refused device is
-    /// [`RasterError::Gpu`], never a panic.
-    pub fn new() -> Result<Self, RasterError> {
+    /// [`GpuError`], never a panic.
+    pub fn new() -> Result<Self, GpuError> {
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
             power_preference: wgpu::PowerPreference::HighPerformance,
             ..Default::default()
         }))
-        .map_err(|e| RasterError::Gpu {
+        .map_err(|e| GpuError {
             stage: "adapter",
             message: format!(
                 "no GPU adapter found ({e}); install a Vulkan driver (e.g. Mesa's lavapipe: \
@@ -158,7 +161,7 @@ impl GpuContext {
             ..wgpu::Limits::default()
         };
         if required_limits.max_storage_buffers_per_shader_stage < 10 {
-            return Err(RasterError::Gpu {
+            return Err(GpuError {
                 stage: "adapter",
                 message: format!(
                     "adapter {} offers {} storage buffers per shader stage, the kernels need 10",
@@ -172,7 +175,7 @@ impl GpuContext {
             required_limits,
             ..Default::default()
         }))
-        .map_err(|e| RasterError::Gpu {
+        .map_err(|e| GpuError {
             stage: "device",
             message: format!("adapter {} refused a device: {e}", info.name),
         })?;
@@ -200,6 +203,12 @@ impl GpuContext {
     /// What the adapter is.
     pub fn adapter(&self) -> &AdapterSummary {
         &self.summary
+    }
+
+    /// This context's identity (unique in the process), so that device state made on one
+    /// context is not handed to another.
+    pub fn id(&self) -> u64 {
+        self.id
     }
 
     /// The host–device traffic recorded on this context since it was made (every rasterizer

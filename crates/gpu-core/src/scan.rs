@@ -1,6 +1,6 @@
-//! The backend's one device-wide prefix sum: an exclusive scan of `u32`s in place, used by the
-//! radix sort (its digit counts, [`super::sort`]) and by the forward pass (the tile counts in
-//! depth order, whose total is the number of tile-Gaussian pairs).
+//! The device-wide prefix sum: an exclusive scan of `u32`s in place, used by the radix sort (its
+//! digit counts, [`crate::RadixSorter`]) and by the rasterizer's forward pass in `splat-raster`
+//! (the tile counts in depth order, whose total is the number of tile-Gaussian pairs).
 //!
 //! Hierarchical in 1024-element chunks (256 invocations × 4 elements, `shaders/scan.wgsl`):
 //! level 0 is the data; `scan_chunks` scans each chunk of level `i` and writes the chunk totals
@@ -16,9 +16,9 @@ use std::num::NonZeroU64;
 
 use wgpu::util::DeviceExt;
 
-use super::buffers::{dynamic_uniform_entry, storage_entry, words};
-use super::context::{GpuContext, TrafficCounter};
-use super::layout::wgsl_mirror;
+use crate::buffers::{dynamic_uniform_entry, storage_entry, words};
+use crate::context::{GpuContext, TrafficCounter};
+use crate::encode::dispatch_grid;
 
 /// Elements per chunk (one workgroup).
 pub(crate) const BLOCK: u32 = 1024;
@@ -43,7 +43,7 @@ const PARAMS_SIZE: u64 = std::mem::size_of::<ScanParams>() as u64;
 
 /// Lengths of the levels of a scan of `len` elements: `len`, then each level's chunk totals,
 /// down to a single element (at least two levels; the last holds the grand total).
-pub(crate) fn level_lengths(len: u32) -> Vec<u32> {
+pub fn level_lengths(len: u32) -> Vec<u32> {
     let mut lens = vec![len.max(1)];
     loop {
         let next = lens.last().expect("non-empty").div_ceil(BLOCK);
@@ -54,21 +54,8 @@ pub(crate) fn level_lengths(len: u32) -> Vec<u32> {
     }
 }
 
-/// Dispatches `groups` workgroups on a 2D grid at most `max_per_dim` wide; kernels recover the
-/// linear index as `id.x + id.y * grid.x` and skip the ones past `groups`.
-pub(crate) fn dispatch_grid(
-    traffic: &TrafficCounter,
-    cpass: &mut wgpu::ComputePass<'_>,
-    groups: u32,
-    max_per_dim: u32,
-) {
-    traffic.dispatches(1);
-    let x = groups.min(max_per_dim).max(1);
-    cpass.dispatch_workgroups(x, groups.div_ceil(x), 1);
-}
-
 /// The scan's pipelines, compiled once.
-pub(crate) struct PrefixSum {
+pub struct PrefixSum {
     scan_chunks: wgpu::ComputePipeline,
     add_chunk_offsets: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
@@ -79,7 +66,7 @@ pub(crate) struct PrefixSum {
 }
 
 /// One scan's bind groups and parameters, ready to be recorded (any number of times).
-pub(crate) struct ScanPlan {
+pub struct ScanPlan {
     lens: Vec<u32>,
     /// Level `i` scanned into level `i + 1`.
     groups: Vec<wgpu::BindGroup>,
@@ -87,7 +74,7 @@ pub(crate) struct ScanPlan {
 
 impl PrefixSum {
     /// Compiles the scan, dispatching at most `max_groups_per_dim` workgroups along x.
-    pub(crate) fn new(device: &wgpu::Device, max_groups_per_dim: u32) -> Self {
+    pub fn new(device: &wgpu::Device, max_groups_per_dim: u32) -> Self {
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("prefix sum"),
             source: wgpu::ShaderSource::Wgsl(SCAN_WGSL.into()),
@@ -131,12 +118,7 @@ impl PrefixSum {
     ///
     /// # Panics
     /// If `levels` and `lens` differ in length or there are fewer than two levels (caller bugs).
-    pub(crate) fn plan(
-        &self,
-        ctx: &GpuContext,
-        levels: &[&wgpu::Buffer],
-        lens: &[u32],
-    ) -> ScanPlan {
+    pub fn plan(&self, ctx: &GpuContext, levels: &[&wgpu::Buffer], lens: &[u32]) -> ScanPlan {
         assert!(
             levels.len() == lens.len() && lens.len() >= 2,
             "PrefixSum::plan: {} buffers for {} levels",
@@ -196,7 +178,7 @@ impl PrefixSum {
 
     /// Records `plan` into a compute pass: scan down the levels, then add the scanned chunk
     /// totals back up.
-    pub(crate) fn record(
+    pub fn record(
         &self,
         traffic: &TrafficCounter,
         cpass: &mut wgpu::ComputePass<'_>,

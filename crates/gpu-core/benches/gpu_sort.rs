@@ -5,9 +5,9 @@
 //! check, not GPU performance.
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use gpu_core::test_support::SortHarness;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use splat_raster::test_support::SortHarness;
 
 fn bench(c: &mut Criterion) {
     let mut h = SortHarness::new().unwrap_or_else(|e| panic!("gpu_sort bench: {e}"));

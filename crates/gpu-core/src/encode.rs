@@ -1,0 +1,98 @@
+//! Recording dispatches: workgroup grids that respect the per-dimension limit, one-dispatch
+//! compute passes and whole-buffer bind groups, each counted on the context's
+//! [`TrafficCounter`].
+
+use crate::context::{GpuContext, TrafficCounter};
+
+/// Dispatches `groups` workgroups on a 2D grid at most `max_per_dim` wide; kernels recover the
+/// linear index as `id.x + id.y * grid.x` and skip the ones past `groups`.
+pub fn dispatch_grid(
+    traffic: &TrafficCounter,
+    cpass: &mut wgpu::ComputePass<'_>,
+    groups: u32,
+    max_per_dim: u32,
+) {
+    traffic.dispatches(1);
+    let x = groups.min(max_per_dim).max(1);
+    cpass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+}
+
+/// Workgroup counts for `items` threads in workgroups of 256, split over x and y when x would
+/// exceed the per-dimension limit (kernels recover the flat index as `x + y * nx * 256`).
+pub fn groups_1d(items: u32, max_per_dim: u32) -> (u32, u32) {
+    let groups = items.div_ceil(256).max(1);
+    if groups <= max_per_dim {
+        (groups, 1)
+    } else {
+        let y = groups.div_ceil(max_per_dim);
+        (groups.div_ceil(y), y)
+    }
+}
+
+/// Records one dispatch of `pipeline` with `bind_group`.
+pub fn dispatch(
+    ctx: &GpuContext,
+    encoder: &mut wgpu::CommandEncoder,
+    pipeline: &wgpu::ComputePipeline,
+    bind_group: &wgpu::BindGroup,
+    groups: (u32, u32),
+) {
+    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: None,
+        timestamp_writes: None,
+    });
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, bind_group, &[]);
+    pass.dispatch_workgroups(groups.0, groups.1, 1);
+    ctx.traffic.dispatches(1);
+}
+
+/// A bind group for group 0 of `pipeline` from `(binding, buffer)` pairs.
+pub fn bind(
+    ctx: &GpuContext,
+    pipeline: &wgpu::ComputePipeline,
+    entries: &[(u32, &wgpu::Buffer)],
+) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry<'_>> = entries
+        .iter()
+        .map(|&(binding, buffer)| wgpu::BindGroupEntry {
+            binding,
+            resource: buffer.as_entire_binding(),
+        })
+        .collect();
+    ctx.traffic.bind_groups(1);
+    ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &entries,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::groups_1d;
+
+    #[test]
+    fn one_dimensional_grids_cover_every_item_within_the_limit() {
+        for (items, max) in [
+            (0, 65535),
+            (1, 65535),
+            (256, 4),
+            (257, 4),
+            (100_000, 7),
+            (1 << 30, 65535),
+        ] {
+            let (x, y) = groups_1d(items, max);
+            assert!(x <= max && x >= 1 && y >= 1, "{items} {max}: {x}x{y}");
+            assert!(
+                u64::from(x) * u64::from(y) * 256 >= u64::from(items),
+                "{items} {max}"
+            );
+            // No more than one extra row of workgroups.
+            assert!(
+                u64::from(x) * u64::from(y - 1) * 256 < u64::from(items.max(1)),
+                "{items} {max}"
+            );
+        }
+    }
+}
