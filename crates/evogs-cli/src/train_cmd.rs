@@ -25,8 +25,8 @@ pub struct TrainArgs {
     #[arg(long, value_name = "DIR", required_unless_present = "resume")]
     pub data: Option<PathBuf>,
 
-    /// Times of frames whose dataset stores none (COLMAP, nerfstudio without `time`); see the
-    /// README's Datasets section for the names `name` accepts [default: order].
+    /// Times of frames whose dataset stores none (COLMAP without times.json, nerfstudio without
+    /// `time`); see the README's Datasets section for the names `name` accepts [default: order].
     #[arg(long, value_name = "RULE")]
     pub time_from: Option<TimeFromArg>,
 

@@ -155,7 +155,7 @@ pub struct LoadOptions {
     pub neu3d_max_frames: usize,
     /// Neu3D: `frame / count` (4DGaussians, the default) or `frame / (count − 1)` (D-3DGS).
     pub neu3d_time: TimeDenominator,
-    /// COLMAP, and nerfstudio frames without a `time`: where times come from (default: the
+    /// COLMAP without `times.json`, and nerfstudio frames without a `time`: where times come from (default: the
     /// order of the image names, as 4DGaussians; see [`TimeFrom`]).
     pub time_from: TimeFrom,
 }

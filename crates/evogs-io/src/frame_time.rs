@@ -1,4 +1,5 @@
-//! Times for frames whose dataset does not store one (COLMAP, and nerfstudio frames without a
+//! Times for frames whose dataset does not store one (COLMAP without a `times.json`, and
+//! nerfstudio frames without a
 //! `time` key): from the order of the image names, from a number in each name, or none.
 //!
 //! What it is: the rule ([`TimeFrom`]) and the mapping from image names to times in [0, 1]

@@ -35,6 +35,7 @@ pub mod neu3d;
 pub mod npy;
 pub mod ply;
 pub mod splat;
+pub mod times_file;
 pub mod video;
 
 pub use camera_info::{CameraInfo, Distortion, warning_for_all};
@@ -57,4 +58,5 @@ pub use image_io::{ImageRgb, load_image, load_transmittance, load_view, resize_i
 pub use json_fields::{ROTATION_TOLERANCE, rotation_error};
 pub use ply::{LoadedPly, read_ply, read_ply_bytes, write_ply, write_ply_to};
 pub use splat::{read_splat, write_splat};
+pub use times_file::{FrameTimes, TIMES_FILE, read_frame_times, write_frame_times};
 pub use video::{VideoFormat, VideoWriter};

@@ -1,5 +1,5 @@
 //! `evogs-prepare`: a video or an image sequence in, a COLMAP dataset that `evogs train` loads
-//! out (times from the frame order).
+//! out, with each frame's time in the clip (`times.json`).
 //!
 //! What it is: the `evogs prepare` pipeline, running external programs on the CPU:
 //!
@@ -10,7 +10,7 @@
 //! | 3 matching | `colmap sequential_matcher` | each frame against the next 10 (`--matcher exhaustive`: every pair) |
 //! | 4 mapping | `colmap mapper` | incremental SfM; the largest model is kept and its registered frames counted |
 //! | 5 undistortion | `colmap image_undistorter` | when the camera has distortion: pinhole images and cameras for the pinhole rasterizer |
-//! | 6 dataset | — | `DIR/images/`, `DIR/sparse/0/`, `DIR/logs/`, `DIR/prepare.json`, read back with `evogs-io` |
+//! | 6 dataset | — | `DIR/images/`, `DIR/sparse/0/`, `DIR/times.json` (each frame's time in the clip, `i / (n − 1)` over the `n` frames extracted, so frames COLMAP drops do not move the others), `DIR/logs/`, `DIR/prepare.json`, read back with `evogs-io` |
 //!
 //! Everything is built in a temporary folder beside `DIR` and renamed to `DIR` at the end, so a
 //! failure leaves no dataset behind; each stage's output is kept in `DIR/logs/<stage>.log`, and
@@ -522,9 +522,23 @@ pub fn prepare(
             rename(&model_dir, &sparse_out)?;
         }
 
-        // 6. The dataset: the work folder goes, the result is read back as `evogs train` will.
+        // 6. The dataset: each frame's time in the clip (the extracted frames are evenly spaced
+        // in it, in order), the work folder goes, the result is read back as `evogs train` will.
         progress(&Event::Started(Stage::Dataset));
         let started = Instant::now();
+        let span = frames.len().saturating_sub(1).max(1) as f64;
+        let frame_times = evogs_io::FrameTimes {
+            source: subject.display().to_string(),
+            frames: frames
+                .iter()
+                .enumerate()
+                .filter_map(|(i, f)| {
+                    let name = f.file_name()?.to_string_lossy().into_owned();
+                    Some((name, i as f64 / span))
+                })
+                .collect(),
+        };
+        evogs_io::write_frame_times(&root.join(evogs_io::TIMES_FILE), &frame_times)?;
         std::fs::remove_dir_all(&work).map_err(|e| PrepareError::io(&work, e))?;
         let dataset = evogs_io::load_dataset(root, &evogs_io::LoadOptions::default())?;
         let size = dataset

@@ -49,7 +49,8 @@ impl SplitViews {
 
 /// Reads a dataset directory's cameras, times and point cloud (not its images), detecting the
 /// layout (`evogs_io::detect_format`); `Dataset::summary` says which layout was chosen.
-/// `time_from` gives times to frames whose layout stores none (COLMAP, nerfstudio).
+/// `time_from` gives times to frames whose layout stores none (COLMAP without `times.json`,
+/// nerfstudio frames without `time`).
 pub fn open_dataset(root: &Path, time_from: TimeFrom) -> Result<Dataset, TrainError> {
     let options = LoadOptions {
         time_from,

@@ -5,6 +5,7 @@
 //! ```text
 //! DIR/sparse/0/{cameras,images,points3D}.bin   (or .txt; or directly in DIR/sparse/)
 //! DIR/images/<name>                            the images named in images.bin/txt
+//! DIR/times.json                               optional: each image's time (`evogs prepare`)
 //! ```
 //!
 //! - `.bin` is preferred when both exist. Camera models `PINHOLE`, `SIMPLE_PINHOLE`, `OPENCV` and
@@ -15,7 +16,9 @@
 //!   centres are at +0.5 like DESIGN §1.2, so they convert directly.
 //! - Frames are sorted by image name; with `llff_hold > 0` every `llff_hold`-th (from the first)
 //!   is a test frame (D-3DGS `--eval`, hold 8).
-//! - Times by [`TimeFrom`] over all registered images before the split: the rank of the name
+//! - Times from `DIR/times.json` when it exists ([`times_file`](crate::times_file): the dataset
+//!   stores its times, as `evogs prepare` writes them); otherwise by [`TimeFrom`] over all
+//!   registered images before the split: the rank of the name
 //!   (default, as 4DGaussians), a number in the name (as D-3DGS; multi-camera captures by a
 //!   `frame` number, see [`frame_time`](crate::frame_time)), or 0 (a static scene).
 //! - The sparse points (colours /255) are the initial point cloud; no normalisation.
@@ -108,13 +111,20 @@ pub fn read_colmap_dataset(
     let mut images: Vec<&ColmapImage> = model.images.iter().collect();
     images.sort_by(|a, b| a.name.cmp(&b.name));
     let names: Vec<&str> = images.iter().map(|image| image.name.as_str()).collect();
-    let times = times_from_names(&names, time_from).map_err(|(index, problem)| {
-        IoError::field(
-            &model.images_path,
-            format!("image {}.name", images[index].id),
-            problem,
-        )
-    })?;
+    // A dataset that stores its times (`times.json`, from `evogs prepare`) keeps them; the
+    // rule applies to those that store none.
+    let times_path = dir.join(crate::times_file::TIMES_FILE);
+    let times = if times_path.is_file() {
+        crate::times_file::read_frame_times(&times_path, &names)?
+    } else {
+        times_from_names(&names, time_from).map_err(|(index, problem)| {
+            IoError::field(
+                &model.images_path,
+                format!("image {}.name", images[index].id),
+                problem,
+            )
+        })?
+    };
     let mut dataset = Dataset {
         format: Format::Colmap,
         train: Vec::new(),

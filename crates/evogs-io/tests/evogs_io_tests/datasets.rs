@@ -723,6 +723,48 @@ fn colmap_times_from_frame_numbers_and_from_order() {
 }
 
 #[test]
+fn colmap_times_json_is_the_datasets_own_time_and_the_rule_does_not_apply() {
+    // Six frames, as a clip of ten frames whose frames 0, 3 and 8 were not registered: the
+    // stored times are the clip's, not the ranks of the survivors.
+    let dir = tempfile::tempdir().unwrap();
+    write_colmap_sequence(dir.path(), |c, k| format!("{:03}.png", c * TIMES + k));
+    let clip = [1, 2, 4, 5, 6, 7];
+    let stored: Vec<f64> = clip.iter().map(|&i| f64::from(i) / 9.0).collect();
+    let times = evogs_io::FrameTimes {
+        source: "clip.mp4".into(),
+        frames: (0..6)
+            .map(|i| (format!("{i:03}.png"), stored[i]))
+            .chain([("999.png".to_string(), 1.0)])
+            .collect(),
+    };
+    evogs_io::write_frame_times(&dir.path().join(evogs_io::TIMES_FILE), &times).unwrap();
+    for rule in TimeFrom::ALL {
+        let options = LoadOptions {
+            colmap_llff_hold: 0,
+            time_from: rule,
+            ..LoadOptions::default()
+        };
+        let got: Vec<f32> = load(dir.path(), &options)
+            .train
+            .iter()
+            .map(|f| f.time)
+            .collect();
+        let want: Vec<f32> = stored.iter().map(|&t| t as f32).collect();
+        assert_eq!(got, want, "{rule}");
+    }
+    // A frame the file leaves out is an error naming the file and the field.
+    let mut partial = times.clone();
+    partial.frames.remove("004.png");
+    evogs_io::write_frame_times(&dir.path().join(evogs_io::TIMES_FILE), &partial).unwrap();
+    let err = load_dataset(dir.path(), &LoadOptions::default()).unwrap_err();
+    assert!(
+        err.to_string()
+            .contains("times.json: field `frames.004.png`: missing"),
+        "{err}"
+    );
+}
+
+#[test]
 fn every_format_gives_the_same_cameras_for_the_same_image() {
     let root = tempfile::tempdir().unwrap();
     let dirs: Vec<PathBuf> = ["dnerf", "NeRF-scene", "neu3d", "colmap", "nerfstudio"]
