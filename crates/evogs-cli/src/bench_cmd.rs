@@ -223,19 +223,46 @@ pub fn run_bench_cmd(args: &BenchArgs) -> Result<Vec<BenchRun>> {
         eprintln!("LPIPS not reported: {line}");
     }
     let bench = if args.part { run_bench_runs } else { run_bench };
-    Ok(bench(&request, &lpips, &mut |p| match p {
-        BenchProgress::Started { scene, method } => eprintln!("{scene} {method}: started"),
+    // On a terminal a bar over the current run's schedule, the lines above it.
+    let mut bar: Option<crate::progress::Steps> = None;
+    let mut label = String::new();
+    let say = |bar: &Option<crate::progress::Steps>, line: String| match bar {
+        Some(b) => b.println(&line),
+        None => eprintln!("{line}"),
+    };
+    let runs = bench(&request, &lpips, &mut |p| match p {
+        BenchProgress::Started { scene, method } => {
+            eprintln!("{scene} {method}: started");
+            label = format!("{scene} {method}");
+        }
+        BenchProgress::Step {
+            schedule_iteration,
+            schedule,
+        } => {
+            if bar.is_none() {
+                bar = crate::progress::Steps::new(schedule, label.clone()).ok();
+            }
+            if let Some(b) = &bar {
+                b.set(schedule_iteration);
+            }
+        }
         BenchProgress::Point {
             scene,
             method,
             point,
-        } => eprintln!(
-            "{scene} {method}: iteration {}, {:.1} min, PSNR {:.2} dB",
-            point.iteration,
-            point.seconds / 60.0,
-            point.psnr
+        } => say(
+            &bar,
+            format!(
+                "{scene} {method}: iteration {}, {:.1} min, PSNR {:.2} dB",
+                point.iteration,
+                point.seconds / 60.0,
+                point.psnr
+            ),
         ),
         BenchProgress::Finished { run } => {
+            if let Some(b) = bar.take() {
+                b.finish();
+            }
             eprintln!(
                 "{} {}: finished in {:.1} min, {} steps, {} PSNR {:.2} dB, {} Gaussians",
                 run.scene,
@@ -255,5 +282,9 @@ pub fn run_bench_cmd(args: &BenchArgs) -> Result<Vec<BenchRun>> {
                 );
             }
         }
-    })?)
+    });
+    if let Some(b) = bar.take() {
+        b.finish();
+    }
+    Ok(runs?)
 }

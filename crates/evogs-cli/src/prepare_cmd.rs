@@ -94,20 +94,27 @@ pub fn run_prepare(args: &PrepareArgs) -> Result<PrepareSummary> {
         ..PrepareRequest::new(source, &args.out)
     };
     let total = Stage::ALL.len();
+    // On a terminal a spinner with the time spent shows that a long stage (COLMAP's mapper can
+    // take minutes) is alive.
+    let mut spinner: Option<crate::progress::Spinner> = None;
     let summary = prepare(&request, &mut |event| match event {
         Event::Started(stage) => {
-            eprintln!(
+            let line = format!(
                 "[{}/{total}] {}: {} …",
                 stage.number(),
                 stage,
                 stage.doing()
             );
+            spinner = Some(crate::progress::Spinner::new(line));
         }
         Event::Finished {
             stage,
             seconds,
             note,
         } => {
+            if let Some(s) = spinner.take() {
+                s.finish();
+            }
             let note = if note.is_empty() {
                 String::new()
             } else {
@@ -119,9 +126,15 @@ pub fn run_prepare(args: &PrepareArgs) -> Result<PrepareSummary> {
             );
         }
         Event::Skipped { stage, reason } => {
+            if let Some(s) = spinner.take() {
+                s.finish();
+            }
             eprintln!("[{}/{total}] {stage} skipped: {reason}", stage.number());
         }
     })?;
+    if let Some(s) = spinner.take() {
+        s.finish();
+    }
     for warning in summary.warnings() {
         eprintln!("warning: {warning}");
     }

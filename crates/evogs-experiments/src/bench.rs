@@ -102,6 +102,13 @@ pub enum BenchProgress<'a> {
         /// Method.
         method: Method,
     },
+    /// A training step of the current run (every step, for a progress bar).
+    Step {
+        /// The schedule iteration the step reached.
+        schedule_iteration: u64,
+        /// The schedule's length.
+        schedule: u64,
+    },
     /// A curve point of the current run.
     Point {
         /// Scene name.
@@ -160,6 +167,7 @@ fn bench_one(
     progress: &mut dyn FnMut(BenchProgress<'_>),
 ) -> Result<BenchRun, ExperimentError> {
     let method = config.method;
+    let schedule = config.iterations;
     let headline = headline_split(&scene.name);
     let curve_views = load_split(
         &scene.data,
@@ -184,6 +192,10 @@ fn bench_one(
             resume_backend: None,
         },
         &mut |report, trainer| {
+            progress(BenchProgress::Step {
+                schedule_iteration: report.schedule_iteration,
+                schedule,
+            });
             if failure.is_some() || !(report.iteration.is_multiple_of(eval_every) || report.last) {
                 return;
             }
