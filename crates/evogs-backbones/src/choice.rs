@@ -23,6 +23,34 @@ use crate::scgs::control_evo::ScgsControlEvo;
 use crate::scgs::phi::ScgsPhi;
 use crate::scgs::{EvolutionOn, ScgsBackbone, ScgsSettings};
 
+/// Every backbone's own settings, as a run records them (`TrainConfig` flattens them into
+/// `config.json`, so each is a top-level key there: `evogs`, `scgs`). A backbone with settings of
+/// its own adds its field here; the trainer only carries this struct.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct BackboneSettings {
+    /// EvoGS's switches and Φ's shape (read when the method is EvoGS; recorded for every run).
+    #[serde(default)]
+    pub evogs: EvoSettings,
+    /// SC-GS's control points and their network (read when the backbone is SC-GS; recorded for
+    /// every run; runs written before it existed read SC-GS's defaults).
+    #[serde(default)]
+    pub scgs: ScgsSettings,
+}
+
+impl BackboneSettings {
+    /// Checks the settings the run of `method` on `kind` reads (the others are recorded, not
+    /// used, so not checked).
+    pub fn validate(&self, method: Method, kind: BackboneKind) -> Result<(), BackboneError> {
+        if method == Method::Evogs {
+            self.evogs.validate()?;
+        }
+        if kind == BackboneKind::Scgs {
+            self.scgs.validate()?;
+        }
+        Ok(())
+    }
+}
+
 /// The deformation method (`--method`).
 #[derive(EnumString, Display, IntoStaticStr, VariantNames)]
 #[strum(serialize_all = "lowercase", parse_err_ty = BackboneError, parse_err_fn = unknown::<Self>)]
@@ -102,10 +130,8 @@ pub struct BackboneRun<'a> {
     pub kind: BackboneKind,
     /// The D-3DGS network's shape (its width also sizes Grid4D's decoder and EvoGS's Φ).
     pub net: &'a NetSettings,
-    /// EvoGS's settings (read when `method` is EvoGS).
-    pub evogs: &'a EvoSettings,
-    /// SC-GS's settings (read when `kind` is SC-GS).
-    pub scgs: &'a ScgsSettings,
+    /// Every backbone's own settings (each reads its own).
+    pub settings: &'a BackboneSettings,
     /// Half extent `h` of the initial cube `[-h, h]³` (the fields' boxes).
     pub half_extent: f32,
     /// The run's seed.
@@ -134,7 +160,7 @@ impl BackboneRun<'_> {
 /// networks, with checked arithmetic: what a memory estimate reads before anything is
 /// allocated. (Ψ, a few hundred values whatever the settings, is built to be counted.)
 pub fn parameter_count(run: &BackboneRun<'_>) -> Result<usize, BackboneError> {
-    let (evogs, h, seed) = (run.evogs, run.half_extent, run.seed);
+    let (evogs, h, seed) = (&run.settings.evogs, run.half_extent, run.seed);
     let own = match (run.method, run.kind) {
         (Method::Baseline, BackboneKind::D3dgs) => {
             D3dgsBackbone::config(run.net, seed).param_count(tiny_nn::DeformNet::OUTPUT)?
@@ -143,7 +169,7 @@ pub fn parameter_count(run: &BackboneRun<'_>) -> Result<usize, BackboneError> {
         (Method::Baseline, BackboneKind::Grid4d) => {
             Grid4dBackbone::config(&run.grid4d()).param_count()?
         }
-        (_, BackboneKind::Scgs) => crate::scgs::ScgsParams::param_count(run.scgs, seed)?,
+        (_, BackboneKind::Scgs) => crate::scgs::ScgsParams::param_count(&run.settings.scgs, seed)?,
         (Method::Evogs, BackboneKind::D3dgs) => {
             observation_config(evogs, run.net.width, h, seed).param_count()?
         }
@@ -165,14 +191,16 @@ pub fn parameter_count(run: &BackboneRun<'_>) -> Result<usize, BackboneError> {
 
 /// The backbone a run asks for, initialised from its seed.
 pub fn make_backbone(run: &BackboneRun<'_>) -> Result<Box<dyn Backbone>, BackboneError> {
-    let (evogs, h, seed) = (run.evogs, run.half_extent, run.seed);
+    let (evogs, h, seed) = (&run.settings.evogs, run.half_extent, run.seed);
     Ok(match (run.method, run.kind) {
         (Method::Baseline, BackboneKind::D3dgs) => {
             Box::new(D3dgsBackbone::new(run.net, seed ^ 0xD3D6_5000)?)
         }
         (Method::Baseline, BackboneKind::FourDgs) => Box::new(HexBackbone::new(h, seed)?),
         (Method::Baseline, BackboneKind::Grid4d) => Box::new(Grid4dBackbone::new(&run.grid4d())?),
-        (Method::Baseline, BackboneKind::Scgs) => Box::new(ScgsBackbone::new(run.scgs, h, seed)?),
+        (Method::Baseline, BackboneKind::Scgs) => {
+            Box::new(ScgsBackbone::new(&run.settings.scgs, h, seed)?)
+        }
         (Method::Evogs, BackboneKind::D3dgs) => {
             Box::new(EvoBackbone::new(evogs, run.net.width, h, seed)?)
         }
@@ -186,13 +214,15 @@ pub fn make_backbone(run: &BackboneRun<'_>) -> Result<Box<dyn Backbone>, Backbon
             seed,
             Grid4dPhi::new(&run.grid4d(), evogs)?,
         )?),
-        (Method::Evogs, BackboneKind::Scgs) => match run.scgs.evolution_on {
+        (Method::Evogs, BackboneKind::Scgs) => match run.settings.scgs.evolution_on {
             EvolutionOn::Gaussians => Box::new(EvoBackbone::with_phi(
                 evogs,
                 seed,
-                ScgsPhi::new(run.scgs, evogs, h, seed)?,
+                ScgsPhi::new(&run.settings.scgs, evogs, h, seed)?,
             )?),
-            EvolutionOn::Controls => Box::new(ScgsControlEvo::new(run.scgs, evogs, h, seed)?),
+            EvolutionOn::Controls => {
+                Box::new(ScgsControlEvo::new(&run.settings.scgs, evogs, h, seed)?)
+            }
         },
     })
 }
@@ -202,30 +232,35 @@ mod tests {
     use super::*;
     use splat_core::Layout;
 
+    /// The tests' small SC-GS settings beside `evogs`.
+    fn settings(evogs: EvoSettings) -> BackboneSettings {
+        BackboneSettings { evogs, scgs: SCGS }
+    }
+
+    const SCGS: ScgsSettings = ScgsSettings {
+        control_points: 8,
+        neighbours: 3,
+        width: 16,
+        depth: 2,
+        xyz_freqs: 2,
+        t_freqs: 2,
+        arap_weight: 1e-4,
+        position_lr_scale: 0.0,
+        follow_densify: false,
+        evolution_on: EvolutionOn::Gaussians,
+    };
+
     fn run<'a>(
         method: Method,
         kind: BackboneKind,
         net: &'a NetSettings,
-        evogs: &'a EvoSettings,
+        settings: &'a BackboneSettings,
     ) -> BackboneRun<'a> {
-        static SCGS: ScgsSettings = ScgsSettings {
-            control_points: 8,
-            neighbours: 3,
-            width: 16,
-            depth: 2,
-            xyz_freqs: 2,
-            t_freqs: 2,
-            arap_weight: 1e-4,
-            position_lr_scale: 0.0,
-            follow_densify: false,
-            evolution_on: EvolutionOn::Gaussians,
-        };
         BackboneRun {
             method,
             kind,
             net,
-            evogs,
-            scgs: &SCGS,
+            settings,
             half_extent: 1.3,
             seed: 7,
             grid4d_log2_table: 8,
@@ -254,15 +289,15 @@ mod tests {
         };
         for name in BackboneKind::VARIANTS {
             let kind: BackboneKind = name.parse().unwrap();
-            let evogs = EvoSettings::default();
-            let b = make_backbone(&run(Method::Baseline, kind, &net, &evogs)).unwrap();
+            let plain = settings(EvoSettings::default());
+            let b = make_backbone(&run(Method::Baseline, kind, &net, &plain)).unwrap();
             assert_eq!(b.name(), kind.to_string());
             assert_eq!(b.layout(), Layout::GEOMETRY, "{kind}");
             assert!(b.state().is_none(), "{kind}");
             for layout in [Layout::GEOMETRY, Layout::ALL] {
                 let mut evogs = EvoSettings::default();
                 evogs.evo.layout = layout;
-                match make_backbone(&run(Method::Evogs, kind, &net, &evogs)) {
+                match make_backbone(&run(Method::Evogs, kind, &net, &settings(evogs))) {
                     Ok(e) => {
                         assert_eq!(e.name(), "evogs");
                         assert_eq!(e.layout(), layout, "{kind}");
@@ -295,21 +330,20 @@ mod tests {
                 t_freqs: 2,
                 init: crate::NetInit::Torch,
             };
-            let evogs = EvoSettings::default();
             for name in BackboneKind::VARIANTS {
                 let kind: BackboneKind = name.parse().unwrap();
                 for method in [Method::Baseline, Method::Evogs] {
                     for evolution_on in [EvolutionOn::Gaussians, EvolutionOn::Controls] {
-                        let scgs = ScgsSettings {
-                            width,
-                            depth,
-                            evolution_on,
-                            ..*run(method, kind, &net, &evogs).scgs
+                        let both = BackboneSettings {
+                            evogs: EvoSettings::default(),
+                            scgs: ScgsSettings {
+                                width,
+                                depth,
+                                evolution_on,
+                                ..SCGS
+                            },
                         };
-                        let r = BackboneRun {
-                            scgs: &scgs,
-                            ..run(method, kind, &net, &evogs)
-                        };
+                        let r = run(method, kind, &net, &both);
                         let built: usize = make_backbone(&r)
                             .unwrap()
                             .params()
@@ -329,8 +363,8 @@ mod tests {
             t_freqs: 2,
             init: crate::NetInit::Torch,
         };
-        let evogs = EvoSettings::default();
-        let r = run(Method::Baseline, BackboneKind::D3dgs, &huge, &evogs);
+        let plain = settings(EvoSettings::default());
+        let r = run(Method::Baseline, BackboneKind::D3dgs, &huge, &plain);
         assert!(parameter_count(&r).is_err());
     }
 

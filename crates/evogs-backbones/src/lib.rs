@@ -57,7 +57,9 @@ pub mod scgs;
 pub mod working_memory;
 
 pub use backbone::{Backbone, DensifyCues, GainStats, PerGaussianState};
-pub use choice::{BackboneKind, BackboneRun, Method, make_backbone, parameter_count};
+pub use choice::{
+    BackboneKind, BackboneRun, BackboneSettings, Method, make_backbone, parameter_count,
+};
 pub use d3dgs::{D3dgsBackbone, NetInit, NetSettings};
 pub use error::BackboneError;
 pub use evo_backbone::EvoBackbone;

@@ -31,7 +31,7 @@ impl BackboneRun<'_> {
     pub fn working_bytes(&self, frames: usize) -> WorkingBytes {
         let net = self.net;
         let per_row = |values: usize| F32.saturating_mul(values as u64);
-        let scgs = self.scgs;
+        let scgs = &self.settings.scgs;
         // SC-GS: the canonical mean kept for the backward, K neighbours (index and distance), the
         // skinned row and its gradient; and the control points' network, twice a step. Counted
         // only for SC-GS, whose settings are range-checked only when it is the backbone
@@ -71,7 +71,7 @@ impl BackboneRun<'_> {
                 fixed: controls(),
             },
             (Method::Evogs, kind) => {
-                let s = self.evogs;
+                let s = &self.settings.evogs;
                 let dim = s.evo.dim();
                 let width = (net.width / 2).max(1);
                 // The step (prediction, observation, gain, corrected state and their gradients).
@@ -147,18 +147,19 @@ mod tests {
             t_freqs: 6,
             init: crate::NetInit::Torch,
         };
-        let evogs = EvoSettings::default();
         let run = |method, evolution_on, scgs: &ScgsSettings| {
-            let scgs = ScgsSettings {
-                evolution_on,
-                ..*scgs
+            let settings = crate::BackboneSettings {
+                evogs: EvoSettings::default(),
+                scgs: ScgsSettings {
+                    evolution_on,
+                    ..*scgs
+                },
             };
             BackboneRun {
                 method,
                 kind: BackboneKind::Scgs,
                 net: &net,
-                evogs: &evogs,
-                scgs: &scgs,
+                settings: &settings,
                 half_extent: 1.3,
                 seed: 0,
                 grid4d_log2_table: 8,
@@ -176,7 +177,8 @@ mod tests {
         let on_gaussians = run(Method::Evogs, EvolutionOn::Gaussians, &s);
         let on_controls = run(Method::Evogs, EvolutionOn::Controls, &s);
         let baseline = run(Method::Baseline, EvolutionOn::Controls, &s);
-        let per_row = evogs.evo.buffer_bytes(1, 150) + evogs.evo.memory_bytes(1, 150);
+        let evo = EvoSettings::default().evo;
+        let per_row = evo.buffer_bytes(1, 150) + evo.memory_bytes(1, 150);
         assert_eq!(on_gaussians.evolution_per_row, per_row as u64);
         assert_eq!(on_controls.evolution_per_row, 0);
         assert!(

@@ -83,7 +83,7 @@ mod tests {
         for preset in evogs_train::Preset::ALL {
             let config = evogs_train::TrainConfig::preset(preset);
             assert_eq!(
-                config.evogs,
+                config.backbones.evogs,
                 evogs_backbones::EvoSettings::default(),
                 "{preset}"
             );
@@ -103,8 +103,11 @@ mod tests {
                 unreachable!("train parses as train");
             };
             assert_eq!(
-                crate::train_cmd::config_from_args(&args).unwrap().evogs,
-                config.evogs,
+                crate::train_cmd::config_from_args(&args)
+                    .unwrap()
+                    .backbones
+                    .evogs,
+                config.backbones.evogs,
                 "{preset}"
             );
         }

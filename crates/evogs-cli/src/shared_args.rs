@@ -244,7 +244,7 @@ pub struct BackboneArgs {
         value_name = "W",
         allow_negative_numbers = true,
         value_parser = whole::<usize>(1),
-        help = by_preset("SC-GS: hidden width of the control points' network", |c| c.scgs.width)
+        help = by_preset("SC-GS: hidden width of the control points' network", |c| c.backbones.scgs.width)
     )]
     pub control_width: Option<usize>,
 
@@ -260,9 +260,9 @@ impl BackboneArgs {
             config.backbone = b;
         }
         if let Some(w) = self.control_width {
-            config.scgs.width = w;
+            config.backbones.scgs.width = w;
         }
-        self.scgs.apply(&mut config.scgs);
+        self.scgs.apply(&mut config.backbones.scgs);
     }
 
     /// The flags that give these values back under `preset` (`evogs bench --jobs` hands them to

@@ -279,7 +279,7 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
     }
     config = config.with_method(args.method);
     args.backbone.apply(&mut config);
-    args.evo.apply(&mut config.evogs);
+    args.evo.apply(&mut config.backbones.evogs);
     if let Some(v) = args.net_width {
         config.net.width = v;
     }

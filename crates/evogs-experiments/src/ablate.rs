@@ -332,7 +332,7 @@ pub fn run_ablation(
             });
             let mut config = request.config.clone();
             config = config.with_method(row.method);
-            config.evogs = row.evo.clone();
+            config.backbones.evogs = row.evo.clone();
             config.seed = seed;
             let run = request.run_dir(row, seed);
             let scores = train_and_evaluate(&request.data, &run, config, with_val, lpips)?;

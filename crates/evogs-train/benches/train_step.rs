@@ -14,7 +14,7 @@ use evogs_train::{Method, Preset, TrainConfig, Trainer};
 fn trainer(method: Method, components: Layout, data: &std::path::Path) -> Trainer {
     let mut c = TrainConfig::preset(Preset::Tiny).with_iterations(1_000_000);
     c.method = method;
-    c.evogs.evo.layout = components;
+    c.backbones.evogs.evo.layout = components;
     c.warm_up = 50;
     c.densify.schedule.from = 999_999;
     c.densify.schedule.until = 1_000_000;

@@ -345,13 +345,11 @@ pub struct TrainConfig {
     /// runs written before it existed read as 100.
     #[serde(default = "default_log_every")]
     pub log_every: u64,
-    /// EvoGS's switches and Φ's shape (used by `method = evogs`; recorded for every run).
-    #[serde(default)]
-    pub evogs: evogs_backbones::EvoSettings,
-    /// SC-GS's control points and their network (used by `backbone = scgs`; recorded for every
-    /// run; runs written before it existed read SC-GS's defaults).
-    #[serde(default)]
-    pub scgs: evogs_backbones::ScgsSettings,
+    /// Every backbone's own settings (EvoGS's `evogs`, SC-GS's `scgs`, …): defined in
+    /// `evogs-backbones`, flattened here, so that `config.json` keeps them as top-level keys and
+    /// a backbone with settings of its own changes nothing in this crate.
+    #[serde(flatten)]
+    pub backbones: evogs_backbones::BackboneSettings,
     /// Rasterizer backend (`cpu`, `wgpu`, `auto`); runs written before it existed read as `cpu`.
     /// A resumed run keeps it unless the resume asks for another.
     #[serde(default)]
@@ -416,8 +414,7 @@ impl TrainConfig {
             densify: DensifyConfig::default(),
             checkpoint_every: 5_000,
             log_every: default_log_every(),
-            evogs: evogs_backbones::EvoSettings::default(),
-            scgs: evogs_backbones::ScgsSettings::default(),
+            backbones: evogs_backbones::BackboneSettings::default(),
             backend: splat_raster::BackendChoice::Cpu,
             time_from: evogs_io::TimeFrom::Order,
             memory_limit: None,
@@ -503,9 +500,12 @@ impl TrainConfig {
                 Self {
                     preset,
                     backbone: BackboneKind::Scgs,
-                    scgs: evogs_backbones::ScgsSettings {
-                        width: SCGS_PRESET_WIDTH,
-                        ..evogs_backbones::ScgsSettings::default()
+                    backbones: evogs_backbones::BackboneSettings {
+                        scgs: evogs_backbones::ScgsSettings {
+                            width: SCGS_PRESET_WIDTH,
+                            ..evogs_backbones::ScgsSettings::default()
+                        },
+                        ..dnerf.backbones.clone()
                     },
                     densify: DensifyConfig {
                         max_gaussians: preset.max_gaussians(Method::default()),
@@ -544,8 +544,7 @@ impl TrainConfig {
             method: self.method,
             kind: self.backbone,
             net: &self.net,
-            evogs: &self.evogs,
-            scgs: &self.scgs,
+            settings: &self.backbones,
             half_extent: self.init_half_extent,
             seed: self.seed,
             grid4d_log2_table: self.preset.grid4d_log2_table(),
@@ -657,12 +656,7 @@ impl TrainConfig {
                 ));
             }
         }
-        if self.method == Method::Evogs {
-            self.evogs.validate()?;
-        }
-        if self.backbone == BackboneKind::Scgs {
-            self.scgs.validate()?;
-        }
+        self.backbones.validate(self.method, self.backbone)?;
         if let Some(b) = &self.budget {
             b.validate()?;
         }
@@ -701,7 +695,7 @@ impl TrainConfig {
                 ));
             }
         }
-        let c = self.evogs.evo.layout;
+        let c = self.backbones.evogs.evo.layout;
         if self.method == Method::Baseline && (c.opacity || c.colour) {
             return Err(TrainError::config(
                 "evogs.components",
@@ -874,7 +868,7 @@ mod tests {
         for method in [Method::Baseline, Method::Evogs] {
             let scgs = TrainConfig::preset(Preset::Scgs).with_method(method);
             assert_eq!(scgs.backbone, BackboneKind::Scgs);
-            assert_eq!(scgs.scgs.width, SCGS_PRESET_WIDTH);
+            assert_eq!(scgs.backbones.scgs.width, SCGS_PRESET_WIDTH);
             assert_eq!(scgs.gaussian_cap(100), Some(20_000), "{method}");
             assert_eq!(scgs.gaussian_cap(200), Some(10_000), "{method}");
             assert_eq!(

@@ -342,15 +342,15 @@ mod tests {
     fn the_evolution_buffer_and_memory_grow_with_frames_and_storage() {
         let mut c = TrainConfig::preset(Preset::Cpu);
         c.method = Method::Evogs;
-        let dim = c.evogs.evo.dim() as u64;
+        let dim = c.backbones.evogs.evo.dim() as u64;
         let e = MemoryEstimate::new(&c, &inputs());
         assert_eq!(e.evolution_per_gaussian, 2 * 50 * dim * 4);
-        c.evogs.evo.storage = Storage::F16;
+        c.backbones.evogs.evo.storage = Storage::F16;
         assert_eq!(
             MemoryEstimate::new(&c, &inputs()).evolution_per_gaussian,
             2 * 50 * dim * 2
         );
-        c.evogs.evo.history = HistoryMode::Requery;
+        c.backbones.evogs.evo.history = HistoryMode::Requery;
         assert_eq!(
             MemoryEstimate::new(&c, &inputs()).evolution_per_gaussian,
             50 * dim * 2

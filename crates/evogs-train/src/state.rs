@@ -555,8 +555,8 @@ mod tests {
         use crate::config::{Method, Preset, TrainConfig};
         let mut c = TrainConfig::preset(Preset::Tiny);
         c.method = Method::Evogs;
-        c.evogs.grid_lr_scale = 10.0;
-        c.evogs.psi_lr = Some(3e-3);
+        c.backbones.evogs.grid_lr_scale = 10.0;
+        c.backbones.evogs.psi_lr = Some(3e-3);
         let backbone = evogs_backbones::make_backbone(&c.backbone_run()).unwrap();
         let g = crate::init::random_gaussians(4, 1.0, 0, 0);
         let s = SceneState::new(g, backbone.as_ref(), &c.lr).unwrap();
@@ -580,7 +580,7 @@ mod tests {
         }
         assert!(seen[0] > 0 && seen[1] > 0, "{names:?}");
         // Runs recorded before `psi_lr` existed (None) train Ψ on the network schedule.
-        c.evogs.psi_lr = None;
+        c.backbones.evogs.psi_lr = None;
         let backbone = evogs_backbones::make_backbone(&c.backbone_run()).unwrap();
         let g = crate::init::random_gaussians(4, 1.0, 0, 0);
         let s = SceneState::new(g, backbone.as_ref(), &c.lr).unwrap();

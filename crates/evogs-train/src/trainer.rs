@@ -157,7 +157,7 @@ pub fn check_memory(
 /// clone/split with α = 0.5, as [`DensifyConfig::evogs`]).
 pub fn densify_config(config: &TrainConfig) -> DensifyConfig {
     let evogs = DensifyConfig::evogs();
-    let (trigger, deformation_alpha) = match (config.method, config.evogs.densify) {
+    let (trigger, deformation_alpha) = match (config.method, config.backbones.evogs.densify) {
         (Method::Baseline, _) | (_, DensifyPolicy::Standard) => (None, None),
         (Method::Evogs, DensifyPolicy::Trigger) => (evogs.trigger, None),
         (Method::Evogs, DensifyPolicy::TriggerDeform) => (evogs.trigger, evogs.deformation_alpha),
@@ -616,7 +616,7 @@ impl Trainer {
     /// An empty [`GainReport`] for this run: still below the motion floor in scene units per
     /// frame spacing (EvoGS's `motion_floor · extent`; evo-state's default for the baseline).
     pub fn new_gain_report(&self) -> GainReport {
-        GainReport::new(self.config.evogs.evo.motion_floor * self.extent)
+        GainReport::new(self.config.backbones.evogs.evo.motion_floor * self.extent)
     }
 
     /// The last training step of the evolution (EvoGS only), for [`GainReport::add`].

@@ -140,7 +140,7 @@ fn old_configs_load_as_the_same_flags_give_and_are_written_back_in_todays_format
         let mut then = today.clone();
         let had_scgs = old_text.contains(r#""scgs""#);
         if had_scgs {
-            then.scgs.evolution_on = EvolutionOn::recorded_before_the_choice();
+            then.backbones.scgs.evolution_on = EvolutionOn::recorded_before_the_choice();
         }
         assert_eq!(run.train, then, "{old}/{name}");
         assert_eq!(current.train, today, "{name}");

@@ -63,7 +63,7 @@ fn the_readme_shows_the_quick_demo_as_it_runs_now() {
             })
             .collect()
     };
-    let (want, got) = (rows(quick), rows(&text));
+    let (want, got) = (rows(quick), rows(text));
     assert_eq!(want.len(), 2, "README's --quick table:\n{quick}");
     assert_eq!(
         got, want,

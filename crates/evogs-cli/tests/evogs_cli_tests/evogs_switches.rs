@@ -162,7 +162,7 @@ fn each_switch_reaches_the_config() {
     for (flags, get, want) in table {
         let c = config(flags).unwrap_or_else(|e| panic!("{flags:?}: {e:#}"));
         assert_eq!(c.method, Method::Evogs);
-        assert_eq!(get(&c.evogs), want, "{flags:?}");
+        assert_eq!(get(&c.backbones.evogs), want, "{flags:?}");
         // The run's config.json records it and reads it back.
         let back: TrainConfig = serde_json::from_str(&serde_json::to_string(&c).unwrap()).unwrap();
         assert_eq!(back, c, "{flags:?}");
@@ -198,7 +198,7 @@ fn each_switch_reaches_the_config() {
         TrainConfig::preset(evogs_train::Preset::Dnerf).net.width
     );
     // Without flags: the method's defaults.
-    assert_eq!(config(&[]).unwrap().evogs, EvoSettings::default());
+    assert_eq!(config(&[]).unwrap().backbones.evogs, EvoSettings::default());
 }
 
 #[test]
@@ -345,7 +345,10 @@ fn the_scgs_preset_sets_the_backbone_and_width_unless_given() {
     for method in ["baseline", "evogs"] {
         let c = config(&["--preset", "scgs", "--method", method]).unwrap();
         assert_eq!(c.backbone, BackboneKind::Scgs, "{method}");
-        assert_eq!(c.scgs.width, evogs_train::config::SCGS_PRESET_WIDTH);
+        assert_eq!(
+            c.backbones.scgs.width,
+            evogs_train::config::SCGS_PRESET_WIDTH
+        );
         assert_eq!(
             c.gaussian_view_budget,
             Some(DNERF_GAUSSIAN_VIEW_BUDGET_EVOGS)
@@ -360,9 +363,15 @@ fn the_scgs_preset_sets_the_backbone_and_width_unless_given() {
         "32",
     ])
     .unwrap();
-    assert_eq!((c.backbone, c.scgs.width), (BackboneKind::D3dgs, 32));
+    assert_eq!(
+        (c.backbone, c.backbones.scgs.width),
+        (BackboneKind::D3dgs, 32)
+    );
     let c = config(&["--preset", "dnerf", "--backbone", "scgs"]).unwrap();
-    assert_eq!((c.backbone, c.scgs.width), (BackboneKind::Scgs, 256));
+    assert_eq!(
+        (c.backbone, c.backbones.scgs.width),
+        (BackboneKind::Scgs, 256)
+    );
     assert_eq!(
         config(&["--preset", "dnerf"]).unwrap().backbone,
         BackboneKind::D3dgs

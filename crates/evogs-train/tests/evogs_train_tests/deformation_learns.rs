@@ -136,7 +136,7 @@ fn sc_gs_control_points_learn_the_motion() {
     let iterations = 600;
     let mut c = config(iterations);
     c.backbone = evogs_train::BackboneKind::Scgs;
-    c.scgs = evogs_backbones::ScgsSettings {
+    c.backbones.scgs = evogs_backbones::ScgsSettings {
         control_points: 3,
         neighbours: 2,
         width: 32,

@@ -254,21 +254,23 @@ fn every_switch_combination_trains_finitely_and_stays_aligned() {
     let views = train_views(&data, &base);
     type Edit = fn(&mut TrainConfig);
     let cases: [(&str, Edit); 6] = [
-        ("requery", |c| c.evogs.evo.history = HistoryMode::Requery),
-        ("gain 0", |c| c.evogs.evo.gain = Gain::Fixed(0.0)),
+        ("requery", |c| {
+            c.backbones.evogs.evo.history = HistoryMode::Requery;
+        }),
+        ("gain 0", |c| c.backbones.evogs.evo.gain = Gain::Fixed(0.0)),
         ("gain 1, standard densify", |c| {
-            c.evogs.evo.gain = Gain::Fixed(1.0);
-            c.evogs.densify = DensifyPolicy::Standard;
+            c.backbones.evogs.evo.gain = Gain::Fixed(1.0);
+            c.backbones.evogs.densify = DensifyPolicy::Standard;
         }),
         ("f16 buffer and network", |c| {
-            c.evogs.evo.storage = Storage::F16;
-            c.evogs.net_precision = Precision::F16;
+            c.backbones.evogs.evo.storage = Storage::F16;
+            c.backbones.evogs.net_precision = Precision::F16;
         }),
         ("position only", |c| {
-            c.evogs.evo.layout = "pos".parse().unwrap();
+            c.backbones.evogs.evo.layout = "pos".parse().unwrap();
         }),
         ("every component, opacity and colour included", |c| {
-            c.evogs.evo.layout = "pos,rot,scale,opacity,colour".parse().unwrap();
+            c.backbones.evogs.evo.layout = "pos,rot,scale,opacity,colour".parse().unwrap();
         }),
     ];
     for (name, edit) in cases {
@@ -284,14 +286,14 @@ fn every_switch_combination_trains_finitely_and_stays_aligned() {
                 "{name}"
             );
         }
-        let dim = c.evogs.evo.layout.dim();
+        let dim = c.backbones.evogs.evo.layout.dim();
         // The per-frame memory always; the buffer beside it, in the same storage, unless the
         // history is re-queried.
-        let bytes_per = match c.evogs.evo.storage {
+        let bytes_per = match c.backbones.evogs.evo.storage {
             Storage::F32 => 4,
             Storage::F16 => 2,
         };
-        let blocks = match c.evogs.evo.history {
+        let blocks = match c.backbones.evogs.evo.history {
             HistoryMode::Requery => 1,
             HistoryMode::Buffer => 2,
         };
@@ -325,7 +327,7 @@ fn reused_buffers_give_the_same_steps_as_fresh_ones_bit_for_bit() {
         c.densify.schedule.from = 10;
         c.densify.schedule.interval = 10;
         if method == Method::Evogs {
-            c.evogs.evo.layout = "pos,rot,scale,opacity,colour".parse().unwrap();
+            c.backbones.evogs.evo.layout = "pos,rot,scale,opacity,colour".parse().unwrap();
         }
         let views = train_views(&data, &c);
         let run = |fresh: bool| {

@@ -76,7 +76,7 @@ fn trigger(
 
     let mut config = TrainConfig::preset(Preset::Tiny);
     config.method = Method::Evogs;
-    config.evogs = settings;
+    config.backbones.evogs = settings;
     let densify = densify_config(&config);
     assert!(
         densify.trigger.is_some(),

@@ -28,9 +28,9 @@ fn config_with(backbone: BackboneKind, method: Method) -> TrainConfig {
     c.checkpoint_every = 7;
     c.backbone = backbone;
     // SC-GS at a test's size.
-    c.scgs.control_points = 24;
-    c.scgs.width = 16;
-    c.scgs.depth = 2;
+    c.backbones.scgs.control_points = 24;
+    c.backbones.scgs.width = 16;
+    c.backbones.scgs.depth = 2;
     c
 }
 
@@ -81,7 +81,7 @@ fn resumed_scgs_run_matches_uninterrupted_run_bit_for_bit() {
 #[test]
 fn resumed_evogs_scgs_run_matches_uninterrupted_run_bit_for_bit() {
     let mut c = config_with(BackboneKind::Scgs, Method::Evogs);
-    c.scgs.evolution_on = evogs_backbones::EvolutionOn::Gaussians;
+    c.backbones.scgs.evolution_on = evogs_backbones::EvolutionOn::Gaussians;
     resumes_config_bit_for_bit(&c);
 }
 
@@ -90,8 +90,8 @@ fn resumed_evogs_scgs_run_matches_uninterrupted_run_bit_for_bit() {
 #[test]
 fn resumed_evogs_scgs_run_with_the_state_on_the_control_points_matches_bit_for_bit() {
     let mut c = config_with(BackboneKind::Scgs, Method::Evogs);
-    c.scgs.evolution_on = evogs_backbones::EvolutionOn::Controls;
-    c.scgs.follow_densify = true;
+    c.backbones.scgs.evolution_on = evogs_backbones::EvolutionOn::Controls;
+    c.backbones.scgs.follow_densify = true;
     resumes_config_bit_for_bit(&c);
 }
 
