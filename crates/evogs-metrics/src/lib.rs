@@ -12,16 +12,21 @@
 //!   the training loop; [`photometric_loss`] is its plain reference.
 //! - [`flicker`] and [`trajectory_jitter`]: the temporal consistency metrics.
 //! - [`lpips`]: LPIPS with the AlexNet or VGG16 backbone from the published weights.
+//! - `gpu` (cargo feature `wgpu`): the training loss and its gradient in WGSL kernels, checked
+//!   against [`LossWorkspace`] and [`photometric_loss`].
 //!
 //! Images are row-major `[r, g, b]` slices (`index = y * width + x`), as `splat-raster` renders
 //! them.
 //!
 //! What it is not: a renderer, a trainer or an image reader. Metrics take plain slices; the only
-//! workspace crate it depends on is `tiny-nn`, whose matrix product runs LPIPS's convolutions.
+//! workspace crates it depends on are `tiny-nn`, whose matrix product runs LPIPS's convolutions,
+//! and, with the feature `wgpu`, `gpu-core` for the GPU loss.
 
 mod error;
 mod fast_loss;
 mod gaussian_blur;
+#[cfg(feature = "wgpu")]
+pub mod gpu;
 mod loss;
 pub mod lpips;
 mod psnr;

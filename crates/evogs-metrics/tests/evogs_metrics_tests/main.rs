@@ -5,5 +5,7 @@
 
 mod common;
 mod fast_loss;
+#[cfg(feature = "wgpu")]
+mod gpu_loss;
 mod loss;
 mod lpips_reference;
