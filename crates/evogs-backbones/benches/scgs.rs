@@ -1,5 +1,6 @@
 //! SC-GS's backbone by part, at 512 control points and 10 000 or 40 000 Gaussians spread over
-//! a lego-sized cube: the K = 3 nearest search (kiddo), the skinning forward and backward, the
+//! a lego-sized cube: the K = 3 nearest search (kiddo), the skinning forward and backward (and
+//! their plain per-pair twins of `skinning::reference`), the
 //! control-point network's forward and backward (SC-GS's 256 × 8, and 128 × 8), and a whole
 //! backbone step (forward + backward) with and without the ARAP term.
 //!
@@ -10,7 +11,9 @@ use bench_support::{CpuTime, clock_prefix};
 use criterion::measurement::Measurement;
 use criterion::{Criterion, criterion_group, criterion_main};
 use evogs_backbones::scgs::knn;
-use evogs_backbones::scgs::skinning::{Controls, NODE_OUTPUT, ROW, skin_backward, skin_into};
+use evogs_backbones::scgs::skinning::{
+    Controls, NODE_OUTPUT, ROW, reference, skin_backward, skin_into,
+};
 use evogs_backbones::{Backbone, ScgsBackbone, ScgsSettings};
 use splat_core::Gaussians;
 
@@ -65,9 +68,15 @@ fn bench<M: Measurement>(c: &mut Criterion<M>) {
         group.bench_function(format!("skin_forward/{n}"), |b| {
             b.iter(|| skin_into(&g.means, &nb, shape, &nodes, &mut rows));
         });
+        group.bench_function(format!("skin_forward_plain/{n}"), |b| {
+            b.iter(|| reference::skin_into(&g.means, &nb, shape, &nodes, &mut rows));
+        });
         let d_rows = vec![1e-3f32; n * ROW];
         group.bench_function(format!("skin_backward/{n}"), |b| {
             b.iter(|| skin_backward(&g.means, &nb, shape, &nodes, &d_rows));
+        });
+        group.bench_function(format!("skin_backward_plain/{n}"), |b| {
+            b.iter(|| reference::skin_backward(&g.means, &nb, shape, &nodes, &d_rows));
         });
         for (width, arap) in [(256, 1e-4), (256, 0.0), (128, 1e-4), (64, 1e-4)] {
             let settings = ScgsSettings {

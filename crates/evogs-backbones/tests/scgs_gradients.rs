@@ -10,9 +10,10 @@ mod common;
 use common::Lcg;
 use evogs_backbones::scgs::knn::{self, Neighbours};
 use evogs_backbones::scgs::skinning::{
-    Controls, LOCAL, NODE_OUTPUT, ROW, SkinGrads, skin_backward, skin_into,
+    Controls, LOCAL, NODE_OUTPUT, ROW, SkinGrads, reference, skin_backward, skin_into,
 };
 use evogs_backbones::{Backbone, EvolutionOn, ScgsBackbone, ScgsSettings};
+use proptest::prelude::*;
 use splat_core::Gaussians;
 use tiny_nn::StoreMut;
 
@@ -193,6 +194,86 @@ fn hard_cases_stay_finite() {
         l.copy_from_slice(&[-1.0, 0.0, 0.0, 0.0]);
     }
     finite(&flat, 2);
+}
+
+/// `a` within `tol · max(max |b|, 1)` of `b`, entry by entry.
+fn near(a: &[f32], b: &[f32], tol: f64, what: &str) {
+    assert_eq!(a.len(), b.len(), "{what}: lengths");
+    let scale = b.iter().fold(1f64, |m, &v| m.max(f64::from(v).abs()));
+    for (i, (&x, &y)) in a.iter().zip(b).enumerate() {
+        assert!(
+            (f64::from(x) - f64::from(y)).abs() <= tol * scale,
+            "{what}[{i}]: {x} against the reference's {y} (scale {scale})"
+        );
+    }
+}
+
+/// The prepared skinning (per-control-point radius, weight, rotation matrix; the rotation's
+/// gradient from per-point sums) against its plain per-pair twin: the rows and every gradient
+/// agree to f32 rounding. Both sum in f64 and narrow once, so 1e-5 of the largest value bounds
+/// the reordering of the sums with room to spare; a wrong term (a transposed rotation, a lost
+/// position term) is off by the size of the value itself.
+fn matches_reference(scene: &Scene, k: usize) {
+    let nb = knn::nearest(&scene.positions, &scene.means, k).unwrap();
+    let (mut fast, mut plain) = (Vec::new(), Vec::new());
+    skin_into(&scene.means, &nb, scene.controls(), &scene.nodes, &mut fast);
+    reference::skin_into(
+        &scene.means,
+        &nb,
+        scene.controls(),
+        &scene.nodes,
+        &mut plain,
+    );
+    near(&fast, &plain, 1e-5, "rows");
+    let g = scene.grads(&nb);
+    let r = reference::skin_backward(&scene.means, &nb, scene.controls(), &scene.nodes, &scene.r);
+    near(&g.nodes, &r.nodes, 1e-5, "node outputs");
+    near(&g.positions, &r.positions, 1e-5, "positions");
+    near(&g.log_radii, &r.log_radii, 1e-5, "log radii");
+    near(&g.weight_logits, &r.weight_logits, 1e-5, "weight logits");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// Random scenes, from one control point to more than K, with Gaussians over more than
+    /// one task of rows and local rotations from small to large.
+    #[test]
+    fn prepared_skinning_matches_the_plain_reference(
+        seed in 0u64..1_000_000,
+        m in 1usize..40,
+        n in 1usize..2600,
+        k in 1usize..6,
+        spread in 0.01f32..3.0,
+    ) {
+        let mut scene = Scene::new(m, n, seed);
+        for v in &mut scene.nodes {
+            *v *= spread;
+        }
+        matches_reference(&scene, k);
+    }
+}
+
+/// The hard cases of `hard_cases_stay_finite` give the reference's values too.
+#[test]
+fn prepared_skinning_matches_the_reference_in_hard_cases() {
+    let mut far = Scene::new(4, 3, 5);
+    far.means[0] = [1e4, -1e4, 1e4];
+    matches_reference(&far, 3);
+    let mut same = Scene::new(4, 6, 7);
+    same.positions = vec![[0.1, 0.2, 0.3]; 4];
+    same.means[0] = [0.1, 0.2, 0.3];
+    matches_reference(&same, 3);
+    let mut tiny = Scene::new(5, 8, 9);
+    tiny.log_radii = vec![-1e3, -50.0, 60.0, 1e3, 0.0];
+    matches_reference(&tiny, 3);
+    matches_reference(&Scene::new(1, 7, 13), 3);
+    let mut flat = Scene::new(3, 4, 17);
+    for c in 0..2 {
+        let l = &mut flat.nodes[c * NODE_OUTPUT..(c + 1) * NODE_OUTPUT][LOCAL];
+        l.copy_from_slice(&[-1.0, 0.0, 0.0, 0.0]);
+    }
+    matches_reference(&flat, 2);
 }
 
 fn gaussians(n: usize, seed: u64) -> Gaussians {

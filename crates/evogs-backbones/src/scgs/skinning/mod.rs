@@ -16,10 +16,17 @@
 //! The sums run in f64 per Gaussian; a Gaussian far from every control point gets the ε weights
 //! (an even blend), a radius that underflows to zero gives a weight of exactly ε, and neither
 //! makes a NaN in the gradient.
+//!
+//! Each control point's radius, weight `σ(β)`, `p + T` and rotation matrix are prepared once
+//! per call, not per (Gaussian, neighbour) pair, and the backward pass chains the rotation's
+//! gradient to the quaternion once per control point from per-point sums; [`reference`] is the
+//! plain per-pair computation the tests hold this one to.
 
 use rayon::prelude::*;
 
 use super::knn::Neighbours;
+
+pub mod reference;
 
 /// Network outputs per control point: translation 3, rotation residual 4, scale residual 3,
 /// local rotation 4.
@@ -156,30 +163,95 @@ struct Share {
     raw: f64,
 }
 
+/// What a control point brings to every blend it is in, computed once per call: SC-GS
+/// evaluates the radius, the weight and the local rotation per (Gaussian, neighbour) pair;
+/// here they are made once for each of the few hundred control points.
+#[derive(Clone, Copy)]
+struct Prepared {
+    /// Canonical position `p`.
+    p: [f64; 3],
+    /// `r²`.
+    r2: f64,
+    /// `2 r²` (the exponent's divisor).
+    two_r2: f64,
+    /// `σ(β)`.
+    a: f64,
+    /// `p + T`.
+    pt: [f64; 3],
+    /// The local rotation `R` (row-major), `None` when its quaternion is (nearly) zero.
+    rot: Option<[[f64; 3]; 3]>,
+}
+
+/// The rotation matrix of the (unnormalised) quaternion `q`, the same map as [`rotate`].
+fn matrix(q: [f64; 4]) -> [[f64; 3]; 3] {
+    let [w, x, y, z] = q;
+    let s = 2.0 / q.iter().map(|v| v * v).sum::<f64>();
+    [
+        [
+            1.0 - s * (y * y + z * z),
+            s * (x * y - w * z),
+            s * (x * z + w * y),
+        ],
+        [
+            s * (x * y + w * z),
+            1.0 - s * (x * x + z * z),
+            s * (y * z - w * x),
+        ],
+        [
+            s * (x * z - w * y),
+            s * (y * z + w * x),
+            1.0 - s * (x * x + y * y),
+        ],
+    ]
+}
+
+fn mat_vec(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
+    m.map(|row| dot(row, v))
+}
+
+/// Every control point's [`Prepared`] part.
+fn prepare(controls: Controls<'_>, nodes: &[f32]) -> Vec<Prepared> {
+    (0..controls.positions.len())
+        .map(|c| {
+            let node = &nodes[c * NODE_OUTPUT..(c + 1) * NODE_OUTPUT];
+            let p = wide(controls.positions[c]);
+            let t = &node[TRANSLATION];
+            let r2 = (2.0 * f64::from(controls.log_radii[c])).exp();
+            Prepared {
+                p,
+                r2,
+                two_r2: 2.0 * r2,
+                a: 1.0 / (1.0 + (-f64::from(controls.weight_logits[c])).exp()),
+                pt: std::array::from_fn(|i| p[i] + f64::from(t[i])),
+                rot: local_quaternion(node).map(matrix),
+            }
+        })
+        .collect()
+}
+
 /// The shares of a Gaussian's neighbours and the sum of their unnormalised weights.
-fn shares(x: [f64; 3], index: &[u32], controls: Controls<'_>, out: &mut [Share]) -> f64 {
+fn shares(x: [f64; 3], index: &[u32], prepared: &[Prepared], out: &mut [Share]) -> f64 {
     let mut total = 0.0;
     for (share, &c) in out.iter_mut().zip(index) {
         let c = c as usize;
-        let v = sub(x, wide(controls.positions[c]));
+        let pc = &prepared[c];
+        let v = sub(x, pc.p);
         let d2 = dot(v, v);
-        let r2 = (2.0 * f64::from(controls.log_radii[c])).exp();
         // d² = 0 is weight 1 whatever the radius (0/0 when the radius underflows too).
         let e = if d2 == 0.0 {
             1.0
         } else {
-            (-d2 / (2.0 * r2)).exp()
+            (-d2 / pc.two_r2).exp()
         };
-        let a = 1.0 / (1.0 + (-f64::from(controls.weight_logits[c])).exp());
-        let raw = e * a + WEIGHT_EPS;
+        let raw = e * pc.a + WEIGHT_EPS;
         total += raw;
         *share = Share {
             c,
             v,
             d2,
-            r2,
+            r2: pc.r2,
             e,
-            a,
+            a: pc.a,
             raw,
         };
     }
@@ -187,16 +259,14 @@ fn shares(x: [f64; 3], index: &[u32], controls: Controls<'_>, out: &mut [Share])
 }
 
 /// A control point's blended target `R_c (x − p_c) + p_c + T_c`.
-fn target(share: &Share, controls: Controls<'_>, node: &[f32]) -> [f64; 3] {
-    let p = wide(controls.positions[share.c]);
-    let t = &node[TRANSLATION];
-    let rv = local_quaternion(node).map_or(share.v, |q| rotate(q, share.v));
-    std::array::from_fn(|i| rv[i] + p[i] + f64::from(t[i]))
+fn target(share: &Share, pc: &Prepared) -> [f64; 3] {
+    let rv = pc.rot.as_ref().map_or(share.v, |m| mat_vec(m, share.v));
+    std::array::from_fn(|i| rv[i] + pc.pt[i])
 }
 
 /// The skinned rows (N × [`ROW`]) of the Gaussians at `means`, with their neighbours `nb`, the
 /// control points' shape `controls` and their network outputs `nodes` (M × [`NODE_OUTPUT`]),
-/// into `out` (whatever it held).
+/// into `out` (whatever it held). [`reference::skin_into`] is its plain twin.
 ///
 /// # Panics
 /// When the sizes disagree (`nb` not of `means`' rows, `nodes` not of `controls`').
@@ -210,6 +280,7 @@ pub fn skin_into(
     assert_eq!(nb.rows(), means.len(), "neighbours of every Gaussian");
     assert_eq!(nodes.len(), controls.positions.len() * NODE_OUTPUT);
     let k = nb.k;
+    let prepared = prepare(controls, nodes);
     out.clear();
     out.resize(means.len() * ROW, 0.0);
     out.par_chunks_mut(ROW)
@@ -220,12 +291,12 @@ pub fn skin_into(
             || vec![Share::default(); k],
             |sh, (i, (row, &x))| {
                 let x = wide(x);
-                let total = shares(x, &nb.index[i * k..(i + 1) * k], controls, sh);
+                let total = shares(x, &nb.index[i * k..(i + 1) * k], &prepared, sh);
                 let mut acc = [0f64; ROW];
                 for s in sh.iter() {
                     let w = s.raw / total;
                     let node = &nodes[s.c * NODE_OUTPUT..(s.c + 1) * NODE_OUTPUT];
-                    let y = target(s, controls, node);
+                    let y = target(s, &prepared[s.c]);
                     for j in 0..3 {
                         acc[j] += w * y[j];
                     }
@@ -252,6 +323,9 @@ struct Sums {
     positions: Vec<f64>,
     log_radii: Vec<f64>,
     weight_logits: Vec<f64>,
+    /// `Σ w g_x (x − p)ᵀ` per control point (M × 9, row-major): what the local rotation's
+    /// gradient needs from the Gaussians, chained to the quaternion once per control point.
+    outer: Vec<f64>,
 }
 
 impl Sums {
@@ -261,6 +335,7 @@ impl Sums {
             positions: vec![0.0; m * 3],
             log_radii: vec![0.0; m],
             weight_logits: vec![0.0; m],
+            outer: vec![0.0; m * 9],
         }
     }
 
@@ -270,6 +345,7 @@ impl Sums {
             (&mut self.positions, &other.positions),
             (&mut self.log_radii, &other.log_radii),
             (&mut self.weight_logits, &other.weight_logits),
+            (&mut self.outer, &other.outer),
         ];
         for (a, b) in pairs {
             for (x, y) in a.iter_mut().zip(b) {
@@ -277,13 +353,50 @@ impl Sums {
             }
         }
     }
+
+    /// Through one Gaussian's normalised weights to the radii, weight logits and positions of
+    /// its neighbours `sh`, given `h_c` (dL/d(the neighbour's blended row) · its row), their
+    /// weighted mean and the sum of the unnormalised weights.
+    fn add_weight_terms(&mut self, sh: &[Share], h: &[f64], mean_h: f64, total: f64) {
+        for (s, hs) in sh.iter().zip(h) {
+            let d_raw = (hs - mean_h) / total;
+            if s.e == 0.0 || d_raw == 0.0 {
+                continue;
+            }
+            let ea = s.e * s.a;
+            self.weight_logits[s.c] += d_raw * ea * (1.0 - s.a);
+            if s.d2 > 0.0 {
+                self.log_radii[s.c] += d_raw * ea * s.d2 / s.r2;
+                // ∂raw/∂d² = −e a / (2 r²), ∂d²/∂p = −2 (x − p).
+                let dd2 = -d_raw * ea / (2.0 * s.r2);
+                for c in 0..3 {
+                    self.positions[s.c * 3 + c] += dd2 * -2.0 * s.v[c];
+                }
+            }
+        }
+    }
+
+    fn narrow(self) -> SkinGrads {
+        let narrow = |v: Vec<f64>| v.into_iter().map(|x| x as f32).collect();
+        SkinGrads {
+            nodes: narrow(self.nodes),
+            positions: narrow(self.positions),
+            log_radii: narrow(self.log_radii),
+            weight_logits: narrow(self.weight_logits),
+        }
+    }
 }
 
 /// The gradient of [`skin_into`]'s rows: from dL/d(rows) (`d_rows`, N × [`ROW`]) to the network
 /// outputs and the control points' positions, log radii and weight logits.
+/// [`reference::skin_backward`] is its plain twin.
 ///
-/// The Gaussians' sums are made in tasks of a fixed number of rows and added in task order, so
-/// the result does not depend on the number of threads.
+/// The rigid part `R_c (x − p_c) + p_c + T_c` is linear in what the Gaussians contribute, so
+/// they only add `Σ w g_x` (the translation's gradient) and `Σ w g_x (x − p_c)ᵀ` per control
+/// point; the local quaternion's gradient and the position's `(I − R_cᵀ) Σ w g_x` are formed
+/// from these sums once per control point. The Gaussians' sums are made in tasks of a fixed
+/// number of rows and added in task order, so the result does not depend on the number of
+/// threads.
 ///
 /// # Panics
 /// When the sizes disagree, as [`skin_into`].
@@ -299,6 +412,7 @@ pub fn skin_backward(
     assert_eq!(nodes.len(), m * NODE_OUTPUT);
     assert_eq!(d_rows.len(), means.len() * ROW);
     let k = nb.k;
+    let prepared = prepare(controls, nodes);
     let tasks: Vec<Sums> = means
         .par_chunks(ROWS_PER_TASK)
         .enumerate()
@@ -313,13 +427,13 @@ pub fn skin_backward(
                     continue;
                 }
                 let gx = [g[0], g[1], g[2]].map(f64::from);
-                let total = shares(wide(x), &nb.index[i * k..(i + 1) * k], controls, &mut sh);
+                let total = shares(wide(x), &nb.index[i * k..(i + 1) * k], &prepared, &mut sh);
                 let mut mean_h = 0.0;
                 for (s, hs) in sh.iter().zip(&mut h) {
                     let w = s.raw / total;
+                    let pc = &prepared[s.c];
                     let node = &nodes[s.c * NODE_OUTPUT..(s.c + 1) * NODE_OUTPUT];
-                    let y = target(s, controls, node);
-                    *hs = dot(gx, y);
+                    *hs = dot(gx, target(s, pc));
                     let dn = &mut sums.nodes[s.c * NODE_OUTPUT..(s.c + 1) * NODE_OUTPUT];
                     for c in TRANSLATION {
                         dn[c] += w * gx[c];
@@ -328,40 +442,17 @@ pub fn skin_backward(
                         *hs += f64::from(g[c]) * f64::from(node[c]);
                         dn[c] += w * f64::from(g[c]);
                     }
-                    // Through R_c (x − p_c) + p_c: to the local quaternion and the position.
-                    let gy = gx.map(|v| w * v);
-                    let back = match local_quaternion(node) {
-                        Some(q) => {
-                            let dq = rotate_grad_q(q, s.v, gy);
-                            for (d, v) in dn[LOCAL].iter_mut().zip(dq) {
-                                *d += v;
+                    if pc.rot.is_some() {
+                        let outer = &mut sums.outer[s.c * 9..(s.c + 1) * 9];
+                        for r in 0..3 {
+                            for c in 0..3 {
+                                outer[r * 3 + c] += w * gx[r] * s.v[c];
                             }
-                            rotate_back(q, gy)
                         }
-                        None => gy,
-                    };
-                    for c in 0..3 {
-                        sums.positions[s.c * 3 + c] += gy[c] - back[c];
                     }
                     mean_h += w * *hs;
                 }
-                // Through the normalised weights to the radius, weight logit and position.
-                for (s, hs) in sh.iter().zip(&h) {
-                    let d_raw = (hs - mean_h) / total;
-                    if s.e == 0.0 || d_raw == 0.0 {
-                        continue;
-                    }
-                    let ea = s.e * s.a;
-                    sums.weight_logits[s.c] += d_raw * ea * (1.0 - s.a);
-                    if s.d2 > 0.0 {
-                        sums.log_radii[s.c] += d_raw * ea * s.d2 / s.r2;
-                        // ∂raw/∂d² = −e a / (2 r²), ∂d²/∂p = −2 (x − p).
-                        let dd2 = -d_raw * ea / (2.0 * s.r2);
-                        for c in 0..3 {
-                            sums.positions[s.c * 3 + c] += dd2 * -2.0 * s.v[c];
-                        }
-                    }
-                }
+                sums.add_weight_terms(&sh, &h, mean_h, total);
             }
             sums
         })
@@ -370,11 +461,32 @@ pub fn skin_backward(
     for t in &tasks {
         total.add(t);
     }
-    let narrow = |v: Vec<f64>| v.into_iter().map(|x| x as f32).collect();
-    SkinGrads {
-        nodes: narrow(total.nodes),
-        positions: narrow(total.positions),
-        log_radii: narrow(total.log_radii),
-        weight_logits: narrow(total.weight_logits),
+    // The rigid part's gradient, once per control point: to the local quaternion
+    // (`Σ_j ∂(G_{·j} · R e_j)/∂q` with G = the outer sums) and to the position.
+    for (c, pc) in prepared.iter().enumerate() {
+        let node = &nodes[c * NODE_OUTPUT..(c + 1) * NODE_OUTPUT];
+        let (Some(q), Some(_)) = (local_quaternion(node), pc.rot) else {
+            continue;
+        };
+        let o = &total.outer[c * 9..(c + 1) * 9];
+        let mut dq = [0f64; 4];
+        for j in 0..3 {
+            let mut e = [0.0; 3];
+            e[j] = 1.0;
+            let column = [o[j], o[3 + j], o[6 + j]];
+            for (d, v) in dq.iter_mut().zip(rotate_grad_q(q, e, column)) {
+                *d += v;
+            }
+        }
+        let dn = &mut total.nodes[c * NODE_OUTPUT..(c + 1) * NODE_OUTPUT];
+        for (d, v) in dn[LOCAL].iter_mut().zip(dq) {
+            *d += v;
+        }
+        let gy = [dn[0], dn[1], dn[2]];
+        let back = rotate_back(q, gy);
+        for i in 0..3 {
+            total.positions[c * 3 + i] += gy[i] - back[i];
+        }
     }
+    total.narrow()
 }
