@@ -264,6 +264,46 @@ fn target(share: &Share, pc: &Prepared) -> [f64; 3] {
     std::array::from_fn(|i| rv[i] + pc.pt[i])
 }
 
+/// Adds one neighbour's part of a Gaussian's row sums: `w` times its target, rotation
+/// residual `Q` and scale residual `S`.
+fn blend(acc: &mut [f64; ROW], w: f64, y: [f64; 3], node: &[f32]) {
+    for j in 0..3 {
+        acc[j] += w * y[j];
+    }
+    for (a, &q) in acc[3..7].iter_mut().zip(&node[ROTATION]) {
+        *a += w * f64::from(q);
+    }
+    for (a, &d) in acc[7..10].iter_mut().zip(&node[SCALE]) {
+        *a += w * f64::from(d);
+    }
+}
+
+/// The finished row of a Gaussian at `x`: the blend minus `x` on the position, in f32.
+fn finish_row(mut acc: [f64; ROW], x: [f64; 3], row: &mut [f32]) {
+    for j in 0..3 {
+        acc[j] -= x[j];
+    }
+    for (o, a) in row.iter_mut().zip(acc) {
+        *o = a as f32;
+    }
+}
+
+/// The part of [`blend`]'s gradient that is linear in `w`: `w g` added to the neighbour's
+/// translation, rotation-residual and scale-residual outputs `dn`; returns `g · (y, Q, S)`,
+/// what the normalised weight's gradient needs.
+fn add_blend_terms(dn: &mut [f64], g: &[f32], w: f64, y: [f64; 3], node: &[f32]) -> f64 {
+    let mut h = 0.0;
+    for c in TRANSLATION {
+        h += f64::from(g[c]) * y[c];
+        dn[c] += w * f64::from(g[c]);
+    }
+    for c in ROTATION.chain(SCALE) {
+        h += f64::from(g[c]) * f64::from(node[c]);
+        dn[c] += w * f64::from(g[c]);
+    }
+    h
+}
+
 /// The skinned rows (N × [`ROW`]) of the Gaussians at `means`, with their neighbours `nb`, the
 /// control points' shape `controls` and their network outputs `nodes` (M × [`NODE_OUTPUT`]),
 /// into `out` (whatever it held). [`reference::skin_into`] is its plain twin.
@@ -296,23 +336,9 @@ pub fn skin_into(
                 for s in sh.iter() {
                     let w = s.raw / total;
                     let node = &nodes[s.c * NODE_OUTPUT..(s.c + 1) * NODE_OUTPUT];
-                    let y = target(s, &prepared[s.c]);
-                    for j in 0..3 {
-                        acc[j] += w * y[j];
-                    }
-                    for (a, &q) in acc[3..7].iter_mut().zip(&node[ROTATION]) {
-                        *a += w * f64::from(q);
-                    }
-                    for (a, &d) in acc[7..10].iter_mut().zip(&node[SCALE]) {
-                        *a += w * f64::from(d);
-                    }
+                    blend(&mut acc, w, target(s, &prepared[s.c]), node);
                 }
-                for j in 0..3 {
-                    acc[j] -= x[j];
-                }
-                for (o, a) in row.iter_mut().zip(acc) {
-                    *o = a as f32;
-                }
+                finish_row(acc, x, row);
             },
         );
 }
@@ -433,15 +459,8 @@ pub fn skin_backward(
                     let w = s.raw / total;
                     let pc = &prepared[s.c];
                     let node = &nodes[s.c * NODE_OUTPUT..(s.c + 1) * NODE_OUTPUT];
-                    *hs = dot(gx, target(s, pc));
                     let dn = &mut sums.nodes[s.c * NODE_OUTPUT..(s.c + 1) * NODE_OUTPUT];
-                    for c in TRANSLATION {
-                        dn[c] += w * gx[c];
-                    }
-                    for c in ROTATION.chain(SCALE) {
-                        *hs += f64::from(g[c]) * f64::from(node[c]);
-                        dn[c] += w * f64::from(g[c]);
-                    }
+                    *hs = add_blend_terms(dn, g, w, target(s, pc), node);
                     if pc.rot.is_some() {
                         let outer = &mut sums.outer[s.c * 9..(s.c + 1) * 9];
                         for r in 0..3 {

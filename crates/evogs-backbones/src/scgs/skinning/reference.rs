@@ -5,8 +5,9 @@
 //! is not used in training.
 
 use super::{
-    Controls, LOCAL, NODE_OUTPUT, ROTATION, ROW, SCALE, Share, SkinGrads, Sums, TRANSLATION,
-    WEIGHT_EPS, dot, local_quaternion, rotate, rotate_back, rotate_grad_q, sub, wide,
+    Controls, LOCAL, NODE_OUTPUT, ROW, Share, SkinGrads, Sums, TRANSLATION, WEIGHT_EPS,
+    add_blend_terms, blend, dot, finish_row, local_quaternion, rotate, rotate_back, rotate_grad_q,
+    sub, wide,
 };
 use crate::scgs::knn::Neighbours;
 
@@ -72,23 +73,9 @@ pub fn skin_into(
         for s in &sh {
             let w = s.raw / total;
             let node = &nodes[s.c * NODE_OUTPUT..(s.c + 1) * NODE_OUTPUT];
-            let y = target(s, controls, node);
-            for j in 0..3 {
-                acc[j] += w * y[j];
-            }
-            for (a, &q) in acc[3..7].iter_mut().zip(&node[ROTATION]) {
-                *a += w * f64::from(q);
-            }
-            for (a, &d) in acc[7..10].iter_mut().zip(&node[SCALE]) {
-                *a += w * f64::from(d);
-            }
+            blend(&mut acc, w, target(s, controls, node), node);
         }
-        for j in 0..3 {
-            acc[j] -= x[j];
-        }
-        for (o, a) in row.iter_mut().zip(acc) {
-            *o = a as f32;
-        }
+        finish_row(acc, x, row);
     }
 }
 
@@ -120,16 +107,8 @@ pub fn skin_backward(
         for (s, hs) in sh.iter().zip(&mut h) {
             let w = s.raw / total;
             let node = &nodes[s.c * NODE_OUTPUT..(s.c + 1) * NODE_OUTPUT];
-            let y = target(s, controls, node);
-            *hs = dot(gx, y);
             let dn = &mut sums.nodes[s.c * NODE_OUTPUT..(s.c + 1) * NODE_OUTPUT];
-            for c in TRANSLATION {
-                dn[c] += w * gx[c];
-            }
-            for c in ROTATION.chain(SCALE) {
-                *hs += f64::from(g[c]) * f64::from(node[c]);
-                dn[c] += w * f64::from(g[c]);
-            }
+            *hs = add_blend_terms(dn, g, w, target(s, controls, node), node);
             // Through R_c (x − p_c) + p_c: to the local quaternion and the position.
             let gy = gx.map(|v| w * v);
             let back = match local_quaternion(node) {
