@@ -47,6 +47,33 @@ pub fn dispatch(
     ctx.traffic.dispatches(1);
 }
 
+/// Records one dispatch of `pipeline` with `bind_group` on a three-dimensional grid of
+/// `groups` workgroups (each at most the device's per-dimension limit; see [`tile_grid`]).
+pub fn dispatch_xyz(
+    ctx: &GpuContext,
+    encoder: &mut wgpu::CommandEncoder,
+    pipeline: &wgpu::ComputePipeline,
+    bind_group: &wgpu::BindGroup,
+    groups: [u32; 3],
+) {
+    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: None,
+        timestamp_writes: None,
+    });
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, bind_group, &[]);
+    pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
+    ctx.traffic.dispatches(1);
+}
+
+/// The grid of a tiled kernel: `columns` workgroups in x and `rows` workgroups folded over y and
+/// z, y at most `max_per_dim` (kernels recover the row block as `id.y + id.z * grid.y` and skip
+/// the ones past `rows`). At least one workgroup in each dimension.
+pub fn tile_grid(columns: u32, rows: u32, max_per_dim: u32) -> [u32; 3] {
+    let y = rows.clamp(1, max_per_dim.max(1));
+    [columns.max(1), y, rows.div_ceil(y).max(1)]
+}
+
 /// A bind group for group 0 of `pipeline` from `(binding, buffer)` pairs.
 pub fn bind(
     ctx: &GpuContext,
@@ -70,7 +97,30 @@ pub fn bind(
 
 #[cfg(test)]
 mod tests {
-    use super::groups_1d;
+    use super::{groups_1d, tile_grid};
+
+    #[test]
+    fn tile_grids_cover_every_row_block_within_the_limit() {
+        for (rows, max) in [
+            (0, 65535),
+            (1, 65535),
+            (6_250, 65535),
+            (70_000, 65535),
+            (10, 3),
+        ] {
+            let [x, y, z] = tile_grid(4, rows, max);
+            assert_eq!(x, 4);
+            assert!(y <= max && y >= 1 && z >= 1, "{rows} {max}: {y}x{z}");
+            assert!(
+                u64::from(y) * u64::from(z) >= u64::from(rows),
+                "{rows} {max}"
+            );
+            assert!(
+                u64::from(y) * u64::from(z - 1) < u64::from(rows.max(1)),
+                "{rows} {max}"
+            );
+        }
+    }
 
     #[test]
     fn one_dimensional_grids_cover_every_item_within_the_limit() {

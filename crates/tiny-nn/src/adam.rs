@@ -106,13 +106,13 @@ pub struct AdamGroup {
 
 impl AdamGroup {
     /// Counts one more update and returns its constants at `iteration`.
-    fn advance(&mut self, b1: f32, b2: f32, eps: f32, iteration: i64) -> UpdateConsts {
+    fn advance(&mut self, b1: f32, b2: f32, eps: f32, iteration: i64) -> AdamUpdate {
         self.step += 1;
         let lr = self.schedule.at(iteration);
         let t = self.step.min(i32::MAX as u64) as i32;
         let bc1 = 1.0 - (b1 as f64).powi(t);
         let bc2 = 1.0 - (b2 as f64).powi(t);
-        UpdateConsts {
+        AdamUpdate {
             b1,
             b2,
             eps,
@@ -200,6 +200,15 @@ impl Adam {
     /// Panics when `id` does not come from this optimiser's [`Adam::add_group`].
     pub fn group_mut(&mut self, id: GroupId) -> &mut AdamGroup {
         &mut self.groups[id.0]
+    }
+
+    /// Counts one more update of group `id` and returns its constants at `iteration`, without
+    /// touching parameters or moments: for a step applied elsewhere (on the GPU, where the
+    /// moments live in device buffers and this optimiser keeps the schedule and the step count).
+    /// [`Adam::step`] is this plus the element-wise update on the host.
+    pub fn next_update(&mut self, id: GroupId, iteration: i64) -> Result<AdamUpdate, NnError> {
+        let (b1, b2, eps) = (self.beta1, self.beta2, self.eps);
+        Ok(self.checked_group(id)?.advance(b1, b2, eps, iteration))
     }
 
     /// The learning rate group `id` would use at `iteration`.
@@ -377,22 +386,28 @@ impl Adam {
     }
 }
 
-/// The constants of one Adam update of a group.
-#[derive(Clone, Copy)]
-struct UpdateConsts {
-    b1: f32,
-    b2: f32,
-    eps: f32,
-    /// The rate over the first moment's bias correction.
-    step_size: f32,
-    /// The square root of the second moment's bias correction.
-    bc2_sqrt: f32,
+/// The constants of one Adam update of a group, made by [`Adam::next_update`] (which counts
+/// the update): what a kernel outside this crate (the GPU step of [`crate::gpu`]) needs to apply
+/// the same update as [`Adam::step`], per element
+/// `m ← b1 m + (1 − b1) g`, `v ← b2 v + (1 − b2) g²`, `θ ← θ − step_size · m / (√v / bc2_sqrt + eps)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AdamUpdate {
+    /// β1.
+    pub b1: f32,
+    /// β2.
+    pub b2: f32,
+    /// ε.
+    pub eps: f32,
+    /// The rate over the first moment's bias correction, `lr / (1 − β1^t)`.
+    pub step_size: f32,
+    /// The square root of the second moment's bias correction, `√(1 − β2^t)`.
+    pub bc2_sqrt: f32,
 }
 
-impl UpdateConsts {
+impl AdamUpdate {
     /// Updates the moments `m` and `v` with the gradient `gr`; returns the step to subtract.
     #[inline(always)]
-    fn update(self, m: &mut f32, v: &mut f32, gr: f32) -> f32 {
+    pub fn update(self, m: &mut f32, v: &mut f32, gr: f32) -> f32 {
         *m = self.b1 * *m + (1.0 - self.b1) * gr;
         *v = self.b2 * *v + (1.0 - self.b2) * gr * gr;
         self.step_size * *m / (v.sqrt() / self.bc2_sqrt + self.eps)
@@ -407,7 +422,7 @@ struct UpdateF32<'a> {
     m: &'a mut [f32],
     v: &'a mut [f32],
     grads: &'a [f32],
-    k: UpdateConsts,
+    k: AdamUpdate,
 }
 
 impl Kernel for UpdateF32<'_> {
@@ -430,7 +445,7 @@ struct UpdateColumnsF32<'a> {
     grads: &'a [f32],
     stride: usize,
     cols: std::ops::Range<usize>,
-    k: UpdateConsts,
+    k: AdamUpdate,
 }
 
 impl Kernel for UpdateColumnsF32<'_> {
@@ -453,7 +468,7 @@ impl Kernel for UpdateColumnsF32<'_> {
 
 #[cfg(test)]
 mod tests {
-    use super::{Adam, LrSchedule, UpdateConsts, UpdateF32};
+    use super::{Adam, AdamUpdate, LrSchedule, UpdateF32};
     use crate::precision::StoreMut;
     use crate::simd::{Kernel, vectorised};
 
@@ -468,7 +483,7 @@ mod tests {
             (0..n).map(|i| value(i, 0.23) * 1e-2).collect::<Vec<f32>>(),
             (0..n).map(|i| value(i, 0.05).abs()).collect::<Vec<f32>>(),
         );
-        let k = UpdateConsts {
+        let k = AdamUpdate {
             b1: 0.9,
             b2: 0.999,
             eps: 1e-15,

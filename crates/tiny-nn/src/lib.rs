@@ -11,7 +11,8 @@
 //! ±65504 instead of overflowing and counts saturations.
 //!
 //! What it is not: an autodiff framework (each module has a hand-written backward), a GPU
-//! backend, or a trainer. Losses, schedules of training and data live in other crates.
+//! backend for every module (with the cargo feature `wgpu`, [`gpu`] runs the MLP and Adam on
+//! the device; the encoders stay on the CPU), or a trainer. Losses, schedules of training and data live in other crates.
 //!
 //! # Modules
 //!
@@ -34,6 +35,8 @@
 //!   regulariser).
 //! - [`adam`]: [`Adam`] with groups, [`LrSchedule`] (constant or 3DGS exponential), per-row moment
 //!   reset and remapping; moments are public `Vec<f32>`.
+//! - `gpu` (cargo feature `wgpu`): `GpuMlp` and `GpuAdam`, the MLP's forward and backward and
+//!   Adam's step on device buffers, beside their CPU twins.
 //! - [`weights`]: [`weights::save`] / [`weights::load`] of any [`Parameters`] as safetensors.
 //! - [`precision`], [`linalg`], [`activation`], [`error`]: storage, gemm wrappers, activations,
 //!   [`NnError`].
@@ -90,6 +93,8 @@ pub mod activation;
 pub mod adam;
 pub mod encoding;
 pub mod error;
+#[cfg(feature = "wgpu")]
+pub mod gpu;
 pub mod grid4d;
 pub mod hexfield;
 pub mod linalg;
@@ -101,7 +106,7 @@ mod simd;
 pub mod weights;
 
 pub use activation::Activation;
-pub use adam::{Adam, AdamGroup, ExponentialLr, GroupId, LrSchedule};
+pub use adam::{Adam, AdamGroup, AdamUpdate, ExponentialLr, GroupId, LrSchedule};
 pub use encoding::bspline::{BSplineCache, BSplineConfig, BSplineGrads, BSplineTime};
 pub use encoding::hashgrid::{
     HashGrid, HashGridCache, HashGridConfig, HashGridGrads, HashLevel, Interpolation, Outside,

@@ -538,6 +538,11 @@ impl DeformNet {
         self.mlp.macs_per_row()
     }
 
+    /// The encodings of position and time, in the order their outputs enter the MLP.
+    pub fn encodings(&self) -> (Sinusoidal, Sinusoidal) {
+        (self.xyz, self.t)
+    }
+
     /// Evaluates at `rows` positions (rows × 3) and times (rows).
     pub fn forward(
         &self,

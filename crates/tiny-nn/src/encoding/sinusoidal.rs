@@ -37,6 +37,11 @@ impl Sinusoidal {
         self.input
     }
 
+    /// Number of frequencies.
+    pub fn freqs(&self) -> usize {
+        self.freqs
+    }
+
     /// Output width `input · (1 + 2 · freqs)`.
     pub fn output_width(&self) -> usize {
         self.input * (1 + 2 * self.freqs)

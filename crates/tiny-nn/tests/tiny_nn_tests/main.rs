@@ -6,6 +6,12 @@
 mod adam;
 mod common;
 mod encoders;
+#[cfg(feature = "wgpu")]
+mod gpu_adam;
+#[cfg(feature = "wgpu")]
+mod gpu_deform;
+#[cfg(feature = "wgpu")]
+mod gpu_mlp;
 mod grid4d;
 mod hashgrid;
 mod hexfield;

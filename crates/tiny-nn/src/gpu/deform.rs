@@ -1,0 +1,305 @@
+//! D-3DGS's deformation network on the device: [`GpuDeformNet`], the twin of [`DeformNet`]'s
+//! forward and backward (the sinusoidal encoding of position and time in `deform.wgsl`, then
+//! [`GpuMlp`](super::GpuMlp)), with the gradient to the positions.
+//!
+//! [`DeformWorkspace`] holds one row count's buffers: the encoded rows (rows × 76 for D-3DGS),
+//! the MLP's workspace and the positions' gradient. [`GpuDeformNet::encode_forward`] and
+//! [`GpuDeformNet::encode_backward`] record on device buffers; [`GpuDeformNet::forward_backward`]
+//! uploads, runs both and reads back, for tests and callers not resident yet.
+//!
+//! Precision: the encoding's sines and cosines take arguments reduced to [−π, π] first (WGSL
+//! bounds their accuracy there only); positions up to ±800 reduce exactly (`deform.wgsl`
+//! says how). The tests measure the rest against the CPU.
+
+use gpu_core::buffers::{read_back, storage, storage_init, uniform};
+use gpu_core::encode::{bind, dispatch, groups_1d};
+use gpu_core::{GpuContext, GpuError, wgsl_mirror};
+
+use super::mlp::{DeviceMlp, GpuMlp, MlpWorkspace};
+use crate::nets::{DeformGrads, DeformNet};
+
+pub(crate) const DEFORM_WGSL: &str = include_str!("deform.wgsl");
+
+wgsl_mirror! {
+    /// Mirror of `Params` in `deform.wgsl` (a test checks names, types, offsets and size).
+    #[repr(C)]
+    #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+    pub(crate) struct EncodeParams {
+        pub rows: u32,
+        pub xyz_freqs: u32,
+        pub t_freqs: u32,
+        pub width: u32,
+        pub row_stride: u32,
+        pub pad0: u32,
+        pub pad1: u32,
+        pub pad2: u32,
+    }
+}
+
+/// A [`DeformNet`] on the device: its encodings' frequencies and its MLP.
+#[derive(Debug)]
+pub struct DeviceDeformNet {
+    xyz_freqs: u32,
+    t_freqs: u32,
+    /// The MLP, parameters on the device.
+    pub mlp: DeviceMlp,
+}
+
+impl DeviceDeformNet {
+    /// Uploads `net` (its MLP stored in f32).
+    pub fn upload(ctx: &GpuContext, net: &DeformNet) -> Result<Self, GpuError> {
+        let (xyz, t) = net.encodings();
+        if xyz.input_width() != 3 || t.input_width() != 1 {
+            return Err(GpuError::new(
+                "buffers",
+                "the GPU deformation network encodes xyz and t only",
+            ));
+        }
+        Ok(Self {
+            xyz_freqs: xyz.freqs() as u32,
+            t_freqs: t.freqs() as u32,
+            mlp: DeviceMlp::upload(ctx, &net.mlp)?,
+        })
+    }
+
+    /// Width of an encoded row, `3 (1 + 2 L_xyz) + 1 + 2 L_t`.
+    pub fn encoded_width(&self) -> u32 {
+        3 * (1 + 2 * self.xyz_freqs) + 1 + 2 * self.t_freqs
+    }
+}
+
+/// The device buffers of one row count of a [`DeviceDeformNet`].
+#[derive(Debug)]
+pub struct DeformWorkspace {
+    rows: u32,
+    want_positions: bool,
+    encoded: wgpu::Buffer,
+    /// The MLP's buffers; its last activation is the network's output (rows × outputs).
+    pub mlp: MlpWorkspace,
+    /// `∂L/∂positions` (rows × 3), written by a backward that asks for it.
+    pub d_positions: wgpu::Buffer,
+    params: wgpu::Buffer,
+    encode_groups: (u32, u32),
+    grad_params: wgpu::Buffer,
+    grad_groups: (u32, u32),
+}
+
+impl DeformWorkspace {
+    /// Buffers for `rows` rows of `net`, for backward passes that make the positions' gradient
+    /// when `want_positions`.
+    pub fn new(
+        ctx: &GpuContext,
+        net: &DeviceDeformNet,
+        rows: usize,
+        want_positions: bool,
+    ) -> Result<Self, GpuError> {
+        let too_large = || GpuError::new("buffers", format!("{rows} rows: too many values"));
+        let rows32 = u32::try_from(rows).map_err(|_| too_large())?;
+        let width = net.encoded_width();
+        let values = rows32.checked_mul(width).ok_or_else(too_large)?;
+        let coords = rows32.checked_mul(3).ok_or_else(too_large)?;
+        let max_dim = ctx.device.limits().max_compute_workgroups_per_dimension;
+        let (encode_groups, grad_groups) = (groups_1d(values, max_dim), groups_1d(coords, max_dim));
+        let params = |groups: (u32, u32)| EncodeParams {
+            rows: rows32,
+            xyz_freqs: net.xyz_freqs,
+            t_freqs: net.t_freqs,
+            width,
+            row_stride: 256 * groups.0,
+            ..EncodeParams::default()
+        };
+        Ok(Self {
+            rows: rows32,
+            want_positions,
+            encoded: storage(ctx, "deform encoded", 4 * u64::from(values))?,
+            mlp: MlpWorkspace::new(ctx, &net.mlp, rows, want_positions)?,
+            d_positions: storage(ctx, "deform position gradient", 4 * u64::from(coords))?,
+            params: uniform(
+                ctx,
+                "deform encode",
+                bytemuck::bytes_of(&params(encode_groups)),
+            ),
+            encode_groups,
+            grad_params: uniform(
+                ctx,
+                "deform position gradient",
+                bytemuck::bytes_of(&params(grad_groups)),
+            ),
+            grad_groups,
+        })
+    }
+
+    /// The row count these buffers are for.
+    pub fn rows(&self) -> usize {
+        self.rows as usize
+    }
+}
+
+/// The encoding's kernels and the MLP's, compiled once per device.
+#[derive(Debug)]
+pub struct GpuDeformNet {
+    encode: wgpu::ComputePipeline,
+    position_grad: wgpu::ComputePipeline,
+    /// The MLP's kernels.
+    pub mlp: GpuMlp,
+}
+
+impl GpuDeformNet {
+    /// Compiles the kernels on `ctx`'s device.
+    pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
+        let device = &ctx.device;
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("deform encoding"),
+            source: wgpu::ShaderSource::Wgsl(DEFORM_WGSL.into()),
+        });
+        let pipeline = |entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: None,
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let (encode, position_grad) = (pipeline("encode"), pipeline("position_grad"));
+        if let Some(err) = pollster::block_on(scope.pop()) {
+            return Err(GpuError::new("pipelines", err.to_string()));
+        }
+        Ok(Self {
+            encode,
+            position_grad,
+            mlp: GpuMlp::new(ctx)?,
+        })
+    }
+
+    /// Records the forward pass at `positions` (rows × 3) and `times` (rows), on the device:
+    /// the output is `ws.mlp.acts`'s last buffer (rows × outputs).
+    pub fn encode_forward(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        net: &DeviceDeformNet,
+        ws: &DeformWorkspace,
+        positions: &wgpu::Buffer,
+        times: &wgpu::Buffer,
+    ) {
+        let group = bind(
+            ctx,
+            &self.encode,
+            &[
+                (0, &ws.params),
+                (1, positions),
+                (2, times),
+                (3, &ws.encoded),
+            ],
+        );
+        dispatch(ctx, encoder, &self.encode, &group, ws.encode_groups);
+        self.mlp
+            .encode_forward(ctx, encoder, &net.mlp, &ws.mlp, &ws.encoded);
+    }
+
+    /// Records the backward pass after [`encode_forward`](Self::encode_forward) at the same
+    /// `positions`: `d_out` (rows × outputs) is `∂L/∂output`; writes the MLP's parameter
+    /// gradient (`ws.mlp.d_params`) and, when the workspace was made for it, `ws.d_positions`.
+    pub fn encode_backward(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        net: &DeviceDeformNet,
+        ws: &DeformWorkspace,
+        positions: &wgpu::Buffer,
+        d_out: &wgpu::Buffer,
+    ) {
+        self.mlp
+            .encode_backward(ctx, encoder, &net.mlp, &ws.mlp, &ws.encoded, d_out);
+        if !ws.want_positions {
+            return;
+        }
+        let group = bind(
+            ctx,
+            &self.position_grad,
+            &[
+                (0, &ws.grad_params),
+                (1, positions),
+                (4, &ws.mlp.d_input),
+                (5, &ws.d_positions),
+            ],
+        );
+        dispatch(ctx, encoder, &self.position_grad, &group, ws.grad_groups);
+    }
+
+    /// Forward and backward of `net` over `rows` rows on the device, as [`DeformNet::forward`]
+    /// and [`DeformNet::backward`] give them: uploads, runs, reads back.
+    #[allow(clippy::too_many_arguments)]
+    pub fn forward_backward(
+        &self,
+        ctx: &GpuContext,
+        net: &DeformNet,
+        positions: &[f32],
+        times: &[f32],
+        rows: usize,
+        d_out: &[f32],
+        want_positions: bool,
+    ) -> Result<(Vec<f32>, DeformGrads), GpuError> {
+        let outputs = net.mlp.output_width();
+        if Some(positions.len()) != rows.checked_mul(3)
+            || times.len() != rows
+            || Some(d_out.len()) != rows.checked_mul(outputs)
+        {
+            return Err(GpuError::new(
+                "buffers",
+                format!(
+                    "deformation network over {rows} rows: {} position values, {} times and {} \
+                     output gradients given",
+                    positions.len(),
+                    times.len(),
+                    d_out.len()
+                ),
+            ));
+        }
+        let device_net = DeviceDeformNet::upload(ctx, net)?;
+        let ws = DeformWorkspace::new(ctx, &device_net, rows, want_positions)?;
+        let p = storage_init(ctx, "positions", bytemuck::cast_slice(positions))?;
+        let t = storage_init(ctx, "times", bytemuck::cast_slice(times))?;
+        let dy = storage_init(ctx, "deform output gradient", bytemuck::cast_slice(d_out))?;
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        self.encode_forward(ctx, &mut encoder, &device_net, &ws, &p, &t);
+        self.encode_backward(ctx, &mut encoder, &device_net, &ws, &p, &dy);
+        let bytes = |n: usize| 4 * n as u64;
+        let out = ws.mlp.acts.last().unwrap_or(&ws.d_positions);
+        let mut regions = vec![
+            (out, 0, bytes(rows * outputs)),
+            (&ws.mlp.d_params, 0, bytes(device_net.mlp.param_count())),
+        ];
+        if want_positions {
+            regions.push((&ws.d_positions, 0, bytes(rows * 3)));
+        }
+        let back = read_back(ctx, encoder, &regions)?;
+        let f32s = |b: &[u8]| bytemuck::pod_collect_to_vec::<u8, f32>(b);
+        Ok((
+            f32s(&back[0]),
+            DeformGrads {
+                mlp: f32s(&back[1]),
+                positions: want_positions.then(|| f32s(&back[2])),
+            },
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gpu_core::wgsl_text::check_mirror;
+
+    #[test]
+    fn the_uniform_matches_its_wgsl_struct() {
+        check_mirror(
+            EncodeParams::FIELDS,
+            size_of::<EncodeParams>(),
+            DEFORM_WGSL,
+            "Params",
+        );
+    }
+}
