@@ -90,6 +90,37 @@ pub fn uniform(ctx: &GpuContext, label: &'static str, data: &[u8]) -> wgpu::Buff
         })
 }
 
+/// Writes `data` into `buffer` at byte `offset` (through the queue: the write lands before the
+/// next submitted work), counted as an upload. `data`'s length and `offset` are multiples of 4
+/// and fit the buffer, or the write is a [`GpuError`] at stage `buffers`.
+pub fn write(
+    ctx: &GpuContext,
+    buffer: &wgpu::Buffer,
+    offset: u64,
+    data: &[u8],
+) -> Result<(), GpuError> {
+    let len = data.len() as u64;
+    if !offset.is_multiple_of(4)
+        || !len.is_multiple_of(4)
+        || offset
+            .checked_add(len)
+            .is_none_or(|end| end > buffer.size())
+    {
+        return Err(GpuError {
+            stage: "buffers",
+            message: format!(
+                "a write of {len} bytes at {offset} into a buffer of {} bytes",
+                buffer.size()
+            ),
+        });
+    }
+    if len > 0 {
+        ctx.traffic.upload(len);
+        ctx.queue.write_buffer(buffer, offset, data);
+    }
+    Ok(())
+}
+
 /// Copies `(buffer, byte offset, byte count)` regions to the host after the work already
 /// recorded in `encoder`, submits, and blocks until they are read.
 pub fn read_back(
@@ -185,4 +216,28 @@ pub fn words(buffer: &wgpu::Buffer, words: u32) -> wgpu::BindingResource<'_> {
         offset: 0,
         size: NonZeroU64::new(4 * u64::from(words.max(1))),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn writes_land_where_asked_and_stray_ones_are_errors() {
+        let ctx = GpuContext::new().expect("an adapter (CI installs lavapipe)");
+        let buffer = storage(&ctx, "write test", 64).unwrap();
+        for (offset, len) in [(2, 4), (0, 3), (64, 4), (61, 4), (u64::MAX - 3, 4)] {
+            let err = write(&ctx, &buffer, offset, &vec![0; len]).unwrap_err();
+            assert_eq!(err.stage, "buffers", "{offset} {len}");
+        }
+        let data = [1.5f32, -2.25];
+        write(&ctx, &buffer, 8, bytemuck::cast_slice(&data)).unwrap();
+        write(&ctx, &buffer, 60, &[]).unwrap();
+        let encoder = ctx.device.create_command_encoder(&Default::default());
+        let back = read_back(&ctx, encoder, &[(&buffer, 4, 12)]).unwrap();
+        let got: Vec<f32> = bytemuck::pod_collect_to_vec(&back[0]);
+        assert_eq!(got, [0.0, 1.5, -2.25]);
+        // Only the write that landed counts as an upload.
+        assert_eq!(ctx.traffic().bytes_up, 8);
+    }
 }

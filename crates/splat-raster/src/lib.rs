@@ -118,4 +118,12 @@ pub trait Rasterizer {
     fn traffic(&self) -> Option<Traffic> {
         None
     }
+
+    /// The device this backend renders on, for other work to share it (the trainer puts the
+    /// deformation network there), or `None` for a backend without one (the CPU one, the
+    /// default).
+    #[cfg(feature = "wgpu")]
+    fn device(&self) -> Option<std::sync::Arc<GpuContext>> {
+        None
+    }
 }

@@ -36,6 +36,10 @@ pub enum NnError {
         /// What is wrong.
         msg: String,
     },
+    /// The device refused or failed a network's work (cargo feature `wgpu`).
+    #[cfg(feature = "wgpu")]
+    #[error("gpu: {0}")]
+    Gpu(#[from] gpu_core::GpuError),
 }
 
 /// Checks `got == expected` for the argument `what`.

@@ -543,6 +543,30 @@ impl DeformNet {
         (self.xyz, self.t)
     }
 
+    /// Checks a forward pass's inputs: `rows` positions (rows × 3) and times (rows), every
+    /// value finite (the first that is not is named by its row). The CPU and the GPU forward
+    /// both start here.
+    pub(crate) fn check_inputs(
+        positions: &[f32],
+        times: &[f32],
+        rows: usize,
+    ) -> Result<(), NnError> {
+        check_len("deformation positions", rows * 3, positions.len())?;
+        check_len("deformation times", rows, times.len())?;
+        if let Some(i) = positions.iter().position(|v| !v.is_finite()) {
+            return Err(NnError::Config(format!(
+                "deformation positions: row {} has a non-finite coordinate",
+                i / 3
+            )));
+        }
+        if let Some(i) = times.iter().position(|v| !v.is_finite()) {
+            return Err(NnError::Config(format!(
+                "deformation times: row {i} is not finite"
+            )));
+        }
+        Ok(())
+    }
+
     /// Evaluates at `rows` positions (rows × 3) and times (rows).
     pub fn forward(
         &self,
@@ -563,19 +587,7 @@ impl DeformNet {
         rows: usize,
         cache: &mut DeformCache,
     ) -> Result<Vec<f32>, NnError> {
-        check_len("deformation positions", rows * 3, positions.len())?;
-        check_len("deformation times", rows, times.len())?;
-        if let Some(i) = positions.iter().position(|v| !v.is_finite()) {
-            return Err(NnError::Config(format!(
-                "deformation positions: row {} has a non-finite coordinate",
-                i / 3
-            )));
-        }
-        if let Some(i) = times.iter().position(|v| !v.is_finite()) {
-            return Err(NnError::Config(format!(
-                "deformation times: row {i} is not finite"
-            )));
-        }
+        Self::check_inputs(positions, times, rows)?;
         let (wx, wt) = (self.xyz.output_width(), self.t.output_width());
         let out = self.mlp.forward_into(
             rows,

@@ -202,4 +202,8 @@ impl Rasterizer for WgpuRasterizer {
     fn traffic(&self) -> Option<crate::Traffic> {
         Some(self.ctx.traffic())
     }
+
+    fn device(&self) -> Option<Arc<GpuContext>> {
+        Some(Arc::clone(&self.ctx))
+    }
 }

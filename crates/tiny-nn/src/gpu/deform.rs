@@ -11,11 +11,14 @@
 //! bounds their accuracy there only); positions up to ±800 reduce exactly (`deform.wgsl`
 //! says how). The tests measure the rest against the CPU.
 
-use gpu_core::buffers::{read_back, storage, storage_init, uniform};
+use std::sync::Arc;
+
+use gpu_core::buffers::{read_back, storage, storage_init, uniform, write};
 use gpu_core::encode::{bind, dispatch, groups_1d};
 use gpu_core::{GpuContext, GpuError, wgsl_mirror};
 
 use super::mlp::{DeviceMlp, GpuMlp, MlpWorkspace};
+use crate::error::{NnError, check_len};
 use crate::nets::{DeformGrads, DeformNet};
 
 pub(crate) const DEFORM_WGSL: &str = include_str!("deform.wgsl");
@@ -285,6 +288,160 @@ impl GpuDeformNet {
                 positions: want_positions.then(|| f32s(&back[2])),
             },
         ))
+    }
+}
+
+/// The device buffers of one row count, with the inputs a [`DeformRunner`] writes.
+#[derive(Debug)]
+struct RunnerRows {
+    ws: DeformWorkspace,
+    positions: wgpu::Buffer,
+    times: wgpu::Buffer,
+    d_out: wgpu::Buffer,
+}
+
+/// A [`DeformNet`]'s forward and backward on the device for a caller whose inputs and outputs
+/// live on the host (the trainer's D-3DGS backbone): the twin of [`DeformNet::forward_into`]
+/// and [`DeformNet::backward`] without the positions' gradient, with the same input checks and
+/// errors.
+///
+/// The device keeps the network's shape, the workspace of the last row count (made again when
+/// the count changes, e.g. after densification) and, after a training forward, the activations
+/// the backward needs. Each forward writes the network's current parameters (the host's
+/// optimiser changed them) and the positions and times, and reads the rows back; each backward
+/// writes `∂L/∂output` and reads the parameters' gradient back. What that moves per call is
+/// counted on the context ([`GpuContext::traffic`]): the step towards the resident iteration,
+/// not the step itself.
+#[derive(Debug)]
+pub struct DeformRunner {
+    ctx: Arc<GpuContext>,
+    kernels: GpuDeformNet,
+    net: Option<DeviceDeformNet>,
+    rows: Option<RunnerRows>,
+    /// Rows of the last forward when it was a training one (its activations are on the device).
+    trained: Option<usize>,
+}
+
+impl DeformRunner {
+    /// Compiles the kernels on `ctx`'s device.
+    pub fn new(ctx: Arc<GpuContext>) -> Result<Self, NnError> {
+        let kernels = GpuDeformNet::new(&ctx)?;
+        Ok(Self {
+            ctx,
+            kernels,
+            net: None,
+            rows: None,
+            trained: None,
+        })
+    }
+
+    /// The device context it runs on.
+    pub fn context(&self) -> &Arc<GpuContext> {
+        &self.ctx
+    }
+
+    /// [`DeformNet::forward_into`] of `net` on the device: `rows` positions (rows × 3) and
+    /// times (rows) to the output rows (rows × outputs) in `out`, whatever it held. `training`
+    /// keeps the activations for [`DeformRunner::backward`]; any other forward drops them.
+    pub fn forward_into(
+        &mut self,
+        net: &DeformNet,
+        positions: &[f32],
+        times: &[f32],
+        rows: usize,
+        training: bool,
+        out: &mut Vec<f32>,
+    ) -> Result<(), NnError> {
+        self.trained = None;
+        DeformNet::check_inputs(positions, times, rows)?;
+        let ctx = Arc::clone(&self.ctx);
+        let (xyz, t) = net.encodings();
+        let fits = self.net.as_ref().is_some_and(|d| {
+            d.mlp.same_shape(&net.mlp)
+                && d.xyz_freqs as usize == xyz.freqs()
+                && d.t_freqs as usize == t.freqs()
+        });
+        if fits {
+            if let Some(device_net) = &self.net {
+                device_net.mlp.write_params(&ctx, &net.mlp)?;
+            }
+        } else {
+            self.rows = None;
+            self.net = Some(DeviceDeformNet::upload(&ctx, net)?);
+        }
+        let Some(device_net) = &self.net else {
+            unreachable!("the network was uploaded above");
+        };
+        out.clear();
+        if rows == 0 {
+            self.trained = training.then_some(0);
+            return Ok(());
+        }
+        if self.rows.as_ref().is_none_or(|r| r.ws.rows() != rows) {
+            self.rows = None;
+            let outputs = device_net.mlp.output_width();
+            let bytes = |n: usize| 4 * n as u64;
+            self.rows = Some(RunnerRows {
+                ws: DeformWorkspace::new(&ctx, device_net, rows, false)?,
+                positions: storage(&ctx, "runner positions", bytes(rows * 3))?,
+                times: storage(&ctx, "runner times", bytes(rows))?,
+                d_out: storage(&ctx, "runner output gradient", bytes(rows * outputs))?,
+            });
+        }
+        let Some(buffers) = &self.rows else {
+            unreachable!("the workspace was made above");
+        };
+        write(&ctx, &buffers.positions, 0, bytemuck::cast_slice(positions))?;
+        write(&ctx, &buffers.times, 0, bytemuck::cast_slice(times))?;
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        self.kernels.encode_forward(
+            &ctx,
+            &mut encoder,
+            device_net,
+            &buffers.ws,
+            &buffers.positions,
+            &buffers.times,
+        );
+        let output = buffers.ws.mlp.acts.last().unwrap_or(&buffers.d_out);
+        let bytes = 4 * (rows * device_net.mlp.output_width()) as u64;
+        let back = read_back(&ctx, encoder, &[(output, 0, bytes)])?;
+        out.extend_from_slice(bytemuck::cast_slice::<u8, f32>(&back[0]));
+        self.trained = training.then_some(rows);
+        Ok(())
+    }
+
+    /// [`DeformNet::backward`] (without the positions' gradient) after a training
+    /// [`DeformRunner::forward_into`]: `d_out` (rows × outputs) is `∂L/∂output`; returns the
+    /// MLP's parameter gradient in [`Mlp::params`](crate::Mlp::params)'s layout.
+    pub fn backward(&mut self, d_out: &[f32]) -> Result<Vec<f32>, NnError> {
+        let (Some(rows), Some(device_net)) = (self.trained, &self.net) else {
+            return Err(NnError::Config(
+                "deformation backward without a training forward".to_string(),
+            ));
+        };
+        let outputs = device_net.mlp.output_width();
+        check_len("deformation output gradient", rows * outputs, d_out.len())?;
+        let params = device_net.mlp.param_count();
+        let Some(buffers) = self.rows.as_ref().filter(|_| rows > 0) else {
+            return Ok(vec![0.0; params]);
+        };
+        let ctx = &self.ctx;
+        write(ctx, &buffers.d_out, 0, bytemuck::cast_slice(d_out))?;
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        self.kernels.encode_backward(
+            ctx,
+            &mut encoder,
+            device_net,
+            &buffers.ws,
+            &buffers.positions,
+            &buffers.d_out,
+        );
+        let back = read_back(
+            ctx,
+            encoder,
+            &[(&buffers.ws.mlp.d_params, 0, 4 * params as u64)],
+        )?;
+        Ok(bytemuck::pod_collect_to_vec(&back[0]))
     }
 }
 

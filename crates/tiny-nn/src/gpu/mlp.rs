@@ -19,7 +19,7 @@
 //! What it is not: f16 storage (a network stored in f16 is refused), or the CPU's reference
 //! (that is [`Mlp`]).
 
-use gpu_core::buffers::{read_back, storage, storage_init, uniform};
+use gpu_core::buffers::{read_back, storage, storage_init, uniform, write};
 use gpu_core::encode::{bind, dispatch, dispatch_xyz, groups_1d, tile_grid};
 use gpu_core::{GpuContext, GpuError, wgsl_mirror};
 
@@ -123,6 +123,45 @@ impl DeviceMlp {
     /// Number of parameters.
     pub fn param_count(&self) -> usize {
         self.param_count
+    }
+
+    /// Width of an output row.
+    pub fn output_width(&self) -> usize {
+        self.output
+    }
+
+    /// Whether `mlp` has this network's shape (layers and activations), so that its parameters
+    /// can be written here ([`DeviceMlp::write_params`]).
+    pub fn same_shape(&self, mlp: &Mlp) -> bool {
+        let config = mlp.config();
+        let last = mlp.layers().len().saturating_sub(1);
+        self.layers == mlp.layers()
+            && self.activations.iter().enumerate().all(|(l, &a)| {
+                a == if l == last {
+                    config.output_activation
+                } else {
+                    config.hidden_activation
+                }
+            })
+    }
+
+    /// Writes `mlp`'s parameters over the device's (an upload of 4 bytes per parameter, no new
+    /// buffer): a network of another shape ([`DeviceMlp::same_shape`]) or stored in f16 is an
+    /// error.
+    pub fn write_params(&self, ctx: &GpuContext, mlp: &Mlp) -> Result<(), GpuError> {
+        let StoreRef::F32(values) = mlp.params() else {
+            return Err(GpuError::new(
+                "buffers",
+                "the GPU MLP stores f32 only; this network stores f16",
+            ));
+        };
+        if !self.same_shape(mlp) {
+            return Err(GpuError::new(
+                "buffers",
+                "the network's shape differs from the one on the device",
+            ));
+        }
+        write(ctx, &self.params, 0, bytemuck::cast_slice(values))
     }
 }
 

@@ -2,7 +2,9 @@
 //! [`Mlp`](crate::Mlp)'s forward and backward ([`GpuMlp`]), of D-3DGS's
 //! [`DeformNet`](crate::DeformNet) with its sinusoidal encoding ([`GpuDeformNet`]) and of
 //! [`Adam`](crate::Adam)'s step ([`GpuAdam`]), on buffers that stay on the device, each checked against its CPU
-//! implementation by this crate's `gpu_*` tests (on lavapipe in CI).
+//! implementation by this crate's `gpu_*` tests (on lavapipe in CI). [`DeformRunner`] runs the
+//! deformation network for a caller whose inputs and outputs are on the host (the trainer's
+//! D-3DGS backbone), keeping the device's buffers between calls.
 //!
 //! Precision: f32 storage and arithmetic, as the CPU's f32 path; sums run in other orders than
 //! the CPU's gemm, so values differ by f32 rounding (the tests state how much). Every sum has a
@@ -17,5 +19,5 @@ mod deform;
 mod mlp;
 
 pub use adam::{AdamBuffers, AdamLayout, GpuAdam};
-pub use deform::{DeformWorkspace, DeviceDeformNet, GpuDeformNet};
+pub use deform::{DeformRunner, DeformWorkspace, DeviceDeformNet, GpuDeformNet};
 pub use mlp::{CHUNK_ROWS, DeviceMlp, GpuMlp, MlpKernels, MlpWorkspace};

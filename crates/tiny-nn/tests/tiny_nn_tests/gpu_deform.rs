@@ -3,7 +3,9 @@
 //! [`DeformNet::backward`]: D-3DGS's own setting and smaller ones, positions in a D-NeRF scene's
 //! range and far out (±700, where the highest frequency's argument is about 360 000 and the
 //! reduction to [−π, π] must stay exact), times over [0, 1], with and without the positions'
-//! gradient.
+//! gradient; and [`DeformRunner`], the same network for callers on the host (the trainer's
+//! D-3DGS backbone), as its parameters and row count change, with its input errors and the
+//! bytes it moves.
 //!
 //! Tolerances: outputs and the MLP's gradient within `2e-5 · (|c| + s)` of the CPU's `c`, `s`
 //! the root mean square of the compared array (the MLP's own rounding, `gpu_mlp.rs`, plus the
@@ -15,11 +17,11 @@
 //! eighth for the positions' gradient. A missing adapter fails these tests (CI pins lavapipe);
 //! it is not a skip.
 
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 use gpu_core::GpuContext;
-use tiny_nn::gpu::GpuDeformNet;
-use tiny_nn::{DeformConfig, DeformNet};
+use tiny_nn::gpu::{DeformRunner, GpuDeformNet};
+use tiny_nn::{DeformConfig, DeformNet, StoreMut};
 
 fn gpu() -> &'static (GpuContext, GpuDeformNet) {
     static GPU: OnceLock<(GpuContext, GpuDeformNet)> = OnceLock::new();
@@ -115,4 +117,128 @@ fn gpu_deformation_matches_the_cpu_on_small_networks() {
 #[test]
 fn gpu_deformation_reduces_large_arguments_exactly() {
     compare(small(5), 400, 5, 700.0, true);
+}
+
+/// A context of the test's own (the runner holds an `Arc`; the traffic counts are per context,
+/// and tests run in parallel).
+fn runner_context() -> Arc<GpuContext> {
+    Arc::new(GpuContext::new().unwrap_or_else(|e| {
+        panic!("the GPU deformation runner needs an adapter (CI installs lavapipe): {e}")
+    }))
+}
+
+/// Moves every parameter a little, as an optimiser step would.
+fn nudge(net: &mut DeformNet, step: usize) {
+    let StoreMut::F32(params) = net.mlp.params_mut() else {
+        panic!("an f32 network");
+    };
+    for (i, p) in params.iter_mut().enumerate() {
+        *p += 0.01 * (((i * 7_919 + step) % 13) as f32 - 6.0);
+    }
+}
+
+#[test]
+fn the_runner_matches_the_cpu_as_parameters_and_rows_change() {
+    let mut runner = DeformRunner::new(runner_context()).unwrap();
+    let mut net = DeformNet::new(small(7)).unwrap();
+    let mut out = Vec::new();
+    // The same rows twice (the parameters written over the device's), then fewer rows (a new
+    // workspace, as after densification), each after an optimiser-like change.
+    for (step, rows) in [(0, 300), (1, 300), (2, 41)] {
+        if step > 0 {
+            nudge(&mut net, step);
+        }
+        let seed = 10 + step as u64;
+        let positions = values(seed, rows * 3, -1.5, 1.5);
+        let times = values(seed ^ 1, rows, 0.0, 1.0);
+        let d_out = values(seed ^ 2, rows * DeformNet::OUTPUT, -1.0, 1.0);
+        runner
+            .forward_into(&net, &positions, &times, rows, true, &mut out)
+            .unwrap();
+        let g_gpu = runner.backward(&d_out).unwrap();
+        let (y_cpu, cache) = net.forward(&positions, &times, rows).unwrap();
+        let g_cpu = net.backward(&cache, &d_out, false).unwrap();
+        close(&format!("step {step} outputs"), &out, &y_cpu, 2e-5);
+        close(
+            &format!("step {step} MLP gradient"),
+            &g_gpu,
+            &g_cpu.mlp,
+            2e-5,
+        );
+    }
+    // A network of another shape is uploaded afresh.
+    let other = DeformNet::new(DeformConfig {
+        width: 16,
+        ..small(8)
+    })
+    .unwrap();
+    let positions = values(20, 30 * 3, -1.5, 1.5);
+    let times = values(21, 30, 0.0, 1.0);
+    runner
+        .forward_into(&other, &positions, &times, 30, false, &mut out)
+        .unwrap();
+    let (y_cpu, _) = other.forward(&positions, &times, 30).unwrap();
+    close("another shape's outputs", &out, &y_cpu, 2e-5);
+    // That forward was not a training one: there is nothing to go back through.
+    let d_out = vec![1.0; 30 * DeformNet::OUTPUT];
+    assert!(runner.backward(&d_out).is_err());
+    // No rows: no output and a zero gradient of the network's size.
+    runner
+        .forward_into(&other, &[], &[], 0, true, &mut out)
+        .unwrap();
+    assert!(out.is_empty());
+    let g = runner.backward(&[]).unwrap();
+    assert_eq!(g.len(), other.mlp.param_count());
+    assert!(g.iter().all(|&v| v == 0.0));
+}
+
+#[test]
+fn the_runner_refuses_what_the_cpu_refuses_and_counts_what_it_moves() {
+    let mut runner = DeformRunner::new(runner_context()).unwrap();
+    let net = DeformNet::new(small(9)).unwrap();
+    let rows = 50;
+    let mut positions = values(30, rows * 3, -1.5, 1.5);
+    let times = values(31, rows, 0.0, 1.0);
+    let mut out = Vec::new();
+    // Non-finite positions and wrong lengths: the CPU's own messages.
+    positions[3 * 17 + 1] = f32::NAN;
+    let gpu_err = runner
+        .forward_into(&net, &positions, &times, rows, true, &mut out)
+        .unwrap_err();
+    let cpu_err = net.forward(&positions, &times, rows).unwrap_err();
+    assert_eq!(gpu_err.to_string(), cpu_err.to_string());
+    assert!(gpu_err.to_string().contains("row 17"), "{gpu_err}");
+    positions[3 * 17 + 1] = 0.5;
+    let gpu_err = runner
+        .forward_into(&net, &positions, &times[1..], rows, true, &mut out)
+        .unwrap_err();
+    let cpu_err = net.forward(&positions, &times[1..], rows).unwrap_err();
+    assert_eq!(gpu_err.to_string(), cpu_err.to_string());
+    // A refused forward leaves nothing to go back through.
+    assert!(runner.backward(&vec![0.0; rows * 10]).is_err());
+    // Once the buffers exist, a forward and backward move exactly the parameters, positions,
+    // times and output gradient up, and the rows and the parameter gradient down.
+    let d_out = values(32, rows * DeformNet::OUTPUT, -1.0, 1.0);
+    runner
+        .forward_into(&net, &positions, &times, rows, true, &mut out)
+        .unwrap();
+    runner.backward(&d_out).unwrap();
+    let before = runner.context().traffic();
+    runner
+        .forward_into(&net, &positions, &times, rows, true, &mut out)
+        .unwrap();
+    assert!(runner.backward(&d_out[1..]).is_err(), "a short gradient");
+    runner.backward(&d_out).unwrap();
+    let after = runner.context().traffic();
+    let (params, outputs) = (net.mlp.param_count() as u64, DeformNet::OUTPUT as u64);
+    let rows = rows as u64;
+    assert_eq!(
+        after.bytes_up - before.bytes_up,
+        4 * (params + 3 * rows + rows + outputs * rows)
+    );
+    assert_eq!(
+        after.bytes_down - before.bytes_down,
+        4 * (outputs * rows + params)
+    );
+    assert_eq!(after.waits - before.waits, 2, "one wait per pass");
 }
