@@ -93,6 +93,18 @@ pub trait Backbone: Send {
         Ok(out)
     }
 
+    /// Runs the backbone's network on `ctx`'s device from now on, when the backbone has a
+    /// device form (D-3DGS's network today: the same rows and gradients up to f32 rounding, the
+    /// parameters still on the host); `Ok(false)`, and nothing changes, for a backbone without
+    /// one (every other, the default). Cargo feature `wgpu`.
+    #[cfg(feature = "wgpu")]
+    fn use_device(
+        &mut self,
+        _ctx: &std::sync::Arc<gpu_core::GpuContext>,
+    ) -> Result<bool, BackboneError> {
+        Ok(false)
+    }
+
     /// Named parameter buffers, in a fixed order.
     fn params(&self) -> Vec<(String, StoreRef<'_>)>;
 

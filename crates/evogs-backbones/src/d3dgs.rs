@@ -51,6 +51,10 @@ pub struct D3dgsBackbone {
     cache: Option<DeformCache>,
     positions: Vec<f32>,
     times: Vec<f32>,
+    /// The network's device form after [`Backbone::use_device`]: forward and backward run there
+    /// (the parameters stay here, for the optimiser, checkpoints and weight files).
+    #[cfg(feature = "wgpu")]
+    device: Option<tiny_nn::gpu::DeformRunner>,
 }
 
 impl D3dgsBackbone {
@@ -62,6 +66,8 @@ impl D3dgsBackbone {
             cache: None,
             positions: Vec::new(),
             times: Vec::new(),
+            #[cfg(feature = "wgpu")]
+            device: None,
         })
     }
 }
@@ -86,6 +92,19 @@ impl D3dgsBackbone {
     }
 }
 
+impl D3dgsBackbone {
+    /// The parameters' gradient from the device form, when the network runs there; `None` on
+    /// the CPU.
+    fn device_backward(&mut self, d_deform: &[f32]) -> Result<Option<Vec<f32>>, BackboneError> {
+        #[cfg(feature = "wgpu")]
+        if let Some(device) = &mut self.device {
+            return Ok(Some(device.backward(d_deform)?));
+        }
+        let _ = d_deform;
+        Ok(None)
+    }
+}
+
 impl Backbone for D3dgsBackbone {
     fn name(&self) -> &'static str {
         "d3dgs"
@@ -100,6 +119,11 @@ impl Backbone for D3dgsBackbone {
     ) -> Result<(), BackboneError> {
         let n = canonical.len();
         fill_inputs(canonical, time, &mut self.positions, &mut self.times);
+        #[cfg(feature = "wgpu")]
+        if let Some(device) = &mut self.device {
+            device.forward_into(&self.net, &self.positions, &self.times, n, training, out)?;
+            return Ok(());
+        }
         let mut cache = self.cache.take().unwrap_or_default();
         let geometry = self
             .net
@@ -117,14 +141,29 @@ impl Backbone for D3dgsBackbone {
         d_deform: &[f32],
         out: &mut Vec<Vec<f32>>,
     ) -> Result<(), BackboneError> {
-        let cache = self.cache.as_ref().ok_or_else(no_training_forward)?;
-        let g = self.net.backward(cache, d_deform, false)?;
+        let grads = match self.device_backward(d_deform)? {
+            Some(grads) => grads,
+            None => {
+                let cache = self.cache.as_ref().ok_or_else(no_training_forward)?;
+                self.net.backward(cache, d_deform, false)?.mlp
+            }
+        };
         out.truncate(1);
         match out.first_mut() {
-            Some(grads) => *grads = g.mlp,
-            None => out.push(g.mlp),
+            Some(g) => *g = grads,
+            None => out.push(grads),
         }
         Ok(())
+    }
+
+    #[cfg(feature = "wgpu")]
+    fn use_device(
+        &mut self,
+        ctx: &std::sync::Arc<gpu_core::GpuContext>,
+    ) -> Result<bool, BackboneError> {
+        self.device = Some(tiny_nn::gpu::DeformRunner::new(std::sync::Arc::clone(ctx))?);
+        self.cache = None;
+        Ok(true)
     }
 
     fn params(&self) -> Vec<(String, StoreRef<'_>)> {

@@ -19,6 +19,9 @@
 //! - [`observer`]: what a field implements to be Φ ([`Observer`]); [`hex_phi`]: 4DGaussians'
 //!   field as Φ ([`HexPhi`]);
 //! - [`one_word`]: settings spelled by one word and the one message for an unknown word;
+//! - `Backbone::use_device` (cargo feature `wgpu`): a backbone's network on a wgpu device
+//!   (D-3DGS's, through `tiny_nn::gpu::DeformRunner`; the others answer that they have no
+//!   device form yet);
 //! - `cli` (cargo feature `clap`): EvoGS's switches as command-line flags (`EvoArgs`), each
 //!   default read from [`EvoSettings::default`], and the parser of one-word settings.
 //!

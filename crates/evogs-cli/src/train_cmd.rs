@@ -156,6 +156,24 @@ pub struct TrainArgs {
     )]
     pub backend: Option<BackendChoice>,
 
+    /// Where the deformation network runs: wgpu (on the rasterizer's device; needs --backend
+    /// wgpu and a network with a GPU form, the d3dgs baseline's today), auto (there on a
+    /// hardware GPU, the CPU otherwise) or cpu. Recorded in the run; --resume keeps the run's
+    /// unless given [default: every preset's `net_backend`].
+    #[arg(
+        long,
+        value_name = "cpu|wgpu|auto",
+        value_parser = parse_backend,
+        help = format!(
+            "Where the deformation network runs: wgpu (on the rasterizer's device; needs \
+             --backend wgpu and a network with a GPU form, the d3dgs baseline's today), auto \
+             (there on a hardware GPU, the CPU otherwise) or cpu. Recorded in the run; --resume \
+             keeps the run's unless given [default: {}]",
+            TrainConfig::preset(evogs_train::Preset::Paper).net_backend
+        )
+    )]
+    pub net_backend: Option<BackendChoice>,
+
     /// Densification never grows the Gaussians past this count (the largest gradients are
     /// densified first) [preset values: see --help].
     #[arg(
@@ -304,6 +322,9 @@ pub fn config_from_args(args: &TrainArgs) -> Result<TrainConfig> {
         config.seed = seed;
     }
     config.backend = args.backend.unwrap_or_default();
+    if let Some(net_backend) = args.net_backend {
+        config.net_backend = net_backend;
+    }
     config.validate()?;
     Ok(config)
 }
@@ -428,6 +449,7 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
         resume: args.resume,
         stop_after: args.stop_after,
         resume_backend: if args.resume { args.backend } else { None },
+        resume_net_backend: if args.resume { args.net_backend } else { None },
     };
     if !args.resume {
         // Say which layout was detected (reading the cameras again inside `train` is cheap: no
@@ -468,6 +490,7 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
         }
         if !said_backend {
             println!("{}", trainer.backend());
+            println!("{}", trainer.network());
             let n = report.gaussians;
             let mut line = trainer.memory_estimate().summary(n);
             if let Some(cap) = trainer.max_gaussians() {

@@ -202,6 +202,7 @@ pub fn train_and_evaluate_with_progress(
             resume: false,
             stop_after: None,
             resume_backend: None,
+            resume_net_backend: None,
         },
         &mut |report, _| progress(report),
     )?;

@@ -190,6 +190,7 @@ fn bench_one(
             resume: false,
             stop_after: None,
             resume_backend: None,
+            resume_net_backend: None,
         },
         &mut |report, trainer| {
             progress(BenchProgress::Step {

@@ -62,6 +62,7 @@ pub fn template_run(evogs: bool) -> &'static Path {
                 resume: false,
                 stop_after: None,
                 resume_backend: None,
+                resume_net_backend: None,
             };
             evogs_train::run::train(&request, &mut |_, _| {}).expect("the template run trains");
             request.out

@@ -100,6 +100,7 @@ fn one_iteration(dir: &Path, text: &[u8]) -> Result<(), String> {
         resume: false,
         stop_after: Some(1),
         resume_backend: None,
+        resume_net_backend: None,
     };
     let _ = std::fs::remove_dir_all(&request.out);
     evogs_train::run::train(&request, &mut |_, _| {})

@@ -18,7 +18,9 @@
 //! process CPU time leaves out the GPU's work), `EVOGS_ITER_GAUSSIANS` (initial random
 //! Gaussians, default the preset's 10 000), `EVOGS_ITER_SIZE` (image side, 400 or 800: the
 //! fixture upsampled 4× or 8×), `EVOGS_ITER_SH` (active SH degree 0 to 3, default 0 as in the
-//! first 500 iterations of the preset).
+//! first 500 iterations of the preset), `EVOGS_ITER_NET_BACKEND` (where the deformation network
+//! runs, `TrainConfig::net_backend`: default the preset's, `auto`, which is the device on a
+//! hardware GPU for the baseline's network).
 
 use std::path::Path;
 
@@ -36,6 +38,7 @@ const FRAME: &str = "r_24.png";
 /// The variant the environment asks for (module doc).
 struct Variant {
     backend: BackendChoice,
+    net_backend: BackendChoice,
     gaussians: Option<usize>,
     size: u32,
     sh: u32,
@@ -52,6 +55,13 @@ impl Variant {
             v.parse()
                 .unwrap_or_else(|_| panic!("EVOGS_ITER_BACKEND={v}: cpu, wgpu or auto"))
         });
+        let net_backend = var("EVOGS_ITER_NET_BACKEND").map_or(
+            TrainConfig::preset(Preset::Cpu).net_backend,
+            |v| {
+                v.parse()
+                    .unwrap_or_else(|_| panic!("EVOGS_ITER_NET_BACKEND={v}: cpu, wgpu or auto"))
+            },
+        );
         let size = var("EVOGS_ITER_SIZE").map_or(400, |v| parse("EVOGS_ITER_SIZE", v)) as u32;
         assert!(
             size.is_multiple_of(100) && size > 0,
@@ -61,6 +71,7 @@ impl Variant {
         assert!(sh <= 3, "EVOGS_ITER_SH={sh}: 0 to 3");
         Self {
             backend,
+            net_backend,
             gaussians: var("EVOGS_ITER_GAUSSIANS").map(|v| parse("EVOGS_ITER_GAUSSIANS", v)),
             size,
             sh,
@@ -77,6 +88,7 @@ fn trainer(method: Method, v: &Variant) -> Trainer {
     c.densify.schedule.from = 999_999;
     c.densify.schedule.until = 1_000_000;
     c.backend = v.backend;
+    c.net_backend = v.net_backend;
     if let Some(n) = v.gaussians {
         c.init_points = n;
     }
@@ -102,11 +114,12 @@ fn bench<M: Measurement>(c: &mut Criterion<M>, v: &Variant) {
         .gaussians
         .unwrap_or(TrainConfig::preset(Preset::Cpu).init_points);
     let mut group = c.benchmark_group(format!(
-        "{}iteration_lego_{s}x{s}_{n0}_sh{sh}_{backend}",
+        "{}iteration_lego_{s}x{s}_{n0}_sh{sh}_{backend}_net_{net}",
         clock_prefix::<M>(),
         s = v.size,
         sh = v.sh,
         backend = v.backend,
+        net = v.net_backend,
     ));
     group.sample_size(10);
     for method in [Method::Baseline, Method::Evogs] {
@@ -138,9 +151,10 @@ fn bench<M: Measurement>(c: &mut Criterion<M>, v: &Variant) {
         );
         if let Some((end, start)) = t.traffic().zip(traffic_start) {
             eprintln!(
-                "{method}: host-device traffic per iteration: {} ({})",
+                "{method}: host-device traffic per iteration: {} ({}; {})",
                 end.since(&start).per(steps as u64),
-                t.backend()
+                t.backend(),
+                t.network()
             );
         }
     }

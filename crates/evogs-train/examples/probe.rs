@@ -107,6 +107,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     resume: done > 0,
                     stop_after: Some(stop),
                     resume_backend: None,
+                    resume_net_backend: None,
                 },
                 &mut |r, _| {
                     psnr_sum += r.psnr;

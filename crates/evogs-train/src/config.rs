@@ -354,6 +354,14 @@ pub struct TrainConfig {
     /// A resumed run keeps it unless the resume asks for another.
     #[serde(default)]
     pub backend: splat_raster::BackendChoice,
+    /// Where the deformation network runs (`cpu`, `wgpu`, `auto`; `--net-backend`): `wgpu` on
+    /// the rasterizer's device (the rasterizer on wgpu and a backbone with a device form,
+    /// D-3DGS's today, or the run refuses to start), `auto` there when the rasterizer runs on a
+    /// hardware GPU and the backbone has one, `cpu` otherwise ([`crate::trainer::NetworkPlace`]).
+    /// New runs default to `auto`; runs written before it existed read as `cpu`. A resumed
+    /// run keeps it unless the resume asks for another.
+    #[serde(default)]
+    pub net_backend: splat_raster::BackendChoice,
     /// Where frame times come from for datasets that store none (COLMAP, nerfstudio frames
     /// without `time`): `order` by default; runs written before it existed read as `none`, the
     /// time 0 they trained with.
@@ -416,6 +424,7 @@ impl TrainConfig {
             log_every: default_log_every(),
             backbones: evogs_backbones::BackboneSettings::default(),
             backend: splat_raster::BackendChoice::Cpu,
+            net_backend: splat_raster::BackendChoice::Auto,
             time_from: evogs_io::TimeFrom::Order,
             memory_limit: None,
             gaussian_view_budget: None,

@@ -47,4 +47,4 @@ pub mod trainer;
 pub use config::{BackboneKind, Background, Method, Preset, TrainConfig};
 pub use error::TrainError;
 pub use run::{RunPaths, TrainRequest, TrainSummary, train};
-pub use trainer::{StepReport, Trainer};
+pub use trainer::{NetworkPlace, StepReport, Trainer};

@@ -205,6 +205,11 @@ pub struct TrainSummary {
     /// was recorded.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub traffic_per_iteration: Option<splat_raster::TrafficRate>,
+    /// Where the last process ran the deformation network and why
+    /// ([`crate::trainer::NetworkPlace`]'s line); empty in files written before it was
+    /// recorded.
+    #[serde(default)]
+    pub network: String,
 }
 
 impl TrainSummary {
@@ -233,6 +238,10 @@ pub struct TrainRequest {
     /// When resuming: the rasterizer backend to continue on instead of the one the run recorded
     /// (then recorded in `config.json`). `None` keeps the run's. New runs use `config.backend`.
     pub resume_backend: Option<splat_raster::BackendChoice>,
+    /// When resuming: where the deformation network continues instead of where the run
+    /// recorded ([`TrainConfig::net_backend`], then recorded in `config.json`). `None` keeps
+    /// the run's.
+    pub resume_net_backend: Option<splat_raster::BackendChoice>,
 }
 
 impl TrainRequest {
@@ -395,9 +404,12 @@ pub fn train_with_clock(
     let mut resumed_log = None;
     let mut trainer = if request.resume {
         let mut run = read_run_config(&paths)?;
-        let recorded_backend = run.train.backend;
+        let recorded = (run.train.backend, run.train.net_backend);
         if let Some(backend) = request.resume_backend {
             run.train.backend = backend;
+        }
+        if let Some(net_backend) = request.resume_net_backend {
+            run.train.net_backend = net_backend;
         }
         let data = run_data(&paths, &run)?;
         let dataset = open_dataset(data, run.train.time_from)?;
@@ -432,7 +444,7 @@ pub fn train_with_clock(
             trainer.resume_schedule_at(progress.schedule_iteration);
             resumed_budget = Some(progress);
         }
-        if run.train.backend != recorded_backend {
+        if (run.train.backend, run.train.net_backend) != recorded {
             // Recorded only once the new backend is up, so that a failed switch changes nothing.
             write_json(&paths.config(), &run)?;
         }
@@ -606,6 +618,7 @@ pub fn train_with_clock(
             .zip(budget_progress)
             .map(|(budget, p)| BudgetSummary::new(budget, &p)),
         traffic_per_iteration,
+        network: trainer.network().to_string(),
     };
     write_json(&paths.train_metrics(), &summary)?;
     Ok(summary)

@@ -22,6 +22,10 @@
 //!
 //! The rasterizer is the backend `config.backend` names (`cpu`, `wgpu`, `auto`; see
 //! [`splat_raster::select_rasterizer`] and [`Trainer::backend`]); the CPU one is the default.
+//! The backbone's network runs where `config.net_backend` says ([`place_network`],
+//! [`Trainer::network`]): on the rasterizer's device when asked and the backbone has a device
+//! form (cargo feature `wgpu`; D-3DGS's network today), on the CPU otherwise. Its parameters and
+//! Adam stay on the host either way, so checkpoints and resume are the same on both.
 //!
 //! Everything random is a pure function of (seed, iteration): the epoch's permutation is drawn
 //! from a generator seeded by (seed, epoch), densify's split sampling from (seed, iteration),
@@ -183,6 +187,91 @@ fn memory_estimate(config: &TrainConfig, data: DataSizes) -> Result<MemoryEstima
     ))
 }
 
+/// Where the deformation network runs and why ([`TrainConfig::net_backend`]), one line:
+/// `network: wgpu (asked: wgpu)`, `network: cpu (auto: the rasterizer runs on the CPU)`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct NetworkPlace {
+    /// Whether the backbone's network runs on the rasterizer's device.
+    pub on_device: bool,
+    /// Why (the setting and what decided it).
+    pub reason: String,
+}
+
+impl std::fmt::Display for NetworkPlace {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let place = if self.on_device { "wgpu" } else { "cpu" };
+        write!(f, "network: {place} ({})", self.reason)
+    }
+}
+
+/// Puts `backbone`'s network where `choice` asks ([`TrainConfig::net_backend`]), on the device
+/// of `raster` when it has one: `wgpu` without a device or with a backbone that has no device
+/// form is an error naming `--net-backend`; `auto` falls back to the CPU and says why.
+pub fn place_network(
+    choice: splat_raster::BackendChoice,
+    raster: &dyn splat_raster::Rasterizer,
+    backbone: &mut dyn Backbone,
+) -> Result<NetworkPlace, TrainError> {
+    use splat_raster::BackendChoice;
+    let cpu = |reason: String| {
+        Ok(NetworkPlace {
+            on_device: false,
+            reason,
+        })
+    };
+    let refuse = |problem: String| Err(TrainError::config("net_backend", problem));
+    if choice == BackendChoice::Cpu {
+        return cpu("asked: cpu".to_string());
+    }
+    #[cfg(feature = "wgpu")]
+    {
+        let Some(ctx) = raster.device() else {
+            return match choice {
+                BackendChoice::Wgpu => refuse(
+                    "--net-backend wgpu runs the network on the rasterizer's device; the \
+                     rasterizer runs on the CPU (--backend wgpu puts it on the GPU)"
+                        .to_string(),
+                ),
+                _ => cpu("auto: the rasterizer runs on the CPU".to_string()),
+            };
+        };
+        if choice == BackendChoice::Auto && !ctx.adapter().hardware {
+            return cpu(format!(
+                "auto: adapter {} is a software rasterizer, slower than the CPU",
+                ctx.adapter().name
+            ));
+        }
+        if backbone.use_device(&ctx)? {
+            return Ok(NetworkPlace {
+                on_device: true,
+                reason: format!("{choice}: on the rasterizer's device"),
+            });
+        }
+        let name = backbone.name();
+        match choice {
+            BackendChoice::Wgpu => refuse(format!(
+                "the {name} backbone's network has no GPU form yet (--net-backend cpu or auto \
+                 keeps it on the CPU)"
+            )),
+            _ => cpu(format!(
+                "auto: the {name} backbone's network has no GPU form yet"
+            )),
+        }
+    }
+    #[cfg(not(feature = "wgpu"))]
+    {
+        let _ = (raster, backbone);
+        match choice {
+            BackendChoice::Wgpu => refuse(
+                "--net-backend wgpu: this build of evogs-train has no wgpu support (cargo \
+                 feature `wgpu` off)"
+                    .to_string(),
+            ),
+            _ => cpu("auto: built without wgpu".to_string()),
+        }
+    }
+}
+
 /// A training run in memory.
 ///
 /// Its fields are private: the Gaussians' rows and the backbone's per-Gaussian rows stay aligned
@@ -208,6 +297,7 @@ pub struct Trainer {
     times: PhaseTimes,
     raster: DynRasterizer,
     backend: BackendInfo,
+    network: NetworkPlace,
     densify: DensifyConfig,
     order: (u64, Vec<usize>),
     /// Buffers of the loss and its gradient, reused every iteration.
@@ -287,6 +377,7 @@ impl Trainer {
             densify.max_gaussians = Some(densify.max_gaussians.map_or(cap, |m| m.min(cap)));
         }
         let (raster, backend) = select_rasterizer(config.backend)?;
+        let network = place_network(config.net_backend, raster.as_ref(), backbone.as_mut())?;
         let transmittance = if config.background == Background::Random {
             crate::data::load_transmittance(&train, config.downscale)?
         } else {
@@ -304,6 +395,7 @@ impl Trainer {
             times: PhaseTimes::default(),
             raster,
             backend,
+            network,
             order: (u64::MAX, Vec::new()),
             loss: LossWorkspace::new(),
             geometry: DeformedGeometry::default(),
@@ -385,6 +477,11 @@ impl Trainer {
     /// The rasterizer backend in use (chosen from `config.backend`) and why.
     pub fn backend(&self) -> &BackendInfo {
         &self.backend
+    }
+
+    /// Where the deformation network runs and why ([`TrainConfig::net_backend`]).
+    pub fn network(&self) -> &NetworkPlace {
+        &self.network
     }
 
     /// The host–device traffic of the rasterizer's device since the trainer was made

@@ -265,3 +265,148 @@ fn unknown_backend_is_a_usage_error() {
         "{err}"
     );
 }
+
+#[test]
+fn the_network_on_the_device_trains_like_the_cpus_and_says_where_it_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = rigid_scene(dir.path(), 32, 8);
+    let psnr = |run: &Path| {
+        json(&run.join("train_metrics.json"))["last_psnr"]
+            .as_f64()
+            .unwrap()
+    };
+
+    // The same wgpu rasterizer; the network on the CPU, then on the device (lavapipe here, where
+    // the network is slow: 30 iterations, the network in 25 of them).
+    let train = |data: &Path, out: &Path, extra: &[&str]| {
+        let args = ["--iterations", "30", "--seed", "5"];
+        train_tiny(data, out, &[&args[..], extra].concat())
+    };
+    let cpu_net = dir.path().join("cpu-net");
+    let o = train(
+        &data,
+        &cpu_net,
+        &["--backend", "wgpu", "--net-backend", "cpu"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("\nnetwork: cpu (asked: cpu)\n"),
+        "{}",
+        stdout(&o)
+    );
+    let gpu_net = dir.path().join("gpu-net");
+    let o = train(
+        &data,
+        &gpu_net,
+        &[
+            "--backend",
+            "wgpu",
+            "--net-backend",
+            "wgpu",
+            "--stop-after",
+            "25",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let on_device = "network: wgpu (wgpu: on the rasterizer's device)";
+    assert!(stdout(&o).contains(on_device), "{}", stdout(&o));
+    assert_eq!(
+        json(&gpu_net.join("config.json"))["train"]["net_backend"],
+        "wgpu"
+    );
+    // Resumed without the flag it stays on the device, and says so in its metrics.
+    let o = evogs(&["train", "--out", s(&gpu_net), "--resume"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains(on_device), "{}", stdout(&o));
+    assert_eq!(
+        json(&gpu_net.join("train_metrics.json"))["network"],
+        on_device
+    );
+    // The network's two passes each wait for their read-back: two more waits per iteration
+    // than the rasterizer's alone (the resumed process deforms in every iteration).
+    let waits = |run: &Path| {
+        json(&run.join("train_metrics.json"))["traffic_per_iteration"]["waits"]
+            .as_f64()
+            .unwrap()
+    };
+    let (cpu_waits, gpu_waits) = (waits(&cpu_net), waits(&gpu_net));
+    assert!(
+        (gpu_waits - cpu_waits - 2.0).abs() < 0.01,
+        "waits per iteration: network on the cpu {cpu_waits}, on wgpu {gpu_waits}"
+    );
+    let (cpu_psnr, gpu_psnr) = (psnr(&cpu_net), psnr(&gpu_net));
+    eprintln!(
+        "training PSNR after 30 iterations: network on the cpu {cpu_psnr:.3} dB, on wgpu {gpu_psnr:.3} dB"
+    );
+    assert!(cpu_psnr.is_finite() && cpu_psnr > 8.0, "{cpu_psnr}");
+    assert!(
+        (cpu_psnr - gpu_psnr).abs() < 0.5,
+        "network on the cpu {cpu_psnr:.3} dB vs on wgpu {gpu_psnr:.3} dB"
+    );
+
+    // A resume may move the network back; the switch is recorded.
+    let o = evogs(&[
+        "train",
+        "--out",
+        s(&gpu_net),
+        "--resume",
+        "--net-backend",
+        "cpu",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        json(&gpu_net.join("config.json"))["train"]["net_backend"],
+        "cpu"
+    );
+
+    // auto keeps it on the CPU beside a software rasterizer, and says why; the CPU rasterizer
+    // has no device to share.
+    let short = |run: &str, backend: &str| {
+        let args = ["--iterations", "2", "--backend", backend];
+        train_tiny(&data, &dir.path().join(run), &args)
+    };
+    let o = short("auto", "wgpu");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let adapter = splat_raster::GpuContext::new().unwrap().adapter().clone();
+    let expected = if adapter.hardware {
+        on_device.replace("wgpu: on", "auto: on")
+    } else {
+        format!("network: cpu (auto: adapter {} is a software", adapter.name)
+    };
+    assert!(stdout(&o).contains(&expected), "{}", stdout(&o));
+    let o = short("auto-cpu", "cpu");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("network: cpu (auto: the rasterizer runs on the CPU)"),
+        "{}",
+        stdout(&o)
+    );
+
+    // Asking for the device where there is none, or for a backbone without a device form, is a
+    // one-line error naming the setting.
+    for (extra, says) in [
+        (
+            &["--backend", "cpu", "--net-backend", "wgpu"][..],
+            "the rasterizer runs on the CPU",
+        ),
+        (
+            &[
+                "--backend",
+                "wgpu",
+                "--net-backend",
+                "wgpu",
+                "--method",
+                "evogs",
+            ][..],
+            "has no GPU form yet",
+        ),
+    ] {
+        let run = dir.path().join("refused");
+        let o = train(&data, &run, extra);
+        assert!(!o.status.success(), "{extra:?}");
+        let err = stderr(&o);
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(err.contains("net_backend") && err.contains(says), "{err}");
+        std::fs::remove_dir_all(&run).ok();
+    }
+}

@@ -179,6 +179,7 @@ fn a_run_resumed_from_an_old_config_keeps_its_settings() {
             resume: false,
             stop_after: Some(1),
             resume_backend: None,
+            resume_net_backend: None,
         };
         train(&request, &mut |_, _| {}).unwrap_or_else(|e| panic!("{name}: {e}"));
         // The interrupted run's config.json is the old file with this data directory.

@@ -25,6 +25,7 @@ pub fn tiny_run(dir: &Path) -> LoadedRun {
             resume: false,
             stop_after: None,
             resume_backend: None,
+            resume_net_backend: None,
         },
         &mut |_, _| {},
     )

@@ -54,6 +54,7 @@ fn run(
         resume,
         stop_after,
         resume_backend: None,
+        resume_net_backend: None,
     };
     let mut reports = Vec::new();
     let mut clock = ticks();

@@ -81,6 +81,7 @@ fn colmap_dataset_trains_from_its_point_cloud() {
             resume: false,
             stop_after: Some(1),
             resume_backend: None,
+            resume_net_backend: None,
         };
         train(&request, &mut |_, _| {}).unwrap();
         evogs_io::read_ply(&dir.path().join(out).join("canonical.ply"))

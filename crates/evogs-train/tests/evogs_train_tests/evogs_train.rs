@@ -138,6 +138,7 @@ impl ResumeScene {
             resume,
             stop_after,
             resume_backend: None,
+            resume_net_backend: None,
         };
         let summary = self
             .pool

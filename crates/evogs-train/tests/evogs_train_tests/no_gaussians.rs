@@ -24,6 +24,7 @@ fn a_run_stops_when_densification_prunes_every_gaussian() {
         resume: false,
         stop_after: None,
         resume_backend: None,
+        resume_net_backend: None,
     };
     let mut counts = Vec::new();
     let err = train(&request, &mut |r, _| {

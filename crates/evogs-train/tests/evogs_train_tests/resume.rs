@@ -116,6 +116,7 @@ fn resumes_config_bit_for_bit(c: &TrainConfig) {
         resume,
         stop_after,
         resume_backend: None,
+        resume_net_backend: None,
     };
     pool(1).install(|| train(&request("straight", false, None), &mut |_, _| {}).unwrap());
     pool(3).install(|| {
@@ -190,6 +191,7 @@ fn resume_without_checkpoint_names_the_file() {
             resume: true,
             stop_after: None,
             resume_backend: None,
+            resume_net_backend: None,
         },
         &mut |_, _| {},
     )

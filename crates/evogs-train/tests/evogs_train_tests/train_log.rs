@@ -49,6 +49,7 @@ fn log_lines_follow_the_interval_across_a_resume() {
         resume,
         stop_after,
         resume_backend: None,
+        resume_net_backend: None,
     };
     let log_of = |out: &str| read_log(&RunPaths::new(dir.path().join(out)).train_log()).unwrap();
     let straight_summary = train(&request("straight", false, None), &mut |_, _| {}).unwrap();
