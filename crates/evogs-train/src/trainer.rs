@@ -188,7 +188,8 @@ fn memory_estimate(config: &TrainConfig, data: DataSizes) -> Result<MemoryEstima
 }
 
 /// Where the deformation network runs and why ([`TrainConfig::net_backend`]), one line:
-/// `network: wgpu (asked: wgpu)`, `network: cpu (auto: the rasterizer runs on the CPU)`.
+/// `network: wgpu (wgpu: on the rasterizer's device)`, `network: cpu (auto: the rasterizer runs
+/// on the CPU)`.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct NetworkPlace {
     /// Whether the backbone's network runs on the rasterizer's device.

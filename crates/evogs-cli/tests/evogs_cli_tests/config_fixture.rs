@@ -1,6 +1,7 @@
 //! `config.json` files written by older evogs (main at 6068508, before the settings became the
 //! libraries' own types; main at e616b30, before `--triplane-combine`; main at 04d89b0, before
-//! SC-GS's settings; main at b51c05c, before `scgs.evolution_on`) still load, give the
+//! SC-GS's settings; main at b51c05c, before `scgs.evolution_on`; main at ee24eb9, before
+//! `net_backend`) still load, give the
 //! settings the same flags give today (with `--max-screen-radius 20`: the screen-size prune was
 //! always on then), and a run resumed from such a config keeps it. Today's format is pinned by
 //! the same three runs' files written by today's evogs (`tests/data/config-current`): each old
@@ -16,6 +17,7 @@ use evogs_cli::train_cmd::config_from_args;
 use evogs_cli::{Cli, Command};
 use evogs_eval::LoadedRun;
 use evogs_train::run::{RunFile, TrainRequest, train};
+use splat_raster::BackendChoice;
 
 /// The fixtures with the flags (after `--data … --out …`) that wrote them, and
 /// `--max-screen-radius 20` (see the module's doc).
@@ -99,11 +101,12 @@ const FIXTURES: [(&str, &[&str]); 3] = [
 
 /// The fixtures of older evogs: at 6068508, and at e616b30 (the format before
 /// `triplane_combine`).
-const OLD: [&str; 4] = [
+const OLD: [&str; 5] = [
     "config-6068508",
     "config-e616b30",
     "config-04d89b0",
     "config-b51c05c",
+    "config-ee24eb9",
 ];
 /// The same runs' files in today's format.
 const CURRENT: &str = "config-current";
@@ -134,29 +137,33 @@ fn old_configs_load_as_the_same_flags_give_and_are_written_back_in_todays_format
             unreachable!("parsed a train command")
         };
         let today = config_from_args(&args).unwrap();
-        // The one setting whose meaning in a file without it differs from today's default:
+        // The settings whose meaning in a file without them differs from today's default:
         // EvoGS(SC-GS)'s state was on every Gaussian before `scgs.evolution_on` existed (a file
-        // from before SC-GS itself, without `scgs`, takes SC-GS's defaults whole).
+        // from before SC-GS itself, without `scgs`, takes SC-GS's defaults whole); every
+        // network ran on the CPU before `net_backend` existed (no old file has it).
         let mut then = today.clone();
-        let had_scgs = old_text.contains(r#""scgs""#);
-        if had_scgs {
+        let scgs_before_the_choice =
+            old_text.contains(r#""scgs""#) && !old_text.contains("evolution_on");
+        if scgs_before_the_choice {
             then.backbones.scgs.evolution_on = EvolutionOn::recorded_before_the_choice();
         }
+        assert!(!old_text.contains("net_backend"), "{old}/{name}");
+        then.net_backend = BackendChoice::Cpu;
         assert_eq!(run.train, then, "{old}/{name}");
         assert_eq!(current.train, today, "{name}");
         // Today's format: an old file is written back as its current twin, byte for byte, and
-        // the twin as itself. (The format changed three times since 6068508: in the order of the
+        // the twin as itself. (The format changed five times since 6068508: in the order of the
         // `evogs` object's keys, evo-state's config embedded first; then `triplane_combine`;
-        // then SC-GS's `scgs` object.)
+        // then SC-GS's `scgs` object; then its `evolution_on`; then `net_backend`.)
         let text = serde_json::to_string_pretty(&run).unwrap();
-        let then_text = if had_scgs {
-            current_text.replace(
+        let mut then_text =
+            current_text.replace(r#""net_backend": "auto""#, r#""net_backend": "cpu""#);
+        if scgs_before_the_choice {
+            then_text = then_text.replace(
                 r#""evolution_on": "controls""#,
                 r#""evolution_on": "gaussians""#,
-            )
-        } else {
-            current_text.clone()
-        };
+            );
+        }
         assert_eq!(text, then_text, "{old}/{name}");
         assert_eq!(
             serde_json::to_string_pretty(&current).unwrap(),
