@@ -13,6 +13,9 @@ mod common;
 mod datasets;
 mod deformation_learns;
 mod evogs_train;
+// The device step needs the network's device form (this crate's `wgpu` feature).
+#[cfg(feature = "wgpu")]
+mod gpu_step;
 mod motion_floor;
 mod no_gaussians;
 mod resume;
