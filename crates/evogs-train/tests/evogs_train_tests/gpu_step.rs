@@ -18,7 +18,7 @@ use crate::common;
 use evogs_io::Split;
 use evogs_train::data::load_split;
 use evogs_train::{Method, Preset, TrainConfig, Trainer};
-use splat_raster::BackendChoice;
+use splat_raster::{BackendChoice, Gaussians};
 use tiny_nn::{AdamGroup, StoreRef};
 
 fn rms(values: &[f32]) -> f32 {
@@ -140,36 +140,26 @@ fn one_wgpu_step_matches_the_cpu_step_from_the_same_state() {
     };
     let (gc, gg) = (cpu.state().gaussians(), gpu.state().gaussians());
     let mut flips = 0;
-    for (what, name, g, c, b) in [
-        (
-            "means",
-            "xyz",
-            gg.means.as_flattened(),
-            gc.means.as_flattened(),
-            before.means.as_flattened(),
-        ),
-        (
-            "log_scales",
-            "scaling",
-            gg.log_scales.as_flattened(),
-            gc.log_scales.as_flattened(),
-            before.log_scales.as_flattened(),
-        ),
-        (
-            "rotations",
-            "rotation",
-            gg.rotations.as_flattened(),
-            gc.rotations.as_flattened(),
-            before.rotations.as_flattened(),
-        ),
-        (
-            "opacity_logits",
-            "opacity",
-            &gg.opacity_logits[..],
-            &gc.opacity_logits[..],
-            &before.opacity_logits[..],
-        ),
-    ] {
+    // The same four arrays of the Gaussians after either step and before it.
+    fn arrays(g: &Gaussians) -> [&[f32]; 4] {
+        [
+            g.means.as_flattened(),
+            g.log_scales.as_flattened(),
+            g.rotations.as_flattened(),
+            &g.opacity_logits,
+        ]
+    }
+    let names = [
+        ("means", "xyz"),
+        ("log_scales", "scaling"),
+        ("rotations", "rotation"),
+        ("opacity_logits", "opacity"),
+    ];
+    for (((what, name), (g, c)), b) in names
+        .into_iter()
+        .zip(arrays(gg).into_iter().zip(arrays(gc)))
+        .zip(arrays(&before))
+    {
         flips += params_close(what, g, c, b, &group(name).m);
     }
     // SH: each Gaussian's DC (f_dc) then its higher bands (f_rest).
