@@ -67,7 +67,9 @@ pub trait Backbone: Send {
     /// Gradients of the parameter buffers (same order as [`Backbone::params`]) into `out`,
     /// whatever it held, from dL/d(deformation rows) of the last training forward (in the same
     /// layout). Gradients to the canonical Gaussians are not returned: the network input is
-    /// detached (D-3DGS: `deform.step(gaussians.get_xyz.detach(), t)`).
+    /// detached (D-3DGS: `deform.step(gaussians.get_xyz.detach(), t)`). On a device
+    /// ([`Backbone::use_device`]) the gradients stay there for [`Backbone::step_on_device`] and
+    /// `out` is left empty.
     fn backward_into(
         &mut self,
         d_deform: &[f32],
@@ -93,16 +95,52 @@ pub trait Backbone: Send {
         Ok(out)
     }
 
-    /// Runs the backbone's network on `ctx`'s device from now on, when the backbone has a
-    /// device form (D-3DGS's network today: the same rows and gradients up to f32 rounding, the
-    /// parameters still on the host); `Ok(false)`, and nothing changes, for a backbone without
-    /// one (every other, the default). Cargo feature `wgpu`.
+    /// Runs the backbone's network and its optimiser's steps on `ctx`'s device from now on,
+    /// when the backbone has a device form (D-3DGS's network today: the same rows, gradients
+    /// and updates up to f32 rounding); `Ok(false)`, and nothing changes, for a backbone
+    /// without one (every other, the default). Cargo feature `wgpu`.
+    ///
+    /// On the device the parameters and their Adam moments live there from the first
+    /// [`Backbone::step_on_device`]: [`Backbone::backward_into`] returns no gradient, the caller
+    /// steps with [`Backbone::step_on_device`] instead of [`Backbone::params_mut`], and calls
+    /// [`Backbone::sync_to_host`] before it reads [`Backbone::params`] or the moments (a
+    /// checkpoint, a weight file, a check for non-finite values).
     #[cfg(feature = "wgpu")]
     fn use_device(
         &mut self,
         _ctx: &std::sync::Arc<gpu_core::GpuContext>,
     ) -> Result<bool, BackboneError> {
         Ok(false)
+    }
+
+    /// One Adam update of every parameter buffer on the device (after [`Backbone::use_device`]
+    /// and a training [`Backbone::backward_into`]), with the constants `updates` (one per buffer,
+    /// in [`Backbone::params`]' order, from [`tiny_nn::Adam::next_update`]) and the host's
+    /// moments of those groups, `moments`, which the first step uploads (later ones use the
+    /// device's). An error for a backbone on the host (the default).
+    fn step_on_device(
+        &mut self,
+        _updates: &[tiny_nn::AdamUpdate],
+        _moments: &[&tiny_nn::AdamGroup],
+    ) -> Result<(), BackboneError> {
+        Err(BackboneError::config(
+            "net_backend",
+            format!(
+                "the {} backbone steps its parameters on the host",
+                self.name()
+            ),
+        ))
+    }
+
+    /// Copies what the device holds of the parameters into the host's buffers
+    /// ([`Backbone::params`]) and of their Adam moments into `moments` (one group per buffer);
+    /// nothing when the host's are the current ones (on the host, the default; on a device
+    /// before its first step).
+    fn sync_to_host(
+        &mut self,
+        _moments: &mut [&mut tiny_nn::AdamGroup],
+    ) -> Result<(), BackboneError> {
+        Ok(())
     }
 
     /// Named parameter buffers, in a fixed order.

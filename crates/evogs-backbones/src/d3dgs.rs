@@ -51,8 +51,9 @@ pub struct D3dgsBackbone {
     cache: Option<DeformCache>,
     positions: Vec<f32>,
     times: Vec<f32>,
-    /// The network's device form after [`Backbone::use_device`]: forward and backward run there
-    /// (the parameters stay here, for the optimiser, checkpoints and weight files).
+    /// The network's device form after [`Backbone::use_device`]: forward, backward and the
+    /// optimiser's steps run there, and from the first step its parameters and moments live
+    /// there ([`Backbone::sync_to_host`] copies them here).
     #[cfg(feature = "wgpu")]
     device: Option<tiny_nn::gpu::DeformRunner>,
 }
@@ -93,15 +94,26 @@ impl D3dgsBackbone {
 }
 
 impl D3dgsBackbone {
-    /// The parameters' gradient from the device form, when the network runs there; `None` on
-    /// the CPU.
-    fn device_backward(&mut self, d_deform: &[f32]) -> Result<Option<Vec<f32>>, BackboneError> {
+    /// The backward on the device form, when the network runs there (its gradient stays
+    /// there); `false` on the CPU.
+    fn device_backward(&mut self, d_deform: &[f32]) -> Result<bool, BackboneError> {
         #[cfg(feature = "wgpu")]
         if let Some(device) = &mut self.device {
-            return Ok(Some(device.backward(d_deform)?));
+            device.backward_on_device(d_deform)?;
+            return Ok(true);
         }
         let _ = d_deform;
-        Ok(None)
+        Ok(false)
+    }
+
+    /// The host's parameters become the current ones (they are about to change here): the
+    /// device form, if any, writes them at its next forward and uploads the moments at its next
+    /// step.
+    fn host_is_current(&mut self) {
+        #[cfg(feature = "wgpu")]
+        if let Some(device) = &mut self.device {
+            device.forget();
+        }
     }
 }
 
@@ -141,13 +153,12 @@ impl Backbone for D3dgsBackbone {
         d_deform: &[f32],
         out: &mut Vec<Vec<f32>>,
     ) -> Result<(), BackboneError> {
-        let grads = match self.device_backward(d_deform)? {
-            Some(grads) => grads,
-            None => {
-                let cache = self.cache.as_ref().ok_or_else(no_training_forward)?;
-                self.net.backward(cache, d_deform, false)?.mlp
-            }
-        };
+        if self.device_backward(d_deform)? {
+            out.clear();
+            return Ok(());
+        }
+        let cache = self.cache.as_ref().ok_or_else(no_training_forward)?;
+        let grads = self.net.backward(cache, d_deform, false)?.mlp;
         out.truncate(1);
         match out.first_mut() {
             Some(g) => *g = grads,
@@ -166,11 +177,59 @@ impl Backbone for D3dgsBackbone {
         Ok(true)
     }
 
+    fn step_on_device(
+        &mut self,
+        updates: &[tiny_nn::AdamUpdate],
+        moments: &[&tiny_nn::AdamGroup],
+    ) -> Result<(), BackboneError> {
+        #[cfg(feature = "wgpu")]
+        if let Some(device) = &mut self.device {
+            let ([update], [group]) = (updates, moments) else {
+                return Err(BackboneError::config(
+                    "backbone",
+                    format!(
+                        "one parameter buffer; {} updates and {} moment groups",
+                        updates.len(),
+                        moments.len()
+                    ),
+                ));
+            };
+            device.step(update, group)?;
+            return Ok(());
+        }
+        let _ = (updates, moments);
+        Err(BackboneError::config(
+            "net_backend",
+            "the d3dgs backbone's network runs on the host",
+        ))
+    }
+
+    fn sync_to_host(
+        &mut self,
+        moments: &mut [&mut tiny_nn::AdamGroup],
+    ) -> Result<(), BackboneError> {
+        #[cfg(feature = "wgpu")]
+        if let Some(device) = &self.device {
+            let [group] = moments else {
+                return Err(BackboneError::config(
+                    "backbone",
+                    format!("one parameter buffer; {} moment groups", moments.len()),
+                ));
+            };
+            device.read_to_host(&mut self.net, group)?;
+        }
+        let _ = moments;
+        Ok(())
+    }
+
     fn params(&self) -> Vec<(String, StoreRef<'_>)> {
         self.net.named_params()
     }
 
+    /// The host's parameters, which become the current ones: on a device, what it held and
+    /// [`Backbone::sync_to_host`] did not copy here is dropped.
     fn params_mut(&mut self) -> Vec<(String, StoreMut<'_>)> {
+        self.host_is_current();
         self.net.named_params_mut()
     }
 
@@ -179,6 +238,7 @@ impl Backbone for D3dgsBackbone {
     }
 
     fn load(&mut self, path: &Path) -> Result<(), BackboneError> {
+        self.host_is_current();
         Ok(tiny_nn::weights::load(path, &mut self.net)?)
     }
 }

@@ -276,10 +276,12 @@ const PENDING_EVO_STATE_PREFIX: &str = "evo_state.";
 /// [`settle_evo_state`] renames). Either way the resumed run continues bit for bit.
 fn save_resumable(
     paths: &RunPaths,
-    trainer: &Trainer,
+    trainer: &mut Trainer,
     budget: Option<BudgetProgress>,
     log: &TrainLog,
 ) -> Result<(), TrainError> {
+    // What lives on a device (the network's parameters and moments) is written as the host's.
+    trainer.sync_host()?;
     let pending = paths.pending_evo_state(trainer.iteration());
     let has_state = trainer.backbone().save_state(&pending)?;
     save_checkpoint(
@@ -561,8 +563,11 @@ pub fn train_with_clock(
             trainer.backbone().gain_stats(),
             report.last,
         )?;
-        if (report.iteration.is_multiple_of(trainer.config().log_every) || report.last)
-            && let Some((group, index)) = trainer.state().first_non_finite(trainer.backbone())
+        let checks = report.iteration.is_multiple_of(trainer.config().log_every) || report.last;
+        if checks {
+            trainer.sync_host()?;
+        }
+        if checks && let Some((group, index)) = trainer.state().first_non_finite(trainer.backbone())
         {
             // Before the checkpoint: the last one written stays the last finite state.
             return Err(TrainError::NonFinite {
@@ -581,7 +586,7 @@ pub fn train_with_clock(
         // The last one is written after the loop, with the final outputs.
         let budget_progress = paced.as_ref().map(|(pacer, _, _)| pacer.progress());
         if !report.last && checkpoint_follows(trainer.config(), &report) {
-            save_resumable(&paths, &trainer, budget_progress, &log)?;
+            save_resumable(&paths, &mut trainer, budget_progress, &log)?;
         }
         let is_last = report.last;
         last = Some(report);
@@ -594,7 +599,7 @@ pub fn train_with_clock(
         .as_ref()
         .map(|(pacer, _, _)| pacer.progress())
         .or(resumed_budget);
-    save_resumable(&paths, &trainer, budget_progress, &log)?;
+    save_resumable(&paths, &mut trainer, budget_progress, &log)?;
     evogs_io::write_ply(&paths.canonical(), trainer.state().gaussians().view())?;
     trainer.backbone().save(&paths.weights())?;
     let done = trainer.iteration() - start_iteration;

@@ -348,6 +348,47 @@ impl SceneState {
         Ok(())
     }
 
+    /// One Adam step of the backbone's buffers on its device ([`Backbone::step_on_device`]),
+    /// with the gradients its last backward left there, at the lr of `lr_step`: the host counts
+    /// the step and gives each group's constants; the moments stay on the device.
+    pub fn step_network_on_device(
+        &mut self,
+        backbone: &mut dyn Backbone,
+        lr_step: i64,
+    ) -> Result<(), TrainError> {
+        let updates = self
+            .net_groups
+            .iter()
+            .map(|&id| self.adam.next_update(id, lr_step))
+            .collect::<Result<Vec<_>, _>>()?;
+        let moments: Vec<&AdamGroup> = self
+            .net_groups
+            .iter()
+            .map(|&id| self.adam.group(id))
+            .collect();
+        Ok(backbone.step_on_device(&updates, &moments)?)
+    }
+
+    /// Copies the backbone's parameters and the moments of its groups from its device into the
+    /// host's ([`Backbone::sync_to_host`]; nothing on the host).
+    pub fn sync_network(&mut self, backbone: &mut dyn Backbone) -> Result<(), TrainError> {
+        let first = self.net_groups.first().map_or(0, |id| id.0);
+        // The network's groups follow the per-Gaussian ones, in order (SceneState::new).
+        let groups = &mut self.adam.groups_mut()[first..];
+        let mut moments: Vec<&mut AdamGroup> = groups.iter_mut().collect();
+        if moments.len() != self.net_groups.len() {
+            return Err(TrainError::config(
+                "backbone",
+                format!(
+                    "{} optimiser groups after the first network group, {} network groups",
+                    moments.len(),
+                    self.net_groups.len()
+                ),
+            ));
+        }
+        Ok(backbone.sync_to_host(&mut moments)?)
+    }
+
     /// Applies a densification plan to every per-Gaussian array through densify's one
     /// mechanism: the Gaussians, the moments of the six groups, the statistics and the
     /// backbone's rows.

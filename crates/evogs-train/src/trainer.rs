@@ -24,8 +24,10 @@
 //! [`splat_raster::select_rasterizer`] and [`Trainer::backend`]); the CPU one is the default.
 //! The backbone's network runs where `config.net_backend` says ([`place_network`],
 //! [`Trainer::network`]): on the rasterizer's device when asked and the backbone has a device
-//! form (cargo feature `wgpu`; D-3DGS's network today), on the CPU otherwise. Its parameters and
-//! Adam stay on the host either way, so checkpoints and resume are the same on both.
+//! form (cargo feature `wgpu`; D-3DGS's network today), on the CPU otherwise. On the device its
+//! gradient, Adam step and moments stay there too; [`Trainer::sync_host`] reads the parameters
+//! and moments back before a checkpoint, a weight file or a check of the values, so checkpoints
+//! and resume are the same on both.
 //!
 //! Everything random is a pure function of (seed, iteration): the epoch's permutation is drawn
 //! from a generator seeded by (seed, epoch), densify's split sampling from (seed, iteration),
@@ -72,7 +74,8 @@ pub struct StepReport {
     /// Whether densification changed the Gaussian set.
     pub densified: bool,
     /// L2 norm of the backbone's parameter gradients this iteration (`None` before the
-    /// warm-up ends: the network is not used then). A diagnostic of the deformation's training.
+    /// warm-up ends: the network is not used then; `None` with the network on a device, where
+    /// its gradient stays). A diagnostic of the deformation's training.
     pub net_grad_norm: Option<f64>,
 }
 
@@ -430,9 +433,19 @@ impl Trainer {
         &self.state
     }
 
-    /// The deformation backbone.
+    /// The deformation backbone. With its network on a device ([`Trainer::network`]), its
+    /// parameters and their moments in [`Trainer::state`]'s optimiser are those of the last
+    /// [`Trainer::sync_host`].
     pub fn backbone(&self) -> &dyn Backbone {
         self.backbone.as_ref()
+    }
+
+    /// Copies what lives on a device into the host's copies: the network's parameters
+    /// ([`Trainer::backbone`]) and their Adam moments ([`Trainer::state`]), when the network
+    /// steps there (`--net-backend wgpu`; one read-back), nothing otherwise. Before a
+    /// checkpoint, a weight file or a check of the values.
+    pub fn sync_host(&mut self) -> Result<(), TrainError> {
+        self.state.sync_network(self.backbone.as_mut())
     }
 
     /// Iterations completed.
@@ -627,7 +640,9 @@ impl Trainer {
             self.backbone
                 .backward_into(&self.deformation_grad, &mut self.net_grads)?;
         }
-        let net_grads = deforms.then_some(self.net_grads.as_slice());
+        // On the device the network's gradient stays there, for its step there.
+        let on_device = self.network.on_device;
+        let net_grads = (deforms && !on_device).then_some(self.net_grads.as_slice());
         t = self.times.lap(Phase::NetBackward, t);
         let (w, h) = (view.camera.width, view.camera.height);
         let schedule = self.densify.schedule;
@@ -670,6 +685,9 @@ impl Trainer {
             if let Some(g) = net_grads {
                 self.state
                     .step_network(self.backbone.as_mut(), g, lr_step)?;
+            } else if deforms && on_device {
+                self.state
+                    .step_network_on_device(self.backbone.as_mut(), lr_step)?;
             }
         }
         let t = self.times.lap(Phase::Optimizer, t);

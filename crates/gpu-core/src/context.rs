@@ -90,6 +90,11 @@ impl TrafficCounter {
         Self::add(&self.waits, 1);
     }
 
+    /// One command buffer submitted without waiting for it.
+    pub fn submit(&self) {
+        Self::add(&self.submits, 1);
+    }
+
     /// `n` compute dispatches recorded.
     pub fn dispatches(&self, n: u64) {
         Self::add(&self.dispatches, n);

@@ -29,6 +29,13 @@ pub fn groups_1d(items: u32, max_per_dim: u32) -> (u32, u32) {
     }
 }
 
+/// Submits the work recorded in `encoder` without waiting for it (counted as one submit): the
+/// device runs it before any later submission on the same queue, so a later read-back sees it.
+pub fn submit(ctx: &GpuContext, encoder: wgpu::CommandEncoder) {
+    ctx.traffic.submit();
+    ctx.queue.submit([encoder.finish()]);
+}
+
 /// Records one dispatch of `pipeline` with `bind_group`.
 pub fn dispatch(
     ctx: &GpuContext,

@@ -180,6 +180,11 @@ impl Adam {
         &self.groups
     }
 
+    /// The groups, mutable (moments, schedules, steps), in the order they were added.
+    pub fn groups_mut(&mut self) -> &mut [AdamGroup] {
+        &mut self.groups
+    }
+
     fn checked_group(&mut self, id: GroupId) -> Result<&mut AdamGroup, NnError> {
         self.groups
             .get_mut(id.0)

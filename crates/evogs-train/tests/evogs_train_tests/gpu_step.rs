@@ -1,7 +1,7 @@
-//! One whole training step on wgpu (the rasterizer and the D-3DGS network on the device; lavapipe
-//! in CI) against the same step on the CPU, from the same state: the loss, every Adam moment of
-//! every group (the six per-Gaussian groups and the network's) and every parameter after the
-//! step.
+//! One whole training step on wgpu (the rasterizer and the D-3DGS network on the device, the
+//! network's gradient, Adam step and moments resident there; lavapipe in CI) against the same
+//! step on the CPU, from the same state: the loss, every Adam moment of every group (the six
+//! per-Gaussian groups and the network's, read back) and every parameter after the step.
 //!
 //! Tolerances. The moments are `(1 − β1) g` and `(1 − β2) g²`, so they carry the gradients'
 //! differences: the rasterizer's parity contract (ARCHITECTURE §4, gradients within
@@ -78,6 +78,18 @@ fn params_close(what: &str, gpu: &[f32], cpu: &[f32], before: &[f32], m: &[f32])
     flips
 }
 
+/// The backbone's parameters as the host holds them.
+fn host_copy(t: &Trainer) -> Vec<Vec<f32>> {
+    t.backbone()
+        .params()
+        .into_iter()
+        .map(|(_, p)| match p {
+            StoreRef::F32(v) => v.to_vec(),
+            StoreRef::F16(_) => panic!("an f32 network"),
+        })
+        .collect()
+}
+
 #[test]
 fn one_wgpu_step_matches_the_cpu_step_from_the_same_state() {
     let dir = tempfile::tempdir().unwrap();
@@ -106,19 +118,17 @@ fn one_wgpu_step_matches_the_cpu_step_from_the_same_state() {
     assert!(gpu.network().on_device, "{}", gpu.network());
     assert_eq!(gpu_config.net_backend, BackendChoice::Wgpu);
     let before = cpu.state().gaussians().clone();
-    let net_before: Vec<Vec<f32>> = cpu
-        .backbone()
-        .params()
-        .into_iter()
-        .map(|(_, p)| match p {
-            StoreRef::F32(v) => v.to_vec(),
-            StoreRef::F16(_) => panic!("an f32 network"),
-        })
-        .collect();
+    let net_before = host_copy(&cpu);
     assert_eq!(gpu.state().gaussians(), &before, "the same starting state");
 
     let (rc, rg) = (cpu.step().unwrap(), gpu.step().unwrap());
     assert!(!rc.densified && !rg.densified);
+    // On the device the network's gradient, moments and updated parameters stay there: the
+    // host's copy is the one before the step until the trainer reads them back.
+    assert!(rc.net_grad_norm.is_some() && rg.net_grad_norm.is_none());
+    assert_eq!(host_copy(&gpu), net_before, "the step stayed on the device");
+    gpu.sync_host().unwrap();
+    assert_ne!(host_copy(&gpu), net_before, "read back after the step");
     assert!(
         (rc.loss - rg.loss).abs() <= 1e-4 * rc.loss,
         "loss {} vs {}",

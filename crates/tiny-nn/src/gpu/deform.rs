@@ -14,12 +14,15 @@
 use std::sync::Arc;
 
 use gpu_core::buffers::{read_back, storage, storage_init, uniform, write};
-use gpu_core::encode::{bind, dispatch, groups_1d};
+use gpu_core::encode::{bind, dispatch, groups_1d, submit};
 use gpu_core::{GpuContext, GpuError, wgsl_mirror};
 
+use super::adam::{AdamBuffers, AdamLayout, GpuAdam};
 use super::mlp::{DeviceMlp, GpuMlp, MlpWorkspace};
+use crate::adam::{AdamGroup, AdamUpdate};
 use crate::error::{NnError, check_len};
 use crate::nets::{DeformGrads, DeformNet};
+use crate::precision::StoreMut;
 
 pub(crate) const DEFORM_WGSL: &str = include_str!("deform.wgsl");
 
@@ -300,6 +303,15 @@ struct RunnerRows {
     d_out: wgpu::Buffer,
 }
 
+/// The Adam moments of a [`DeformRunner`]'s parameters on the device, once it steps them there.
+#[derive(Debug)]
+struct DeviceMoments {
+    m: wgpu::Buffer,
+    v: wgpu::Buffer,
+    /// The gradient of a backward over no rows (zeros), made when first needed.
+    zeros: Option<wgpu::Buffer>,
+}
+
 /// A [`DeformNet`]'s forward and backward on the device for a caller whose inputs and outputs
 /// live on the host (the trainer's D-3DGS backbone): the twin of [`DeformNet::forward_into`]
 /// and [`DeformNet::backward`] without the positions' gradient, with the same input checks and
@@ -307,11 +319,21 @@ struct RunnerRows {
 ///
 /// The device keeps the network's shape, the workspace of the last row count (made again when
 /// the count changes, e.g. after densification) and, after a training forward, the activations
-/// the backward needs. Each forward writes the network's current parameters (the host's
-/// optimiser changed them) and the positions and times, and reads the rows back; each backward
-/// writes `∂L/∂output` and reads the parameters' gradient back. What that moves per call is
-/// counted on the context ([`GpuContext::traffic`]): the step towards the resident iteration,
-/// not the step itself.
+/// the backward needs. Each forward writes the positions and times and reads the rows back.
+///
+/// Two ways to train, one per caller:
+/// - **The host's optimiser** ([`DeformRunner::backward`]): each forward writes the network's
+///   current parameters (the host's optimiser changed them), each backward writes `∂L/∂output`
+///   and reads the parameters' gradient back.
+/// - **Resident** ([`DeformRunner::backward_on_device`], then [`DeformRunner::step`]): the
+///   gradient stays on the device and Adam updates the parameters there, with moments that
+///   live there from the first step on (uploaded from the host's group then). From that step
+///   the device's parameters are the current ones: forwards write none, and
+///   [`DeformRunner::read_to_host`] copies parameters and moments back when the host needs
+///   them (a checkpoint, a check for non-finite values). [`DeformRunner::forget`] hands the
+///   truth back to the host (it changed the parameters or the moments itself).
+///
+/// What each call moves is counted on the context ([`GpuContext::traffic`]).
 #[derive(Debug)]
 pub struct DeformRunner {
     ctx: Arc<GpuContext>,
@@ -320,6 +342,14 @@ pub struct DeformRunner {
     rows: Option<RunnerRows>,
     /// Rows of the last forward when it was a training one (its activations are on the device).
     trained: Option<usize>,
+    /// Rows of the last [`DeformRunner::backward_on_device`] since that training forward: its
+    /// gradient is on the device for [`DeformRunner::step`].
+    grad_rows: Option<usize>,
+    /// Adam's kernel, compiled at the first [`DeformRunner::step`].
+    adam: Option<GpuAdam>,
+    /// The moments, present once the parameters are stepped on the device (then the device's
+    /// parameters are the current ones).
+    moments: Option<DeviceMoments>,
 }
 
 impl DeformRunner {
@@ -332,7 +362,28 @@ impl DeformRunner {
             net: None,
             rows: None,
             trained: None,
+            grad_rows: None,
+            adam: None,
+            moments: None,
         })
+    }
+
+    /// Whether the parameters are stepped on the device, so that the device's are the current
+    /// ones (after the first [`DeformRunner::step`], until [`DeformRunner::forget`]).
+    pub fn resident(&self) -> bool {
+        self.moments.is_some()
+    }
+
+    /// Hands the parameters back to the host: the next forward writes `net`'s parameters, the
+    /// next [`DeformRunner::step`] uploads the host's moments. For a caller that changed either
+    /// on the host (a loaded checkpoint or weight file); what the device held and was not read
+    /// back ([`DeformRunner::read_to_host`]) is dropped.
+    pub fn forget(&mut self) {
+        self.moments = None;
+        self.net = None;
+        self.rows = None;
+        self.trained = None;
+        self.grad_rows = None;
     }
 
     /// The device context it runs on.
@@ -353,6 +404,7 @@ impl DeformRunner {
         out: &mut Vec<f32>,
     ) -> Result<(), NnError> {
         self.trained = None;
+        self.grad_rows = None;
         DeformNet::check_inputs(positions, times, rows)?;
         let ctx = Arc::clone(&self.ctx);
         let (xyz, t) = net.encodings();
@@ -362,9 +414,16 @@ impl DeformRunner {
                 && d.t_freqs as usize == t.freqs()
         });
         if fits {
-            if let Some(device_net) = &self.net {
+            // Resident, the device's parameters are the current ones.
+            if let Some(device_net) = self.net.as_ref().filter(|_| self.moments.is_none()) {
                 device_net.mlp.write_params(&ctx, &net.mlp)?;
             }
+        } else if self.moments.is_some() {
+            return Err(NnError::Config(
+                "the network changed shape while its parameters are stepped on the device \
+                 (forget them first)"
+                    .to_string(),
+            ));
         } else {
             self.rows = None;
             self.net = Some(DeviceDeformNet::upload(&ctx, net)?);
@@ -414,6 +473,42 @@ impl DeformRunner {
     /// [`DeformRunner::forward_into`]: `d_out` (rows × outputs) is `∂L/∂output`; returns the
     /// MLP's parameter gradient in [`Mlp::params`](crate::Mlp::params)'s layout.
     pub fn backward(&mut self, d_out: &[f32]) -> Result<Vec<f32>, NnError> {
+        if self.moments.is_some() {
+            return Err(NnError::Config(
+                "the parameters are stepped on the device: their gradient stays there \
+                 (backward_on_device)"
+                    .to_string(),
+            ));
+        }
+        let params = self.checked_backward(d_out)?;
+        let Some(encoder) = self.encode_backward(d_out)? else {
+            return Ok(vec![0.0; params]);
+        };
+        let Some(buffers) = &self.rows else {
+            unreachable!("a backward over rows has their buffers");
+        };
+        let back = read_back(
+            &self.ctx,
+            encoder,
+            &[(&buffers.ws.mlp.d_params, 0, 4 * params as u64)],
+        )?;
+        Ok(bytemuck::pod_collect_to_vec(&back[0]))
+    }
+
+    /// [`DeformRunner::backward`] whose gradient stays on the device, for the
+    /// [`DeformRunner::step`] that follows: writes `∂L/∂output` and submits, without a wait or
+    /// a read-back.
+    pub fn backward_on_device(&mut self, d_out: &[f32]) -> Result<(), NnError> {
+        self.checked_backward(d_out)?;
+        if let Some(encoder) = self.encode_backward(d_out)? {
+            submit(&self.ctx, encoder);
+        }
+        self.grad_rows = self.trained;
+        Ok(())
+    }
+
+    /// Checks a backward's `d_out` against the last training forward; the parameter count.
+    fn checked_backward(&self, d_out: &[f32]) -> Result<usize, NnError> {
         let (Some(rows), Some(device_net)) = (self.trained, &self.net) else {
             return Err(NnError::Config(
                 "deformation backward without a training forward".to_string(),
@@ -421,9 +516,19 @@ impl DeformRunner {
         };
         let outputs = device_net.mlp.output_width();
         check_len("deformation output gradient", rows * outputs, d_out.len())?;
-        let params = device_net.mlp.param_count();
+        Ok(device_net.mlp.param_count())
+    }
+
+    /// Writes `d_out` and records the backward (after [`DeformRunner::checked_backward`]);
+    /// `None` for a forward over no rows (the gradient is zero).
+    fn encode_backward(&self, d_out: &[f32]) -> Result<Option<wgpu::CommandEncoder>, NnError> {
+        let (Some(rows), Some(device_net)) = (self.trained, &self.net) else {
+            return Err(NnError::Config(
+                "deformation backward without a training forward".to_string(),
+            ));
+        };
         let Some(buffers) = self.rows.as_ref().filter(|_| rows > 0) else {
-            return Ok(vec![0.0; params]);
+            return Ok(None);
         };
         let ctx = &self.ctx;
         write(ctx, &buffers.d_out, 0, bytemuck::cast_slice(d_out))?;
@@ -436,12 +541,122 @@ impl DeformRunner {
             &buffers.positions,
             &buffers.d_out,
         );
-        let back = read_back(
-            ctx,
-            encoder,
-            &[(&buffers.ws.mlp.d_params, 0, 4 * params as u64)],
+        Ok(Some(encoder))
+    }
+
+    /// One Adam update of the parameters on the device with the gradient of the last
+    /// [`DeformRunner::backward_on_device`] and the constants `update` (from
+    /// [`Adam::next_update`](crate::Adam::next_update) of the network's group, `moments`). The
+    /// first step uploads that group's moments; later ones use the device's (the host's are then
+    /// as of the last [`DeformRunner::read_to_host`]). Submits, without a wait: what it moves is
+    /// the update's constants.
+    pub fn step(&mut self, update: &AdamUpdate, moments: &AdamGroup) -> Result<(), NnError> {
+        let (Some(rows), Some(device_net)) = (self.grad_rows.take(), &self.net) else {
+            return Err(NnError::Config(
+                "a device step without a backward on the device".to_string(),
+            ));
+        };
+        let ctx = &self.ctx;
+        let params = device_net.mlp.param_count();
+        let count =
+            u32::try_from(params).map_err(|_| NnError::Config(format!("{params} parameters")))?;
+        if self.adam.is_none() {
+            self.adam = Some(GpuAdam::new(ctx)?);
+        }
+        if self.moments.is_none() {
+            check_len(
+                &format!("Adam group `{}` m", moments.name),
+                params,
+                moments.m.len(),
+            )?;
+            check_len(
+                &format!("Adam group `{}` v", moments.name),
+                params,
+                moments.v.len(),
+            )?;
+            self.moments = Some(DeviceMoments {
+                m: storage_init(ctx, "deform adam m", bytemuck::cast_slice(&moments.m))?,
+                v: storage_init(ctx, "deform adam v", bytemuck::cast_slice(&moments.v))?,
+                zeros: None,
+            });
+        }
+        let (Some(adam), Some(device_moments)) = (&self.adam, &mut self.moments) else {
+            unreachable!("made above");
+        };
+        let grads = match self.rows.as_ref().filter(|_| rows > 0) {
+            Some(buffers) => &buffers.ws.mlp.d_params,
+            None => {
+                if device_moments.zeros.is_none() {
+                    device_moments.zeros =
+                        Some(storage(ctx, "deform zero gradient", 4 * u64::from(count))?);
+                }
+                let Some(zeros) = &device_moments.zeros else {
+                    unreachable!("made above");
+                };
+                zeros
+            }
+        };
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let bufs = AdamBuffers {
+            params: &device_net.mlp.params,
+            grads,
+            m: &device_moments.m,
+            v: &device_moments.v,
+        };
+        adam.encode(ctx, &mut encoder, update, AdamLayout::plain(count), bufs)?;
+        submit(ctx, encoder);
+        Ok(())
+    }
+
+    /// Copies the device's parameters into `net` and its moments into `moments` (the network's
+    /// Adam group) when they are stepped on the device ([`DeformRunner::resident`]); nothing
+    /// otherwise (the host's are the current ones). One read-back and a wait.
+    pub fn read_to_host(
+        &self,
+        net: &mut DeformNet,
+        moments: &mut AdamGroup,
+    ) -> Result<(), NnError> {
+        let (Some(device_net), Some(device_moments)) = (&self.net, &self.moments) else {
+            return Ok(());
+        };
+        let params = device_net.mlp.param_count();
+        check_len(
+            &format!("Adam group `{}` m", moments.name),
+            params,
+            moments.m.len(),
         )?;
-        Ok(bytemuck::pod_collect_to_vec(&back[0]))
+        check_len(
+            &format!("Adam group `{}` v", moments.name),
+            params,
+            moments.v.len(),
+        )?;
+        if !device_net.mlp.same_shape(&net.mlp) {
+            return Err(NnError::Config(
+                "the network's shape differs from the one on the device".to_string(),
+            ));
+        }
+        let bytes = 4 * params as u64;
+        let encoder = self.ctx.device.create_command_encoder(&Default::default());
+        let back = read_back(
+            &self.ctx,
+            encoder,
+            &[
+                (&device_net.mlp.params, 0, bytes),
+                (&device_moments.m, 0, bytes),
+                (&device_moments.v, 0, bytes),
+            ],
+        )?;
+        let StoreMut::F32(values) = net.mlp.params_mut() else {
+            return Err(NnError::Config(
+                "the GPU network stores f32 only; this network stores f16".to_string(),
+            ));
+        };
+        // Collected rather than cast: the read-back's bytes carry no f32 alignment.
+        let f32s = |b: &[u8]| bytemuck::pod_collect_to_vec::<u8, f32>(b);
+        values.copy_from_slice(&f32s(&back[0]));
+        moments.m = f32s(&back[1]);
+        moments.v = f32s(&back[2]);
+        Ok(())
     }
 }
 

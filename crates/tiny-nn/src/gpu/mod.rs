@@ -4,7 +4,8 @@
 //! [`Adam`](crate::Adam)'s step ([`GpuAdam`]), on buffers that stay on the device, each checked against its CPU
 //! implementation by this crate's `gpu_*` tests (on lavapipe in CI). [`DeformRunner`] runs the
 //! deformation network for a caller whose inputs and outputs are on the host (the trainer's
-//! D-3DGS backbone), keeping the device's buffers between calls.
+//! D-3DGS backbone), keeping the device's buffers between calls, and can keep the parameters,
+//! their gradient and Adam's moments there (resident), read back only when the host asks.
 //!
 //! Precision: f32 storage and arithmetic, as the CPU's f32 path; sums run in other orders than
 //! the CPU's gemm, so values differ by f32 rounding (the tests state how much). Every sum has a

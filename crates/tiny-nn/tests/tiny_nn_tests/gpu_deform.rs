@@ -242,3 +242,161 @@ fn the_runner_refuses_what_the_cpu_refuses_and_counts_what_it_moves() {
     );
     assert_eq!(after.waits - before.waits, 2, "one wait per pass");
 }
+
+/// Root mean square.
+fn rms(values: &[f32]) -> f32 {
+    (values.iter().map(|&x| f64::from(x).powi(2)).sum::<f64>() / values.len().max(1) as f64).sqrt()
+        as f32
+}
+
+/// The parameters of an f32 network.
+fn params_of(net: &DeformNet) -> Vec<f32> {
+    match net.mlp.params() {
+        tiny_nn::StoreRef::F32(p) => p.to_vec(),
+        tiny_nn::StoreRef::F16(_) => panic!("an f32 network"),
+    }
+}
+
+/// The resident runner (gradient, Adam and moments on the device) against the CPU's backward and
+/// Adam, each step from the same state (the CPU takes the device's parameters and moments, read
+/// back, before its step): rows, then the same rows, then none (a zero gradient).
+///
+/// Tolerances, from the gradient's (`2e-5 · (|g| + s)`, above, `s` its root mean square):
+/// `m = β1 m' + (1 − β1) g` within `(1 − β1) Δ`, `v` within `(1 − β2)(2|g| + Δ) Δ`, `Δ` that
+/// bound on `g`'s, plus f32 rounding; a parameter moves by `lr · m̂ / (√v̂ + ε)`, whose
+/// difference is at most about `0.75 lr · Δ / |g|` (√v̂ ≥ |g| / √2 after two steps, m̂'s share
+/// of g is (1 − β1) / (1 − β1²)), under `2e-3 lr` where `|g| ≥ 1 %` of `s`; below that the
+/// first step's `±lr` may take the other sign, `2 lr` apart.
+#[test]
+fn the_resident_runner_steps_like_the_hosts_adam_and_moves_only_the_rows() {
+    use tiny_nn::{Adam, LrSchedule};
+    let mut runner = DeformRunner::new(runner_context()).unwrap();
+    let (mut cpu, mut gpu) = (
+        DeformNet::new(small(11)).unwrap(),
+        DeformNet::new(small(11)).unwrap(),
+    );
+    let lr = 1e-3;
+    let count = cpu.mlp.param_count();
+    let (mut adam_cpu, mut adam_gpu) = (Adam::new(), Adam::new());
+    let id = adam_cpu
+        .add_group("net", count, 1, LrSchedule::Constant(lr))
+        .unwrap();
+    adam_gpu
+        .add_group("net", count, 1, LrSchedule::Constant(lr))
+        .unwrap();
+    assert!(!runner.resident());
+    let mut out = Vec::new();
+    let mut flips = 0;
+    for (step, rows) in [(0, 200), (1, 200), (2, 0)] {
+        let seed = 40 + step as u64;
+        let positions = values(seed, rows * 3, -1.5, 1.5);
+        let times = values(seed ^ 1, rows, 0.0, 1.0);
+        let d_out = values(seed ^ 2, rows * DeformNet::OUTPUT, -1.0, 1.0);
+        // The CPU from the device's state.
+        let before = params_of(&gpu);
+        if let StoreMut::F32(p) = cpu.mlp.params_mut() {
+            p.copy_from_slice(&before);
+        }
+        *adam_cpu.group_mut(id) = adam_gpu.group(id).clone();
+        let (y_cpu, cache) = cpu.forward(&positions, &times, rows).unwrap();
+        let g = cpu.backward(&cache, &d_out, false).unwrap().mlp;
+        adam_cpu.step(id, step, cpu.mlp.params_mut(), &g).unwrap();
+        runner
+            .forward_into(&gpu, &positions, &times, rows, true, &mut out)
+            .unwrap();
+        close(&format!("step {step} outputs"), &out, &y_cpu, 2e-5);
+        runner.backward_on_device(&d_out).unwrap();
+        let update = adam_gpu.next_update(id, step).unwrap();
+        runner.step(&update, adam_gpu.group(id)).unwrap();
+        assert!(runner.resident());
+        runner
+            .read_to_host(&mut gpu, adam_gpu.group_mut(id))
+            .unwrap();
+
+        let (c, d) = (adam_cpu.group(id), adam_gpu.group(id));
+        assert_eq!(c.step, d.step);
+        let s = rms(&g);
+        let (b1, b2) = (0.9f32, 0.999f32);
+        let after = params_of(&cpu);
+        let on_device = params_of(&gpu);
+        for i in 0..count {
+            let delta = 2e-5 * (g[i].abs() + s);
+            let tol_m = (1.0 - b1) * delta + 1e-6 * c.m[i].abs();
+            assert!(
+                (d.m[i] - c.m[i]).abs() <= tol_m,
+                "step {step} m[{i}]: {} vs {} (±{tol_m})",
+                d.m[i],
+                c.m[i]
+            );
+            let tol_v = (1.0 - b2) * (2.0 * g[i].abs() + delta) * delta + 1e-6 * c.v[i];
+            assert!(
+                (d.v[i] - c.v[i]).abs() <= tol_v,
+                "step {step} v[{i}]: {} vs {} (±{tol_v})",
+                d.v[i],
+                c.v[i]
+            );
+            let close_enough = 2e-3 * lr + 1e-6 * after[i].abs();
+            let tol_p = if g[i].abs() >= 0.01 * s {
+                close_enough
+            } else {
+                flips += usize::from((on_device[i] - after[i]).abs() > close_enough);
+                2.0 * lr + 1e-6 * after[i].abs()
+            };
+            assert!(
+                (on_device[i] - after[i]).abs() <= tol_p,
+                "step {step} parameter {i}: {} vs {} (±{tol_p}, from {})",
+                on_device[i],
+                after[i],
+                before[i]
+            );
+        }
+        // The step moved the parameters (the zero gradient too: Adam's momentum).
+        assert!(on_device != before, "step {step} left the parameters");
+    }
+    eprintln!("resident steps: {flips} of {count} parameters took the other sign");
+    assert!(flips * 100 <= count, "{flips} of {count} flipped");
+
+    // Resident, an iteration moves the positions, times and output gradient up with the step's
+    // constants, and the rows down: no parameter, no gradient, one wait.
+    let rows = 120;
+    let positions = values(60, rows * 3, -1.5, 1.5);
+    let times = values(61, rows, 0.0, 1.0);
+    let d_out = values(62, rows * DeformNet::OUTPUT, -1.0, 1.0);
+    let iteration = |runner: &mut DeformRunner, adam: &mut Adam, out: &mut Vec<f32>| {
+        runner
+            .forward_into(&gpu, &positions, &times, rows, true, out)
+            .unwrap();
+        runner.backward_on_device(&d_out).unwrap();
+        let update = adam.next_update(id, 5).unwrap();
+        runner.step(&update, adam.group(id)).unwrap();
+    };
+    iteration(&mut runner, &mut adam_gpu, &mut out);
+    let before = runner.context().traffic();
+    iteration(&mut runner, &mut adam_gpu, &mut out);
+    let moved = runner.context().traffic().since(&before);
+    let (outputs, rows) = (DeformNet::OUTPUT as u64, rows as u64);
+    let constants = 48;
+    assert_eq!(
+        moved.bytes_up,
+        4 * (3 * rows + rows + outputs * rows) + constants
+    );
+    assert_eq!(moved.bytes_down, 4 * outputs * rows);
+    assert_eq!(moved.waits, 1, "the rows' read-back only");
+    // Resident, the host's way is refused rather than mixed in, and forget hands the truth back.
+    runner
+        .forward_into(&gpu, &positions, &times, rows as usize, true, &mut out)
+        .unwrap();
+    assert!(runner.backward(&d_out).is_err());
+    runner.forget();
+    assert!(!runner.resident());
+    runner
+        .forward_into(&gpu, &positions, &times, rows as usize, true, &mut out)
+        .unwrap();
+    assert_eq!(runner.backward(&d_out).unwrap().len(), count);
+    // A step without a backward on the device is refused.
+    assert!(
+        runner
+            .step(&adam_gpu.next_update(id, 6).unwrap(), adam_gpu.group(id))
+            .is_err()
+    );
+}
