@@ -303,6 +303,18 @@ struct RunnerRows {
     d_out: wgpu::Buffer,
 }
 
+/// Checks that `moments` holds one m and one v per parameter of a network of `params`.
+fn check_moments(moments: &AdamGroup, params: usize) -> Result<(), NnError> {
+    for (which, len) in [("m", moments.m.len()), ("v", moments.v.len())] {
+        check_len(
+            &format!("Adam group `{}` {which}", moments.name),
+            params,
+            len,
+        )?;
+    }
+    Ok(())
+}
+
 /// The Adam moments of a [`DeformRunner`]'s parameters on the device, once it steps them there.
 #[derive(Debug)]
 struct DeviceMoments {
@@ -564,16 +576,7 @@ impl DeformRunner {
             self.adam = Some(GpuAdam::new(ctx)?);
         }
         if self.moments.is_none() {
-            check_len(
-                &format!("Adam group `{}` m", moments.name),
-                params,
-                moments.m.len(),
-            )?;
-            check_len(
-                &format!("Adam group `{}` v", moments.name),
-                params,
-                moments.v.len(),
-            )?;
+            check_moments(moments, params)?;
             self.moments = Some(DeviceMoments {
                 m: storage_init(ctx, "deform adam m", bytemuck::cast_slice(&moments.m))?,
                 v: storage_init(ctx, "deform adam v", bytemuck::cast_slice(&moments.v))?,
@@ -620,16 +623,7 @@ impl DeformRunner {
             return Ok(());
         };
         let params = device_net.mlp.param_count();
-        check_len(
-            &format!("Adam group `{}` m", moments.name),
-            params,
-            moments.m.len(),
-        )?;
-        check_len(
-            &format!("Adam group `{}` v", moments.name),
-            params,
-            moments.v.len(),
-        )?;
+        check_moments(moments, params)?;
         if !device_net.mlp.same_shape(&net.mlp) {
             return Err(NnError::Config(
                 "the network's shape differs from the one on the device".to_string(),
