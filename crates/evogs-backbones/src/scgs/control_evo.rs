@@ -362,6 +362,15 @@ impl Backbone for ScgsControlEvo {
         // The evolved columns' gradient becomes the evolution's dL/dz; the others pass through.
         let mut skin = skin;
         scatter(&mut skin.nodes, NODE_OUTPUT, &self.columns, &bw.dz);
+        // ARAP's gradient at the step's time rides the same backward pass.
+        let arap = self.params.arap_terms(
+            self.settings.arap_weight,
+            arap_partner(self.seed, t.time),
+            &t.nodes,
+        )?;
+        if let Some(terms) = &arap {
+            terms.add_to_nodes(&mut skin.nodes);
+        }
         let mut grads = self.params.node_gradients(&t.net, skin, want)?;
         // Re-queried history: the prior is a function of the network at the history times.
         for hg in &bw.history {
@@ -383,14 +392,10 @@ impl Backbone for ScgsControlEvo {
                 add_into(&mut grads[1], p);
             }
         }
-        self.arap_loss = self.params.add_arap(
-            self.settings.arap_weight,
-            arap_partner(self.seed, t.time),
-            &t.nodes,
-            &t.net,
-            want,
-            &mut grads,
-        )?;
+        self.arap_loss = match arap {
+            Some(terms) => self.params.finish_arap(terms, want, &mut grads)?,
+            None => 0.0,
+        };
         let psi_len = self.evo.psi().param_count();
         grads.push(bw.dpsi.clone().unwrap_or_else(|| vec![0.0f32; psi_len]));
         *out = grads;

@@ -408,6 +408,10 @@ impl ScgsParams {
     /// (its outputs `nodes`, network cache `net`) and at `partner`: adds its gradient to `grads`
     /// (in [`ScgsParams::gradients`]' order; to the positions only when `want_positions`) and
     /// returns its weighted value (0 when off or with fewer than two control points).
+    ///
+    /// A caller that runs the network's backward at the forward's time anyway saves one pass
+    /// with [`ScgsParams::arap_terms`], [`ArapTerms::add_to_nodes`] and
+    /// [`ScgsParams::finish_arap`] instead (the backward is linear in its output gradient).
     fn add_arap(
         &self,
         lambda: f32,
@@ -417,33 +421,102 @@ impl ScgsParams {
         want_positions: bool,
         grads: &mut [Vec<f32>],
     ) -> Result<f64, BackboneError> {
-        let m = self.positions.len();
-        if lambda == 0.0 || m < 2 {
+        let Some(terms) = self.arap_terms(lambda, partner, nodes)? else {
             return Ok(0.0);
+        };
+        let mut d_nodes = vec![0f32; self.positions.len() * NODE_OUTPUT];
+        terms.add_to_nodes(&mut d_nodes);
+        let g = self.net.backward(net, &d_nodes, want_positions)?;
+        add_into(&mut grads[0], &g.mlp);
+        if let Some(p) = &g.positions {
+            add_into(&mut grads[1], p);
         }
-        let mut net1 = DeformCache::default();
-        let nodes1 = self.node_outputs(partner, &mut net1)?;
+        self.finish_arap(terms, want_positions, grads)
+    }
+
+    /// SC-GS's ARAP loss, weighted by `lambda`, between the control points at a forward's time
+    /// (its outputs `nodes`) and at `partner`, with its gradients not yet spent; `None` when off
+    /// or with fewer than two control points.
+    fn arap_terms(
+        &self,
+        lambda: f32,
+        partner: f32,
+        nodes: &[f32],
+    ) -> Result<Option<ArapTerms>, BackboneError> {
+        if lambda == 0.0 || self.positions.len() < 2 {
+            return Ok(None);
+        }
+        let mut partner_net = DeformCache::default();
+        let nodes1 = self.node_outputs(partner, &mut partner_net)?;
         let a = arap::arap(
             &moved(&self.positions, nodes),
             &moved(&self.positions, &nodes1),
         )?;
-        for (net, d) in [(net, &a.d_first), (&net1, &a.d_second)] {
-            let mut d_nodes = vec![0f32; m * NODE_OUTPUT];
-            for i in 0..m {
-                for c in 0..3 {
-                    d_nodes[i * NODE_OUTPUT + c] = lambda * d[i * 3 + c];
-                    if want_positions {
-                        grads[1][i * 3 + c] += lambda * d[i * 3 + c];
-                    }
-                }
-            }
-            let g = self.net.backward(net, &d_nodes, want_positions)?;
-            add_into(&mut grads[0], &g.mlp);
-            if let Some(p) = &g.positions {
-                add_into(&mut grads[1], p);
-            }
+        let scale = |d: Vec<f32>| d.into_iter().map(|v| lambda * v).collect::<Vec<f32>>();
+        Ok(Some(ArapTerms {
+            loss: f64::from(lambda) * a.loss,
+            d_first: scale(a.d_first),
+            d_second: scale(a.d_second),
+            partner_net,
+        }))
+    }
+
+    /// Spends what [`ArapTerms::add_to_nodes`] did not: the moved positions' gradient on the
+    /// canonical positions (when `want_positions`) and the network's backward at the partner
+    /// time, into `grads`; returns the weighted loss.
+    fn finish_arap(
+        &self,
+        terms: ArapTerms,
+        want_positions: bool,
+        grads: &mut [Vec<f32>],
+    ) -> Result<f64, BackboneError> {
+        let m = self.positions.len();
+        if want_positions {
+            add_into(&mut grads[1], &terms.d_first);
+            add_into(&mut grads[1], &terms.d_second);
         }
-        Ok(f64::from(lambda) * a.loss)
+        let mut d_nodes = vec![0f32; m * NODE_OUTPUT];
+        for (row, d) in d_nodes
+            .chunks_exact_mut(NODE_OUTPUT)
+            .zip(terms.d_second.chunks_exact(3))
+        {
+            row[..3].copy_from_slice(d);
+        }
+        let g = self
+            .net
+            .backward(&terms.partner_net, &d_nodes, want_positions)?;
+        add_into(&mut grads[0], &g.mlp);
+        if let Some(p) = &g.positions {
+            add_into(&mut grads[1], p);
+        }
+        Ok(terms.loss)
+    }
+}
+
+/// SC-GS's weighted ARAP loss between a forward's time and its partner, its gradients with
+/// respect to the moved control points at both times (M × 3, weight included) not yet spent.
+struct ArapTerms {
+    /// The weighted loss.
+    loss: f64,
+    /// Its gradient on the control points moved to the forward's time.
+    d_first: Vec<f32>,
+    /// Its gradient on the control points moved to the partner time.
+    d_second: Vec<f32>,
+    /// The network's activations at the partner time.
+    partner_net: DeformCache,
+}
+
+impl ArapTerms {
+    /// Adds the loss's gradient at the forward's time to the network's output gradient
+    /// `d_nodes` (M × [`NODE_OUTPUT`]; the translation is its first three columns), so that
+    /// one backward at that time carries both.
+    fn add_to_nodes(&self, d_nodes: &mut [f32]) {
+        for (row, d) in d_nodes
+            .chunks_exact_mut(NODE_OUTPUT)
+            .zip(self.d_first.chunks_exact(3))
+        {
+            add_into(&mut row[..3], d);
+        }
     }
 }
 
@@ -663,22 +736,27 @@ impl ScgsBackbone {
             ));
         }
         let want = self.learns_positions();
-        let mut grads = self.params.gradients(
-            &cache.means,
-            &cache.neighbours,
-            &cache.nodes,
-            &cache.net,
-            d_deform,
-            want,
-        )?;
-        self.arap_loss = self.params.add_arap(
+        let arap = self.params.arap_terms(
             self.settings.arap_weight,
             arap_partner(self.seed, cache.time),
             &cache.nodes,
-            &cache.net,
-            want,
-            &mut grads,
         )?;
+        let mut skin = skinning::skin_backward(
+            &cache.means,
+            &cache.neighbours,
+            self.params.controls(),
+            &cache.nodes,
+            d_deform,
+        );
+        // ARAP's gradient at the forward's time rides the skinning's backward pass.
+        if let Some(terms) = &arap {
+            terms.add_to_nodes(&mut skin.nodes);
+        }
+        let mut grads = self.params.node_gradients(&cache.net, skin, want)?;
+        self.arap_loss = match arap {
+            Some(terms) => self.params.finish_arap(terms, want, &mut grads)?,
+            None => 0.0,
+        };
         Ok(grads)
     }
 }
