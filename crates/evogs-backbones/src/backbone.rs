@@ -68,7 +68,7 @@ pub trait Backbone: Send {
     /// whatever it held, from dL/d(deformation rows) of the last training forward (in the same
     /// layout). Gradients to the canonical Gaussians are not returned: the network input is
     /// detached (D-3DGS: `deform.step(gaussians.get_xyz.detach(), t)`). On a device
-    /// ([`Backbone::use_device`]) the gradients stay there for [`Backbone::step_on_device`] and
+    /// (`Backbone::use_device`, feature `wgpu`) the gradients stay there for [`Backbone::step_on_device`] and
     /// `out` is left empty.
     fn backward_into(
         &mut self,
@@ -113,7 +113,7 @@ pub trait Backbone: Send {
         Ok(false)
     }
 
-    /// One Adam update of every parameter buffer on the device (after [`Backbone::use_device`]
+    /// One Adam update of every parameter buffer on the device (after `Backbone::use_device`
     /// and a training [`Backbone::backward_into`]), with the constants `updates` (one per buffer,
     /// in [`Backbone::params`]' order, from [`tiny_nn::Adam::next_update`]) and the host's
     /// moments of those groups, `moments`, which the first step uploads (later ones use the

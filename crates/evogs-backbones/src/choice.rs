@@ -247,6 +247,7 @@ mod tests {
         arap_weight: 1e-4,
         position_lr_scale: 0.0,
         follow_densify: false,
+        placement: crate::scgs::Placement::Canonical,
         evolution_on: EvolutionOn::Gaussians,
     };
 

@@ -19,7 +19,7 @@ use strum::VariantNames;
 use crate::evo_settings::{
     DensifyPolicy, EvoSettings, Gain, HistoryMode, Layout, PlaneCombine, Precision, Storage,
 };
-use crate::scgs::{EvolutionOn, ScgsSettings};
+use crate::scgs::{EvolutionOn, Placement, ScgsSettings};
 
 /// The value parser of a setting spelled by one word: the type's `FromStr` (its message for an
 /// unknown word, as clap reports any parse error), with the type's spellings
@@ -217,6 +217,12 @@ pub struct ScgsArgs {
     #[arg(long, default_value_t = scgs_defaults().follow_densify)]
     pub control_follow_densify: bool,
 
+    /// SC-GS: what `--control-follow-densify` spreads the control points over: the Gaussians'
+    /// canonical positions, or their trajectories (positions at 16 times, SC-GS's way), which
+    /// puts more control points where the motion differs.
+    #[arg(long, value_parser = words::<Placement>(), default_value_t = scgs_defaults().placement)]
+    pub control_placement: Placement,
+
     /// EvoGS(SC-GS): keep the evolution state on the control points (their translation,
     /// rotation and scale before the skinning) or on every Gaussian (the paper's wording).
     #[arg(long, value_parser = words::<EvolutionOn>(), default_value_t = scgs_defaults().evolution_on)]
@@ -232,6 +238,7 @@ impl ScgsArgs {
         settings.arap_weight = self.arap_weight;
         settings.position_lr_scale = self.control_position_lr_scale;
         settings.follow_densify = self.control_follow_densify;
+        settings.placement = self.control_placement;
         settings.evolution_on = self.evolution_on;
     }
 
@@ -247,6 +254,7 @@ impl ScgsArgs {
                 self.control_position_lr_scale.to_string(),
             ),
             ("--evolution-on", self.evolution_on.to_string()),
+            ("--control-placement", self.control_placement.to_string()),
         ]
         .into_iter()
         .flat_map(|(flag, value)| [flag.to_string(), value])
@@ -292,6 +300,8 @@ mod tests {
             "--arap-weight",
             "2.5e-5",
             "--control-follow-densify",
+            "--control-placement",
+            "trajectories",
         ]);
         let mut again = vec!["evogs".to_string()];
         again.extend(cli.scgs.flags());

@@ -77,5 +77,5 @@ pub use hex_phi::HexPhi;
 pub use observer::Observer;
 pub use one_word::{OneWord, unknown_message};
 pub use scgs::control_evo::ScgsControlEvo;
-pub use scgs::{EvolutionOn, ScgsBackbone, ScgsSettings};
+pub use scgs::{EvolutionOn, Placement, ScgsBackbone, ScgsSettings};
 pub use working_memory::WorkingBytes;

@@ -122,6 +122,7 @@ fn scgs() -> Case<ScgsPhi> {
                 arap_weight: 0.5,
                 position_lr_scale: 1.0,
                 follow_densify: false,
+                placement: evogs_backbones::Placement::Canonical,
                 evolution_on: evogs_backbones::EvolutionOn::Gaussians,
             };
             ScgsPhi::new(&settings, &c.evogs, c.init_half_extent, c.seed).unwrap()

@@ -43,6 +43,7 @@ fn settings() -> ScgsSettings {
         arap_weight: 0.5,
         position_lr_scale: 1.0,
         follow_densify: false,
+        placement: evogs_backbones::Placement::Canonical,
         evolution_on: EvolutionOn::Controls,
     }
 }

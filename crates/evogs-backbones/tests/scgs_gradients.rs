@@ -316,6 +316,7 @@ fn backbone_gradient_matches_finite_differences() {
         arap_weight: 0.5,
         position_lr_scale: 1.0,
         follow_densify: false,
+        placement: evogs_backbones::Placement::Canonical,
         evolution_on: EvolutionOn::Gaussians,
     };
     let g = gaussians(20, 21);
@@ -398,6 +399,7 @@ fn control_points_start_on_the_gaussians_and_round_trip() {
     assert_eq!(b.control_positions(), before);
     let follows = ScgsSettings {
         follow_densify: true,
+        placement: evogs_backbones::Placement::Canonical,
         ..settings
     };
     let mut f = ScgsBackbone::new(&follows, 1.0, 2).unwrap();
@@ -423,4 +425,73 @@ fn control_points_start_on_the_gaussians_and_round_trip() {
             .unwrap();
         assert_eq!(r, (-2.0 - nearest as f32).exp());
     }
+}
+
+/// `--control-placement trajectories`: after a densification the control points are the
+/// Gaussians that farthest-point sampling picks from their trajectories (each one's position
+/// under the old control points at 16 times in `[0, 1]`, recomputed here from the backbone's
+/// own forward), which with a moving network is another set than the canonical positions give.
+#[test]
+fn trajectory_placement_spreads_the_points_over_the_gaussians_paths() {
+    use evogs_backbones::Placement;
+    use evogs_backbones::scgs::{TRAJECTORY_TIMES, fps};
+    let settings = ScgsSettings {
+        control_points: 6,
+        width: 12,
+        depth: 2,
+        xyz_freqs: 2,
+        t_freqs: 2,
+        follow_densify: true,
+        placement: Placement::Trajectories,
+        ..ScgsSettings::default()
+    };
+    // Without following, the points are placed once, before anything moves: refused.
+    let once = ScgsSettings {
+        follow_densify: false,
+        ..settings
+    };
+    let refused = ScgsBackbone::new(&once, 1.0, 0).err().unwrap().to_string();
+    assert!(refused.contains("scgs.placement"), "{refused}");
+    let g = gaussians(30, 5);
+    let moved = gaussians(50, 78);
+    let seed = 3;
+    let mut b = ScgsBackbone::new(&settings, 1.0, seed).unwrap();
+    b.initialise(g.view()).unwrap();
+    // Non-zero heads: the network moves the control points, differently over time.
+    let mut rng = Lcg(7);
+    for (_, p) in b.params_mut() {
+        if let StoreMut::F32(v) = p
+            && v.len() > 100
+        {
+            for x in v.iter_mut() {
+                *x += 0.5 * rng.next();
+            }
+        }
+    }
+    let mut paths = vec![[0f32; 3 * TRAJECTORY_TIMES]; moved.means.len()];
+    for j in 0..TRAJECTORY_TIMES {
+        let t = j as f32 / (TRAJECTORY_TIMES - 1) as f32;
+        let rows = b.forward(moved.view(), t, false).unwrap();
+        for ((path, row), x) in paths
+            .iter_mut()
+            .zip(rows.chunks_exact(ROW))
+            .zip(&moved.means)
+        {
+            for c in 0..3 {
+                path[3 * j + c] = x[c] + row[c];
+            }
+        }
+    }
+    let expected: Vec<[f32; 3]> = fps::farthest_points(&paths, 6, seed)
+        .into_iter()
+        .map(|i| moved.means[i])
+        .collect();
+    let canonical: Vec<[f32; 3]> = fps::farthest_points(&moved.means, 6, seed)
+        .into_iter()
+        .map(|i| moved.means[i])
+        .collect();
+    assert_ne!(expected, canonical, "the motion changes the picks");
+    b.gaussians_changed(moved.view()).unwrap();
+    assert_eq!(b.control_positions(), expected.as_slice());
+    assert!(b.control_radii().iter().all(|r| r.is_finite() && *r > 0.0));
 }

@@ -258,7 +258,13 @@ impl Backbone for ScgsControlEvo {
         if !self.settings.follow_densify {
             return Ok(());
         }
-        let parents = self.params.follow(canonical.means, self.seed);
+        // The trajectories are the network's, before the evolution's correction.
+        let parents = self.params.follow(
+            canonical.means,
+            self.seed,
+            self.settings.placement,
+            self.settings.neighbours,
+        )?;
         if self.ready && !parents.is_empty() {
             self.evo.apply_rows(&RowPlan {
                 kept: Vec::new(),

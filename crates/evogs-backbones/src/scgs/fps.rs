@@ -9,9 +9,10 @@
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-/// Indices of `m` points of `points` picked by farthest-point sampling from a seeded start;
-/// empty for an empty cloud.
-pub fn farthest_points(points: &[[f32; 3]], m: usize, seed: u64) -> Vec<usize> {
+/// Indices of `m` points of `points` (of any dimension `D`: 3 for positions, more for
+/// trajectories) picked by farthest-point sampling from a seeded start; empty for an empty
+/// cloud.
+pub fn farthest_points<const D: usize>(points: &[[f32; D]], m: usize, seed: u64) -> Vec<usize> {
     let n = points.len();
     if n == 0 || m == 0 {
         return Vec::new();
@@ -24,7 +25,7 @@ pub fn farthest_points(points: &[[f32; 3]], m: usize, seed: u64) -> Vec<usize> {
         let p = points[next];
         let mut best = (f32::NEG_INFINITY, 0);
         for (i, (q, d)) in points.iter().zip(&mut nearest).enumerate() {
-            *d = d.min(super::knn::dist2_between(&p, q));
+            *d = d.min(dist2(&p, q));
             if *d > best.0 {
                 best = (*d, i);
             }
@@ -35,6 +36,12 @@ pub fn farthest_points(points: &[[f32; 3]], m: usize, seed: u64) -> Vec<usize> {
         picked.push(i % n);
     }
     picked
+}
+
+/// Squared Euclidean distance, summed from the first coordinate on (for `D = 3` the same
+/// value, bit for bit, as [`super::knn::dist2_between`]).
+fn dist2<const D: usize>(a: &[f32; D], b: &[f32; D]) -> f32 {
+    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
 }
 
 #[cfg(test)]
@@ -67,7 +74,30 @@ mod tests {
         assert_eq!(unique.len(), 20);
         let small = farthest_points(&cloud[..2], 5, 1);
         assert_eq!(&small[2..], [0, 1, 0]);
-        assert!(farthest_points(&[], 4, 0).is_empty());
+        assert!(farthest_points::<3>(&[], 4, 0).is_empty());
         assert_eq!(farthest_points(&cloud, 20, 3), picked, "seeded");
+    }
+
+    /// In more dimensions than three (trajectories): a cloud whose first three coordinates
+    /// coincide is spread by its last three, exactly as the 3D cloud of those is.
+    #[test]
+    fn trajectories_are_spread_by_every_coordinate() {
+        let last: Vec<[f32; 3]> = (0..40)
+            .map(|i| {
+                let i = i as f32;
+                [(i * 0.37).sin(), (i * 1.3).cos() * 2.0, (i * 0.11).fract()]
+            })
+            .collect();
+        let cloud: Vec<[f32; 6]> = last
+            .iter()
+            .map(|p| [0.5, 0.5, 0.5, p[0], p[1], p[2]])
+            .collect();
+        for seed in 0..5 {
+            assert_eq!(
+                farthest_points(&cloud, 12, seed),
+                farthest_points(&last, 12, seed),
+                "seed {seed}"
+            );
+        }
     }
 }

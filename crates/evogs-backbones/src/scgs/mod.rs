@@ -19,7 +19,9 @@
 //! initial ones, then again of those the static warm-up fitted when the deformation starts (in
 //! place of SC-GS's 10 000-step pre-training of the control points as Gaussians, which picks them
 //! by farthest-point sampling of their trajectories; `follow_densify` places them again after
-//! each densification). They do not learn their positions (SC-GS detaches them everywhere after
+//! each densification, over the Gaussians' canonical positions or, with
+//! [`Placement::Trajectories`], over their trajectories under the control points as they are,
+//! SC-GS's way without its pre-training). They do not learn their positions (SC-GS detaches them everywhere after
 //! pre-training; a factor on their learning rate, `position_lr_scale`, lets them move), and the
 //! search is in 3D (SC-GS adds 8 learned "hyper" coordinates per point and Gaussian). The K nearest control
 //! points are exact at every forward, as SC-GS's search: a Gaussian's are searched again only
@@ -97,6 +99,11 @@ pub struct ScgsSettings {
     /// old point nearest to it), so that they follow the Gaussians into the moving parts a
     /// static warm-up fits poorly. Off: placed once, when the deformation starts.
     pub follow_densify: bool,
+    /// What `follow_densify`'s farthest-point sampling spreads the control points over: the
+    /// Gaussians' canonical positions, or their trajectories (each Gaussian's skinned position
+    /// at [`TRAJECTORY_TIMES`] times, SC-GS's `samp_hyper`), which puts more control points
+    /// where the motion differs. A run recorded without it placed them on canonical positions.
+    pub placement: Placement,
     /// EvoGS(SC-GS) only: where the evolution state lives, on the control points
     /// ([`control_evo::ScgsControlEvo`], the default: +1.68 dB on jumpingjacks at equal CPU
     /// time, results/scgs) or on every Gaussian (the paper's wording, [`phi::ScgsPhi`]). A run
@@ -131,6 +138,31 @@ impl OneWord for EvolutionOn {
     const FIELD: &'static str = "scgs.evolution_on";
 }
 
+/// What the control points are spread over when they are placed again (`--control-placement`).
+#[derive(EnumString, Display, IntoStaticStr, VariantNames)]
+#[strum(serialize_all = "lowercase", parse_err_ty = BackboneError, parse_err_fn = unknown::<Self>)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Placement {
+    /// The Gaussians' canonical positions (3 coordinates each). The default.
+    #[default]
+    Canonical,
+    /// The Gaussians' trajectories: their skinned positions at [`TRAJECTORY_TIMES`] times
+    /// evenly spread over `[0, 1]` (3 × 16 coordinates each; SC-GS: `samp_hyper`,
+    /// `time_num = 16`, `torch.linspace(0, 1, time_num)`).
+    Trajectories,
+}
+
+impl OneWord for Placement {
+    const FIELD: &'static str = "scgs.placement";
+}
+
+/// Times at which a Gaussian's trajectory is sampled for [`Placement::Trajectories`] (SC-GS's
+/// `time_num = 16` in `train_gui.py`'s `samp_hyper` strategy).
+pub const TRAJECTORY_TIMES: usize = 16;
+/// Coordinates of one trajectory.
+const TRAJECTORY_DIM: usize = 3 * TRAJECTORY_TIMES;
+
 impl Default for ScgsSettings {
     fn default() -> Self {
         Self {
@@ -143,6 +175,7 @@ impl Default for ScgsSettings {
             arap_weight: 1e-4,
             position_lr_scale: 0.0,
             follow_densify: false,
+            placement: Placement::Canonical,
             evolution_on: EvolutionOn::Controls,
         }
     }
@@ -167,6 +200,15 @@ impl ScgsSettings {
         whole("depth", self.depth, MAX_DEPTH)?;
         whole("xyz_freqs", self.xyz_freqs, MAX_FREQUENCIES)?;
         whole("t_freqs", self.t_freqs, MAX_FREQUENCIES)?;
+        if self.placement == Placement::Trajectories && !self.follow_densify {
+            // Placed once, when the deformation starts, the trajectories are the canonical
+            // positions (no motion yet): the setting would do nothing.
+            return Err(BackboneError::config(
+                "scgs.placement",
+                "trajectories needs follow_densify (--control-follow-densify): without it the \
+                 control points are placed once, before anything moves",
+            ));
+        }
         for (field, v) in [
             ("arap_weight", self.arap_weight),
             ("position_lr_scale", self.position_lr_scale),
@@ -343,13 +385,56 @@ impl ScgsParams {
 }
 
 impl ScgsParams {
-    /// Places the control points again on `points` (farthest-point sampling), each keeping the
-    /// radius and weight logit of the old control point nearest to it; returns those old
+    /// Each Gaussian's trajectory under the control points as they are: its position skinned
+    /// with `k` neighbours at [`TRAJECTORY_TIMES`] times evenly spread over `[0, 1]`, one point
+    /// of [`TRAJECTORY_DIM`] coordinates per Gaussian.
+    fn trajectories(
+        &self,
+        means: &[[f32; 3]],
+        k: usize,
+    ) -> Result<Vec<[f32; TRAJECTORY_DIM]>, BackboneError> {
+        let mut search = knn::NeighbourCache::default();
+        let neighbours = search.update(&self.positions, means, k)?;
+        let mut out = vec![[0f32; TRAJECTORY_DIM]; means.len()];
+        let (mut net, mut rows) = (DeformCache::default(), Vec::new());
+        for j in 0..TRAJECTORY_TIMES {
+            let time = j as f32 / (TRAJECTORY_TIMES - 1) as f32;
+            let nodes = self.node_outputs(time, &mut net)?;
+            skinning::skin_into(means, neighbours, self.controls(), &nodes, &mut rows);
+            for ((o, row), x) in out
+                .iter_mut()
+                .zip(rows.chunks_exact(skinning::ROW))
+                .zip(means)
+            {
+                for c in 0..3 {
+                    // A skinned row's position is the displacement from the canonical mean.
+                    o[3 * j + c] = x[c] + row[c];
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// Places the control points again on `points` (farthest-point sampling over what
+    /// `placement` names, with `k` neighbours per Gaussian for its trajectories), each keeping
+    /// the radius and weight logit of the old control point nearest to it; returns those old
     /// points, one per new point (none when there is nothing to place on).
-    fn follow(&mut self, points: &[[f32; 3]], seed: u64) -> Vec<u32> {
-        let picked = fps::farthest_points(points, self.positions.len(), seed);
+    fn follow(
+        &mut self,
+        points: &[[f32; 3]],
+        seed: u64,
+        placement: Placement,
+        k: usize,
+    ) -> Result<Vec<u32>, BackboneError> {
+        let m = self.positions.len();
+        let picked = match placement {
+            Placement::Canonical => fps::farthest_points(points, m, seed),
+            Placement::Trajectories => {
+                fps::farthest_points(&self.trajectories(points, k)?, m, seed)
+            }
+        };
         if picked.is_empty() {
-            return Vec::new();
+            return Ok(Vec::new());
         }
         let mut parents = Vec::with_capacity(picked.len());
         let old = std::mem::take(&mut self.positions);
@@ -366,7 +451,7 @@ impl ScgsParams {
             self.weight_logits[k] = logits[nearest];
             parents.push(nearest as u32);
         }
-        parents
+        Ok(parents)
     }
 
     /// The gradients of every buffer (network, positions, log radii, weight logits) from the
@@ -650,7 +735,12 @@ impl Backbone for ScgsBackbone {
 
     fn gaussians_changed(&mut self, canonical: GaussiansView<'_>) -> Result<(), BackboneError> {
         if self.settings.follow_densify {
-            self.params.follow(canonical.means, self.seed);
+            self.params.follow(
+                canonical.means,
+                self.seed,
+                self.settings.placement,
+                self.settings.neighbours,
+            )?;
         }
         Ok(())
     }

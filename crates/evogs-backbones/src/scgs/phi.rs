@@ -183,7 +183,12 @@ impl Observer for ScgsPhi {
 
     fn gaussians_changed(&mut self, means: &[[f32; 3]]) -> Result<(), BackboneError> {
         if self.settings.follow_densify {
-            self.params.follow(means, self.seed);
+            self.params.follow(
+                means,
+                self.seed,
+                self.settings.placement,
+                self.settings.neighbours,
+            )?;
         }
         Ok(())
     }

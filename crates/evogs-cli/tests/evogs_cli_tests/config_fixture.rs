@@ -1,7 +1,7 @@
 //! `config.json` files written by older evogs (main at 6068508, before the settings became the
 //! libraries' own types; main at e616b30, before `--triplane-combine`; main at 04d89b0, before
 //! SC-GS's settings; main at b51c05c, before `scgs.evolution_on`; main at ee24eb9, before
-//! `net_backend`) still load, give the
+//! `net_backend`; main at 22ec30d, before `scgs.placement`) still load, give the
 //! settings the same flags give today (with `--max-screen-radius 20`: the screen-size prune was
 //! always on then), and a run resumed from such a config keeps it. Today's format is pinned by
 //! the same three runs' files written by today's evogs (`tests/data/config-current`): each old
@@ -99,14 +99,14 @@ const FIXTURES: [(&str, &[&str]); 3] = [
     ),
 ];
 
-/// The fixtures of older evogs: at 6068508, and at e616b30 (the format before
-/// `triplane_combine`).
-const OLD: [&str; 5] = [
+/// The fixtures of older evogs, oldest first (the module's doc says what each lacks).
+const OLD: [&str; 6] = [
     "config-6068508",
     "config-e616b30",
     "config-04d89b0",
     "config-b51c05c",
     "config-ee24eb9",
+    "config-22ec30d",
 ];
 /// The same runs' files in today's format.
 const CURRENT: &str = "config-current";
@@ -140,24 +140,29 @@ fn old_configs_load_as_the_same_flags_give_and_are_written_back_in_todays_format
         // The settings whose meaning in a file without them differs from today's default:
         // EvoGS(SC-GS)'s state was on every Gaussian before `scgs.evolution_on` existed (a file
         // from before SC-GS itself, without `scgs`, takes SC-GS's defaults whole); every
-        // network ran on the CPU before `net_backend` existed (no old file has it).
+        // network ran on the CPU before `net_backend` existed.
         let mut then = today.clone();
         let scgs_before_the_choice =
             old_text.contains(r#""scgs""#) && !old_text.contains("evolution_on");
         if scgs_before_the_choice {
             then.backbones.scgs.evolution_on = EvolutionOn::recorded_before_the_choice();
         }
-        assert!(!old_text.contains("net_backend"), "{old}/{name}");
-        then.net_backend = BackendChoice::Cpu;
+        let before_net_backend = !old_text.contains("net_backend");
+        if before_net_backend {
+            then.net_backend = BackendChoice::Cpu;
+        }
         assert_eq!(run.train, then, "{old}/{name}");
         assert_eq!(current.train, today, "{name}");
         // Today's format: an old file is written back as its current twin, byte for byte, and
-        // the twin as itself. (The format changed five times since 6068508: in the order of the
+        // the twin as itself. (The format changed six times since 6068508: in the order of the
         // `evogs` object's keys, evo-state's config embedded first; then `triplane_combine`;
-        // then SC-GS's `scgs` object; then its `evolution_on`; then `net_backend`.)
+        // then SC-GS's `scgs` object; then its `evolution_on`; then `net_backend`; then
+        // `scgs.placement`, which a file without it reads as today's default.)
         let text = serde_json::to_string_pretty(&run).unwrap();
-        let mut then_text =
-            current_text.replace(r#""net_backend": "auto""#, r#""net_backend": "cpu""#);
+        let mut then_text = current_text.clone();
+        if before_net_backend {
+            then_text = then_text.replace(r#""net_backend": "auto""#, r#""net_backend": "cpu""#);
+        }
         if scgs_before_the_choice {
             then_text = then_text.replace(
                 r#""evolution_on": "controls""#,
