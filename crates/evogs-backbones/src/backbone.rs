@@ -68,8 +68,8 @@ pub trait Backbone: Send {
     /// whatever it held, from dL/d(deformation rows) of the last training forward (in the same
     /// layout). Gradients to the canonical Gaussians are not returned: the network input is
     /// detached (D-3DGS: `deform.step(gaussians.get_xyz.detach(), t)`). On a device
-    /// (`Backbone::use_device`, feature `wgpu`) the gradients stay there for [`Backbone::step_on_device`] and
-    /// `out` is left empty.
+    /// (`Backbone::use_device`, feature `wgpu`) the gradients stay there for
+    /// [`Backbone::step_on_device`] and `out` is left empty.
     fn backward_into(
         &mut self,
         d_deform: &[f32],
