@@ -1,7 +1,9 @@
 //! Buffer helpers: storage buffers sized against the device limits (a too large scene is an
-//! error, not a panic), uploads, and blocking read-backs through a staging buffer.
+//! error, not a panic), made per call or kept between calls in the context's
+//! [`pool`](crate::pool), uploads, and blocking read-backs through a pooled staging buffer.
 
 use std::num::NonZeroU64;
+use std::sync::Arc;
 
 use wgpu::util::DeviceExt;
 
@@ -15,10 +17,7 @@ pub const STORAGE: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE
     .union(wgpu::BufferUsages::COPY_DST);
 
 fn too_large(device: &wgpu::Device, label: &'static str, bytes: u64) -> Result<(), GpuError> {
-    let limit = device
-        .limits()
-        .max_storage_buffer_binding_size
-        .min(device.limits().max_buffer_size);
+    let limit = binding_limit(device);
     if bytes > limit {
         return Err(GpuError {
             stage: "buffers",
@@ -46,6 +45,103 @@ pub fn storage(
         usage: STORAGE,
         mapped_at_creation: false,
     }))
+}
+
+/// The largest buffer `device` allows to bind as storage.
+fn binding_limit(device: &wgpu::Device) -> u64 {
+    device
+        .limits()
+        .max_storage_buffer_binding_size
+        .min(device.limits().max_buffer_size)
+}
+
+/// [`storage`] from the context's [`pool`](crate::pool) (a buffer made before when nobody holds
+/// it any more, possibly larger than asked for): zero-filled like a new one, a reused buffer
+/// cleared on the device by a command recorded into `encoder` (so before the work recorded
+/// after this call; nothing crosses from the host). Bind it whole or by the size asked for:
+/// the kernels here read counts from their uniforms, never a binding's length.
+pub fn pooled_storage(
+    ctx: &GpuContext,
+    encoder: &mut wgpu::CommandEncoder,
+    label: &'static str,
+    bytes: u64,
+) -> Result<Arc<wgpu::Buffer>, GpuError> {
+    let bytes = bytes.max(64).next_multiple_of(4);
+    too_large(&ctx.device, label, bytes)?;
+    let taken = ctx.pool.take(
+        &ctx.device,
+        &ctx.traffic,
+        label,
+        STORAGE,
+        bytes,
+        binding_limit(&ctx.device),
+    );
+    if taken.reused {
+        encoder.clear_buffer(&taken.buffer, 0, None);
+    }
+    Ok(taken.buffer)
+}
+
+/// [`storage_init`] from the context's [`pool`](crate::pool): `data` (padded to at least 64
+/// bytes) written through the queue, counted as an upload; the rest of a reused buffer cleared
+/// by a command recorded into `encoder`.
+///
+/// The caller holds the buffer until the work that reads it has been submitted: the write lands
+/// at the start of the queue's next submission, so a buffer dropped before its work is submitted
+/// could be handed out again and written over before that work runs.
+pub fn pooled_storage_init(
+    ctx: &GpuContext,
+    encoder: &mut wgpu::CommandEncoder,
+    label: &'static str,
+    data: &[u8],
+) -> Result<Arc<wgpu::Buffer>, GpuError> {
+    let len = (data.len() as u64).max(64);
+    too_large(&ctx.device, label, len)?;
+    let taken = ctx.pool.take(
+        &ctx.device,
+        &ctx.traffic,
+        label,
+        STORAGE,
+        len.next_multiple_of(4),
+        binding_limit(&ctx.device),
+    );
+    ctx.traffic.upload(len);
+    write_padded(ctx, &taken.buffer, data);
+    let end = len.next_multiple_of(4);
+    if taken.reused && end < taken.buffer.size() {
+        encoder.clear_buffer(&taken.buffer, end, None);
+    }
+    Ok(taken.buffer)
+}
+
+/// [`uniform`] from the context's [`pool`](crate::pool): `data` written through the queue,
+/// counted as an upload. The caller holds the buffer until the work that reads it has been
+/// submitted (as [`pooled_storage_init`]).
+pub fn pooled_uniform(ctx: &GpuContext, label: &'static str, data: &[u8]) -> Arc<wgpu::Buffer> {
+    let len = data.len() as u64;
+    let taken = ctx.pool.take(
+        &ctx.device,
+        &ctx.traffic,
+        label,
+        wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        len,
+        len,
+    );
+    ctx.traffic.upload(len);
+    ctx.queue.write_buffer(&taken.buffer, 0, data);
+    taken.buffer
+}
+
+/// Writes `data` at the start of `buffer`, zero-padded to 64 bytes and to a multiple of 4 (the
+/// queue's copy alignment); not counted.
+fn write_padded(ctx: &GpuContext, buffer: &wgpu::Buffer, data: &[u8]) {
+    if data.len() >= 64 && data.len().is_multiple_of(4) {
+        ctx.queue.write_buffer(buffer, 0, data);
+    } else {
+        let mut padded = data.to_vec();
+        padded.resize(data.len().max(64).next_multiple_of(4), 0);
+        ctx.queue.write_buffer(buffer, 0, &padded);
+    }
 }
 
 /// A storage buffer holding `data` (padded to at least 64 bytes).
@@ -134,14 +230,19 @@ pub fn read_back(
         .map(|&(_, _, n)| n.next_multiple_of(4))
         .collect();
     let total: u64 = sizes.iter().sum::<u64>().max(4);
-    ctx.traffic.buffer();
     ctx.traffic.read_back(total);
-    let staging = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("read-back"),
-        size: total,
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
+    // From the pool: held here until unmapped, then free for the next read-back.
+    let staging = ctx
+        .pool
+        .take(
+            device,
+            &ctx.traffic,
+            "read-back",
+            wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            total,
+            device.limits().max_buffer_size.max(total),
+        )
+        .buffer;
     let mut offset = 0;
     for (&(buffer, from, _), &size) in regions.iter().zip(&sizes) {
         if size > 0 {
@@ -150,7 +251,7 @@ pub fn read_back(
         offset += size;
     }
     queue.submit([encoder.finish()]);
-    let slice = staging.slice(..);
+    let slice = staging.slice(..total);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
         // The receiver lives until `recv` below returns; a send error cannot happen.

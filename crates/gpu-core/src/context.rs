@@ -5,6 +5,7 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::GpuError;
+use crate::pool::BufferPool;
 use crate::traffic::Traffic;
 
 /// What the chosen adapter is.
@@ -57,6 +58,8 @@ pub struct GpuContext {
     pub(crate) id: u64,
     /// Host–device traffic recorded on this context ([`GpuContext::traffic`]).
     pub traffic: TrafficCounter,
+    /// Buffers kept between calls ([`crate::buffers::pooled_storage`] and its siblings).
+    pub pool: BufferPool,
 }
 
 /// Running [`Traffic`] totals of one context, added to by the helpers that upload, read back,
@@ -202,6 +205,7 @@ impl GpuContext {
             summary,
             id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
             traffic: TrafficCounter::default(),
+            pool: BufferPool::default(),
         })
     }
 

@@ -11,7 +11,8 @@
 //!
 //! What it is not: a kernel library for splatting or networks. Those keep a `gpu` module beside
 //! their CPU code in their own crates (`splat-raster`'s rasterizer is the first) and build on
-//! this one. Not a buffer pool yet: buffers are created per call (issue W).
+//! this one. Buffers a backend needs on every call come from the context's [`pool`], which hands
+//! back those nobody holds any more; not a sub-allocator.
 
 mod error;
 mod traffic;
@@ -32,6 +33,8 @@ pub mod encode;
 mod layout;
 #[cfg(all(feature = "wgpu", test))]
 mod layout_tests;
+#[cfg(feature = "wgpu")]
+pub mod pool;
 #[cfg(feature = "wgpu")]
 mod scan;
 #[cfg(feature = "wgpu")]

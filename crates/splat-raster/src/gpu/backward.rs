@@ -9,7 +9,7 @@ use crate::output::{BackendState, BackwardOutput, ForwardOutput, GaussianGrads, 
 use crate::validate::validate_backward;
 
 use super::WgpuRasterizer;
-use gpu_core::buffers::{read_back, storage, storage_init, uniform};
+use gpu_core::buffers::{pooled_storage, pooled_storage_init, pooled_uniform, read_back};
 use gpu_core::encode::{bind, dispatch, groups_1d};
 
 /// Floats per Gaussian of the record gradient (u, v, a, b, c, opacity, r, g, b, z).
@@ -47,19 +47,19 @@ impl WgpuRasterizer {
         let mut frame = gpu.frame;
         frame.use_d_alpha = u32::from(d.alpha.is_some());
         frame.use_d_depth = u32::from(d.depth.is_some());
-        let frame_buf = uniform(ctx, "frame", bytemuck::bytes_of(&frame));
-        let d_color_buf = storage_init(ctx, "d_color", bytemuck::cast_slice(d.color))?;
-        let d_alpha_buf =
-            storage_init(ctx, "d_alpha", bytemuck::cast_slice(d.alpha.unwrap_or(&[])))?;
-        let d_depth_buf =
-            storage_init(ctx, "d_depth", bytemuck::cast_slice(d.depth.unwrap_or(&[])))?;
+        // Pooled buffers, held until the read-back below has waited (`pooled_*`'s contract).
+        let mut enc = device.create_command_encoder(&Default::default());
+        let frame_buf = pooled_uniform(ctx, "frame", bytemuck::bytes_of(&frame));
+        let mut upload = |label, data: &[u8]| pooled_storage_init(ctx, &mut enc, label, data);
+        let d_color_buf = upload("d_color", bytemuck::cast_slice(d.color))?;
+        let d_alpha_buf = upload("d_alpha", bytemuck::cast_slice(d.alpha.unwrap_or(&[])))?;
+        let d_depth_buf = upload("d_depth", bytemuck::cast_slice(d.depth.unwrap_or(&[])))?;
         let n64 = n as u64;
-        let grads = storage(ctx, "record_grads", n64 * RECORD_GRAD * 4)?;
-        let out = storage(ctx, "raw_grads", n64 * OUT_STRIDE as u64 * 4)?;
-        let sh_out = storage(ctx, "sh_grads", n64 * stride as u64 * 4)?;
+        let grads = pooled_storage(ctx, &mut enc, "record_grads", n64 * RECORD_GRAD * 4)?;
+        let out = pooled_storage(ctx, &mut enc, "raw_grads", n64 * OUT_STRIDE as u64 * 4)?;
+        let sh_out = pooled_storage(ctx, &mut enc, "sh_grads", n64 * stride as u64 * 4)?;
 
         let p = &self.pipelines;
-        let mut enc = device.create_command_encoder(&Default::default());
         if n > 0 {
             let bg = bind(
                 ctx,

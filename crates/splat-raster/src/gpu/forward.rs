@@ -13,7 +13,7 @@ use crate::validate::validate;
 use super::WgpuRasterizer;
 use super::frame::{FrameUniform, pack_params};
 use super::state::GpuState;
-use gpu_core::buffers::{read_back, storage, storage_init, uniform};
+use gpu_core::buffers::{pooled_storage, pooled_storage_init, pooled_uniform, read_back};
 use gpu_core::encode::{bind, dispatch, groups_1d};
 use gpu_core::level_lengths;
 
@@ -68,27 +68,36 @@ impl WgpuRasterizer {
         let n_tiles = frame.n_tiles();
         let npix = cam.pixel_count() as u64;
 
-        let params = storage_init(ctx, "params", bytemuck::cast_slice(&pack_params(&g)))?;
-        let frame_buf = uniform(ctx, "frame", bytemuck::bytes_of(&frame));
+        // Every buffer comes from the context's pool and is held until the read-back that
+        // ends its stage has waited (`pooled_*`'s contract); those the backward pass reads
+        // stay held by the output.
+        let mut enc = device.create_command_encoder(&Default::default());
+        let params = pooled_storage_init(
+            ctx,
+            &mut enc,
+            "params",
+            bytemuck::cast_slice(&pack_params(&g)),
+        )?;
+        let frame_buf = pooled_uniform(ctx, "frame", bytemuck::bytes_of(&frame));
         let n64 = n as u64;
-        let splats = storage(ctx, "splats", n64 * SPLAT_BYTES)?;
-        let radii = storage(ctx, "radii", n64 * 4)?;
-        let depth_keys = storage(ctx, "depth_keys", n64 * 4)?;
-        let sort_ids = storage(ctx, "sort_ids", n64 * 4)?;
-        let tile_counts = storage(ctx, "tile_counts", n64 * 4)?;
-        let stats = storage(ctx, "stats", 32)?;
-        let offsets = storage(ctx, "offsets", n64 * 4)?;
+        let mut storage = |label, bytes| pooled_storage(ctx, &mut enc, label, bytes);
+        let splats = storage("splats", n64 * SPLAT_BYTES)?;
+        let radii = storage("radii", n64 * 4)?;
+        let depth_keys = storage("depth_keys", n64 * 4)?;
+        let sort_ids = storage("sort_ids", n64 * 4)?;
+        let tile_counts = storage("tile_counts", n64 * 4)?;
+        let stats = storage("stats", 32)?;
+        let offsets = storage("offsets", n64 * 4)?;
         // The scan's upper levels (chunk totals); the last one ends as the grand total.
         let scan_lens = level_lengths(n32);
         let scan_sums = scan_lens[1..]
             .iter()
-            .map(|&len| storage(ctx, "scan_sums", u64::from(len) * 4))
+            .map(|&len| storage("scan_sums", u64::from(len) * 4))
             .collect::<Result<Vec<_>, _>>()?;
         let total = scan_sums.last().expect("at least one upper level");
 
         // Stage 1: project, sort by depth, count tiles in depth order and scan the counts.
         let p = &self.pipelines;
-        let mut enc = device.create_command_encoder(&Default::default());
         let per_gaussian = groups_1d(n32, max_dim);
         if n > 0 {
             let bg = bind(
@@ -120,7 +129,9 @@ impl WgpuRasterizer {
             );
             dispatch(ctx, &mut enc, &p.gather_counts, &bg, per_gaussian);
             let scan = self.sorter.prefix_sum();
-            let levels: Vec<&wgpu::Buffer> = std::iter::once(&offsets).chain(&scan_sums).collect();
+            let levels: Vec<&wgpu::Buffer> = std::iter::once(&*offsets)
+                .chain(scan_sums.iter().map(|b| &**b))
+                .collect();
             let plan = scan.plan(ctx, &levels, &scan_lens);
             let mut cpass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("tile count scan"),
@@ -128,7 +139,7 @@ impl WgpuRasterizer {
             });
             scan.record(&ctx.traffic, &mut cpass, &plan);
         }
-        let head = read_back(ctx, enc, &[(&stats, 0, 32), (total, 0, 4)])?;
+        let head = read_back(ctx, enc, &[(&stats, 0, 32), (&**total, 0, 4)])?;
         let counts = u32s(&head[0]);
         let n_isect = if n > 0 { u32s(&head[1])[0] } else { 0 };
         let stats = CullStats {
@@ -148,17 +159,18 @@ impl WgpuRasterizer {
         ctx.traffic
             .upload(std::mem::size_of::<FrameUniform>() as u64);
         queue.write_buffer(&frame_buf, 0, bytemuck::bytes_of(&frame));
-        let isect_keys = storage(ctx, "isect_keys", u64::from(n_isect) * 4)?;
-        let isect_ids = storage(ctx, "isect_ids", u64::from(n_isect) * 4)?;
-        let ranges = storage(ctx, "ranges", u64::from(n_tiles) * 8)?;
-        let color = storage(ctx, "color", npix * 12)?;
-        let alpha = storage(ctx, "alpha", npix * 4)?;
-        let depth = storage(ctx, "depth", npix * 4)?;
-        let lanes = u64::from(n_tiles) * 256;
-        let final_t = storage(ctx, "final_t", lanes * 4)?;
-        let last = storage(ctx, "last", lanes * 4)?;
-        let tile_counters = storage(ctx, "tile_counters", u64::from(n_tiles) * 8)?;
         let mut enc = device.create_command_encoder(&Default::default());
+        let mut storage = |label, bytes| pooled_storage(ctx, &mut enc, label, bytes);
+        let isect_keys = storage("isect_keys", u64::from(n_isect) * 4)?;
+        let isect_ids = storage("isect_ids", u64::from(n_isect) * 4)?;
+        let ranges = storage("ranges", u64::from(n_tiles) * 8)?;
+        let color = storage("color", npix * 12)?;
+        let alpha = storage("alpha", npix * 4)?;
+        let depth = storage("depth", npix * 4)?;
+        let lanes = u64::from(n_tiles) * 256;
+        let final_t = storage("final_t", lanes * 4)?;
+        let last = storage("last", lanes * 4)?;
+        let tile_counters = storage("tile_counters", u64::from(n_tiles) * 8)?;
         if n_isect > 0 {
             let bg = bind(
                 ctx,

@@ -644,3 +644,72 @@ fn the_traffic_counter_counts_what_crosses_per_call() {
     let b = ctx.traffic().since(&t2);
     assert_eq!(b.bytes_up, 160 + 20 * npix, "{b:?}");
 }
+
+/// The context's buffer pool: a forward output's buffers are not handed to another call while
+/// the output is held (its backward after a larger scene's forward and backward gives the same
+/// gradients), reused buffers start as zeros as new ones do (the image after the larger scene,
+/// in the larger scene's buffers, is the first image bit for bit), and once the pool is warm a
+/// forward and backward create only the sort's and the scan's small parameter records (one
+/// per sort and one per scan plan: two sorts, each with its scan, and the tile-count scan).
+#[test]
+fn pooled_buffers_are_reused_only_when_free_and_start_as_zeros() {
+    let ctx = Arc::new(GpuContext::new().unwrap());
+    let r = WgpuRasterizer::with_context(ctx.clone(), AtomicMode::CompareExchange).unwrap();
+    let (g, cam, opts) = dense_scene(301, 2, 150, 37, 29);
+    let (big, big_cam, big_opts) = dense_scene(302, 3, 900, 64, 52);
+    let (dc, da, _) = pixel_grads(cam.pixel_count(), 6);
+    let (big_dc, _, _) = pixel_grads(big_cam.pixel_count(), 7);
+    let d = || PixelGrads::from_color(&dc).with_alpha(&da);
+
+    let first = r.forward(g.view(), &cam, &opts).unwrap();
+    let grads = r.backward(g.view(), &cam, &opts, &first, d()).unwrap();
+    // The larger scene runs while `first` is held, then its output is dropped.
+    let other = r.forward(big.view(), &big_cam, &big_opts).unwrap();
+    r.backward(
+        big.view(),
+        &big_cam,
+        &big_opts,
+        &other,
+        PixelGrads::from_color(&big_dc),
+    )
+    .unwrap();
+    drop(other);
+    let again = r.backward(g.view(), &cam, &opts, &first, d()).unwrap();
+    for ((kind, a), (_, b)) in kinds(&again.grads).into_iter().zip(kinds(&grads.grads)) {
+        let scale = rms(b);
+        for (k, (x, y)) in a.iter().zip(b).enumerate() {
+            close(&format!("{kind}[{k}]"), *x, *y, 1e-5 * y.abs().max(scale));
+        }
+    }
+    let image = (
+        first.color.clone(),
+        first.alpha.clone(),
+        first.depth.clone(),
+    );
+    drop(first);
+
+    let (count, bytes) = ctx.pool.held();
+    let t0 = ctx.traffic();
+    let warm = r.forward(g.view(), &cam, &opts).unwrap();
+    let warm_grads = r.backward(g.view(), &cam, &opts, &warm, d()).unwrap();
+    let t = ctx.traffic().since(&t0);
+    assert_eq!(
+        (&warm.color, &warm.alpha, &warm.depth),
+        (&image.0, &image.1, &image.2)
+    );
+    for ((kind, a), (_, b)) in kinds(&warm_grads.grads)
+        .into_iter()
+        .zip(kinds(&grads.grads))
+    {
+        let scale = rms(b);
+        for (k, (x, y)) in a.iter().zip(b).enumerate() {
+            close(&format!("{kind}[{k}]"), *x, *y, 1e-5 * y.abs().max(scale));
+        }
+    }
+    assert_eq!(t.buffers_created, 5, "{t:?}");
+    // Nothing new stays in the pool.
+    assert_eq!(ctx.pool.held(), (count, bytes));
+    drop(warm);
+    ctx.pool.trim();
+    assert!(ctx.pool.held().0 < count, "trim drops the free buffers");
+}
