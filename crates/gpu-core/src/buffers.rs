@@ -55,6 +55,22 @@ fn binding_limit(device: &wgpu::Device) -> u64 {
         .min(device.limits().max_buffer_size)
 }
 
+/// [`BufferPool::take`](crate::pool::BufferPool::take) on the context's pool, a new buffer
+/// counted on its traffic.
+fn take(
+    ctx: &GpuContext,
+    label: &'static str,
+    usage: wgpu::BufferUsages,
+    bytes: u64,
+    max_bytes: u64,
+) -> crate::pool::Taken {
+    let taken = ctx.pool.take(&ctx.device, label, usage, bytes, max_bytes);
+    if !taken.reused {
+        ctx.traffic.buffer();
+    }
+    taken
+}
+
 /// [`storage`] from the context's [`pool`](crate::pool) (a buffer made before when nobody holds
 /// it any more, possibly larger than asked for): zero-filled like a new one, a reused buffer
 /// cleared on the device by a command recorded into `encoder` (so before the work recorded
@@ -68,14 +84,7 @@ pub fn pooled_storage(
 ) -> Result<Arc<wgpu::Buffer>, GpuError> {
     let bytes = bytes.max(64).next_multiple_of(4);
     too_large(&ctx.device, label, bytes)?;
-    let taken = ctx.pool.take(
-        &ctx.device,
-        &ctx.traffic,
-        label,
-        STORAGE,
-        bytes,
-        binding_limit(&ctx.device),
-    );
+    let taken = take(ctx, label, STORAGE, bytes, binding_limit(&ctx.device));
     if taken.reused {
         encoder.clear_buffer(&taken.buffer, 0, None);
     }
@@ -97,9 +106,8 @@ pub fn pooled_storage_init(
 ) -> Result<Arc<wgpu::Buffer>, GpuError> {
     let len = (data.len() as u64).max(64);
     too_large(&ctx.device, label, len)?;
-    let taken = ctx.pool.take(
-        &ctx.device,
-        &ctx.traffic,
+    let taken = take(
+        ctx,
         label,
         STORAGE,
         len.next_multiple_of(4),
@@ -119,9 +127,8 @@ pub fn pooled_storage_init(
 /// submitted (as [`pooled_storage_init`]).
 pub fn pooled_uniform(ctx: &GpuContext, label: &'static str, data: &[u8]) -> Arc<wgpu::Buffer> {
     let len = data.len() as u64;
-    let taken = ctx.pool.take(
-        &ctx.device,
-        &ctx.traffic,
+    let taken = take(
+        ctx,
         label,
         wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         len,
@@ -232,17 +239,14 @@ pub fn read_back(
     let total: u64 = sizes.iter().sum::<u64>().max(4);
     ctx.traffic.read_back(total);
     // From the pool: held here until unmapped, then free for the next read-back.
-    let staging = ctx
-        .pool
-        .take(
-            device,
-            &ctx.traffic,
-            "read-back",
-            wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            total,
-            device.limits().max_buffer_size.max(total),
-        )
-        .buffer;
+    let staging = take(
+        ctx,
+        "read-back",
+        wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        total,
+        device.limits().max_buffer_size.max(total),
+    )
+    .buffer;
     let mut offset = 0;
     for (&(buffer, from, _), &size) in regions.iter().zip(&sizes) {
         if size > 0 {
@@ -340,5 +344,82 @@ mod tests {
         assert_eq!(got, [0.0, 1.5, -2.25]);
         // Only the write that landed counts as an upload.
         assert_eq!(ctx.traffic().bytes_up, 8);
+    }
+}
+
+#[cfg(test)]
+mod pool_tests {
+    use std::sync::Arc;
+
+    use super::STORAGE;
+    use crate::GpuContext;
+    use crate::pool::{BufferPool, MAX_FREE};
+
+    /// The pool ([`crate::pool`]): held buffers are never handed out; free ones are, the smallest large enough first; new
+    /// ones get a quarter of headroom; free ones too small are dropped when a larger one is
+    /// made; no more than [`MAX_FREE`] free ones are kept; labels and usages do not share; only
+    /// new buffers count as created.
+    #[test]
+    fn held_buffers_stay_theirs_and_free_ones_come_back() {
+        let ctx = GpuContext::new().expect("an adapter (CI installs lavapipe)");
+        let take = |label, bytes| {
+            let taken = ctx.pool.take(&ctx.device, label, STORAGE, bytes, 1 << 20);
+            if !taken.reused {
+                ctx.traffic.buffer();
+            }
+            taken
+        };
+        let a = take("t", 100);
+        assert!(!a.reused);
+        assert_eq!(
+            a.buffer.size(),
+            128,
+            "100 bytes and a quarter, to a multiple of 4"
+        );
+        let b = take("t", 100);
+        assert!(!b.reused && !Arc::ptr_eq(&a.buffer, &b.buffer), "a is held");
+        let a_ptr = Arc::clone(&a.buffer);
+        drop(a);
+        // Only `a_ptr` and the pool hold it now: still in use (a new 100-byte buffer, free
+        // again at once).
+        assert!(!take("t", 80).reused);
+        drop(a_ptr);
+        let again = take("t", 80);
+        assert!(
+            again.reused && again.buffer.size() == 100,
+            "the smallest free one"
+        );
+        assert!(!take("u", 80).reused, "another label");
+        let uniform = ctx.pool.take(
+            &ctx.device,
+            "t",
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            80,
+            1 << 20,
+        );
+        assert!(!uniform.reused, "another usage");
+        drop((again, b, uniform));
+        // Larger than every free one: a new buffer, the free ones of its label dropped.
+        let before = ctx.traffic();
+        let big = take("t", 1000);
+        assert!(!big.reused && big.buffer.size() == 1252);
+        assert_eq!(ctx.traffic().since(&before).buffers_created, 1);
+        let t_count = |pool: &BufferPool| pool.count("t", STORAGE);
+        assert_eq!(
+            t_count(&ctx.pool),
+            1,
+            "the smaller free buffers were dropped"
+        );
+        // Many held at once, then all dropped: at most MAX_FREE stay.
+        let many: Vec<_> = (0..5).map(|_| take("t", 1000)).collect();
+        drop((big, many));
+        let before = ctx.traffic();
+        let one = take("t", 10);
+        assert!(one.reused);
+        assert_eq!(ctx.traffic().since(&before).buffers_created, 0);
+        assert!(t_count(&ctx.pool) <= MAX_FREE, "{}", t_count(&ctx.pool));
+        drop(one);
+        ctx.pool.trim();
+        assert_eq!(t_count(&ctx.pool), 0);
     }
 }

@@ -15,9 +15,6 @@
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
-
-use crate::context::TrafficCounter;
-
 /// Free buffers kept per label and usage.
 pub const MAX_FREE: usize = 2;
 
@@ -42,12 +39,11 @@ pub struct Taken {
 impl BufferPool {
     /// A buffer labelled `label` with `usage` of at least `bytes` bytes: a free one made before
     /// (the smallest that is large enough), else a new one of `bytes` plus a quarter (at most
-    /// `max_bytes`, at least `bytes`), counted on `traffic`. The contents of a reused buffer
-    /// are its last user's; clearing is the caller's.
+    /// `max_bytes`, at least `bytes`). The contents of a reused buffer are its last user's;
+    /// clearing it, and counting a new one on the context's traffic, are the caller's.
     pub fn take(
         &self,
         device: &wgpu::Device,
-        traffic: &TrafficCounter,
         label: &'static str,
         usage: wgpu::BufferUsages,
         bytes: u64,
@@ -81,7 +77,6 @@ impl BufferPool {
             .next_multiple_of(4)
             .min(max_bytes)
             .max(bytes);
-        traffic.buffer();
         let buffer = Arc::new(device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size,
@@ -104,6 +99,12 @@ impl BufferPool {
             .fold((0, 0), |(n, bytes), b| (n + 1, bytes + b.size()))
     }
 
+    /// Buffers the pool holds (free or in use) of `label` and `usage`.
+    pub fn count(&self, label: &'static str, usage: wgpu::BufferUsages) -> usize {
+        let slots = self.slots.lock().unwrap_or_else(|e| e.into_inner());
+        slots.get(&(label, usage.bits())).map_or(0, Vec::len)
+    }
+
     /// Drops every free buffer (those in use stay until their holders drop them and a later
     /// [`BufferPool::take`] finds them free).
     pub fn trim(&self) {
@@ -111,83 +112,5 @@ impl BufferPool {
         for slot in slots.values_mut() {
             slot.retain(|b| Arc::strong_count(b) > 1);
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use std::sync::Arc;
-
-    use super::MAX_FREE;
-    use crate::GpuContext;
-    use crate::buffers::STORAGE;
-
-    /// Held buffers are never handed out; free ones are, the smallest large enough first; new
-    /// ones get a quarter of headroom; free ones too small are dropped when a larger one is
-    /// made; no more than [`MAX_FREE`] free ones are kept; labels and usages do not share; only
-    /// new buffers count as created.
-    #[test]
-    fn held_buffers_stay_theirs_and_free_ones_come_back() {
-        let ctx = GpuContext::new().expect("an adapter (CI installs lavapipe)");
-        let take = |label, bytes| {
-            ctx.pool
-                .take(&ctx.device, &ctx.traffic, label, STORAGE, bytes, 1 << 20)
-        };
-        let a = take("t", 100);
-        assert!(!a.reused);
-        assert_eq!(
-            a.buffer.size(),
-            128,
-            "100 bytes and a quarter, to a multiple of 4"
-        );
-        let b = take("t", 100);
-        assert!(!b.reused && !Arc::ptr_eq(&a.buffer, &b.buffer), "a is held");
-        let a_ptr = Arc::clone(&a.buffer);
-        drop(a);
-        // Only `a_ptr` and the pool hold it now: still in use (a new 100-byte buffer, free
-        // again at once).
-        assert!(!take("t", 80).reused);
-        drop(a_ptr);
-        let again = take("t", 80);
-        assert!(
-            again.reused && again.buffer.size() == 100,
-            "the smallest free one"
-        );
-        assert!(!take("u", 80).reused, "another label");
-        let uniform = ctx.pool.take(
-            &ctx.device,
-            &ctx.traffic,
-            "t",
-            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            80,
-            1 << 20,
-        );
-        assert!(!uniform.reused, "another usage");
-        drop((again, b, uniform));
-        // Larger than every free one: a new buffer, the free ones of its label dropped.
-        let before = ctx.traffic();
-        let big = take("t", 1000);
-        assert!(!big.reused && big.buffer.size() == 1252);
-        assert_eq!(ctx.traffic().since(&before).buffers_created, 1);
-        let t_count = |pool: &super::BufferPool| {
-            let slots = pool.slots.lock().unwrap();
-            slots.get(&("t", STORAGE.bits())).map_or(0, Vec::len)
-        };
-        assert_eq!(
-            t_count(&ctx.pool),
-            1,
-            "the smaller free buffers were dropped"
-        );
-        // Many held at once, then all dropped: at most MAX_FREE stay.
-        let many: Vec<_> = (0..5).map(|_| take("t", 1000)).collect();
-        drop((big, many));
-        let before = ctx.traffic();
-        let one = take("t", 10);
-        assert!(one.reused);
-        assert_eq!(ctx.traffic().since(&before).buffers_created, 0);
-        assert!(t_count(&ctx.pool) <= MAX_FREE, "{}", t_count(&ctx.pool));
-        drop(one);
-        ctx.pool.trim();
-        assert_eq!(t_count(&ctx.pool), 0);
     }
 }
