@@ -355,20 +355,14 @@ mod pool_tests {
     use crate::GpuContext;
     use crate::pool::{BufferPool, MAX_FREE};
 
-    /// The pool ([`crate::pool`]): held buffers are never handed out; free ones are, the smallest large enough first; new
-    /// ones get a quarter of headroom; free ones too small are dropped when a larger one is
-    /// made; no more than [`MAX_FREE`] free ones are kept; labels and usages do not share; only
-    /// new buffers count as created.
+    /// The pool ([`crate::pool`]): held buffers are never handed out; free ones are, the
+    /// smallest large enough first; new ones get a quarter of headroom; free ones too small are
+    /// dropped when a larger one is made; no more than [`MAX_FREE`] free ones are kept; labels
+    /// and usages do not share; only new buffers count as created.
     #[test]
     fn held_buffers_stay_theirs_and_free_ones_come_back() {
         let ctx = GpuContext::new().expect("an adapter (CI installs lavapipe)");
-        let take = |label, bytes| {
-            let taken = ctx.pool.take(&ctx.device, label, STORAGE, bytes, 1 << 20);
-            if !taken.reused {
-                ctx.traffic.buffer();
-            }
-            taken
-        };
+        let take = |label, bytes| super::take(&ctx, label, STORAGE, bytes, 1 << 20);
         let a = take("t", 100);
         assert!(!a.reused);
         assert_eq!(
