@@ -21,11 +21,12 @@
 //! by farthest-point sampling of their trajectories; `follow_densify` places them again after
 //! each densification, over the Gaussians' canonical positions or, with
 //! [`Placement::Trajectories`], over their trajectories under the control points as they are,
-//! SC-GS's way without its pre-training). They do not learn their positions (SC-GS detaches them everywhere after
-//! pre-training; a factor on their learning rate, `position_lr_scale`, lets them move), and the
-//! search is in 3D (SC-GS adds 8 learned "hyper" coordinates per point and Gaussian). The K nearest control
-//! points are exact at every forward, as SC-GS's search: a Gaussian's are searched again only
-//! when it has moved far enough that they may have changed ([`knn::NeighbourCache`]).
+//! SC-GS's way without its pre-training). They do not learn their positions (SC-GS detaches
+//! them everywhere after pre-training; a factor on their learning rate, `position_lr_scale`,
+//! lets them move), and the search is in 3D (SC-GS adds 8 learned "hyper" coordinates per point
+//! and Gaussian). The K nearest control points are exact at every forward, as SC-GS's search:
+//! a Gaussian's are searched again only when it has moved far enough that they may have changed
+//! ([`knn::NeighbourCache`]).
 //!
 //! EvoGS(SC-GS) (`--method evogs --backbone scgs`): this skinning as EvoGS's Φ with the evolution
 //! state on every Gaussian ([`phi::ScgsPhi`], `--evolution-on gaussians`), or the evolution state
