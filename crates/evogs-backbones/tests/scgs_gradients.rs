@@ -301,6 +301,20 @@ fn backbone_loss(b: &mut ScgsBackbone, g: &Gaussians, time: f32, r: &[f32]) -> f
     linear + b.loss_terms()
 }
 
+/// Adds `scale` times the generator's numbers to every network buffer of `b` (those over 100
+/// values: the control points' own buffers are left), so that its heads are not zero.
+fn shake_network(b: &mut ScgsBackbone, rng: &mut Lcg, scale: f32) {
+    for (_, p) in b.params_mut() {
+        if let StoreMut::F32(v) = p
+            && v.len() > 100
+        {
+            for x in v.iter_mut() {
+                *x += scale * rng.next();
+            }
+        }
+    }
+}
+
 /// The whole backbone (network on the control points, skinning, ARAP) against central
 /// differences in a sample of every parameter buffer, control positions learning.
 #[test]
@@ -324,15 +338,7 @@ fn backbone_gradient_matches_finite_differences() {
     b.initialise(g.view()).unwrap();
     // Non-zero heads, so that every buffer has a gradient.
     let mut rng = Lcg(99);
-    for (_, p) in b.params_mut() {
-        if let StoreMut::F32(v) = p
-            && v.len() > 100
-        {
-            for x in v.iter_mut() {
-                *x += 0.3 * rng.next();
-            }
-        }
-    }
+    shake_network(&mut b, &mut rng, 0.3);
     let time = 0.4;
     let r: Vec<f32> = (0..20 * ROW).map(|_| rng.next()).collect();
     b.forward(g.view(), time, true).unwrap();
@@ -458,16 +464,7 @@ fn trajectory_placement_spreads_the_points_over_the_gaussians_paths() {
     let mut b = ScgsBackbone::new(&settings, 1.0, seed).unwrap();
     b.initialise(g.view()).unwrap();
     // Non-zero heads: the network moves the control points, differently over time.
-    let mut rng = Lcg(7);
-    for (_, p) in b.params_mut() {
-        if let StoreMut::F32(v) = p
-            && v.len() > 100
-        {
-            for x in v.iter_mut() {
-                *x += 0.5 * rng.next();
-            }
-        }
-    }
+    shake_network(&mut b, &mut Lcg(7), 0.5);
     let mut paths = vec![[0f32; 3 * TRAJECTORY_TIMES]; moved.means.len()];
     for j in 0..TRAJECTORY_TIMES {
         let t = j as f32 / (TRAJECTORY_TIMES - 1) as f32;

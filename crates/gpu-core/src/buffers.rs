@@ -106,16 +106,10 @@ pub fn pooled_storage_init(
 ) -> Result<Arc<wgpu::Buffer>, GpuError> {
     let len = (data.len() as u64).max(64);
     too_large(&ctx.device, label, len)?;
-    let taken = take(
-        ctx,
-        label,
-        STORAGE,
-        len.next_multiple_of(4),
-        binding_limit(&ctx.device),
-    );
+    let end = len.next_multiple_of(4);
+    let taken = take(ctx, label, STORAGE, end, binding_limit(&ctx.device));
     ctx.traffic.upload(len);
     write_padded(ctx, &taken.buffer, data);
-    let end = len.next_multiple_of(4);
     if taken.reused && end < taken.buffer.size() {
         encoder.clear_buffer(&taken.buffer, end, None);
     }

@@ -398,10 +398,7 @@ impl Backbone for ScgsControlEvo {
                 add_into(&mut grads[1], p);
             }
         }
-        self.arap_loss = match arap {
-            Some(terms) => self.params.finish_arap(terms, want, &mut grads)?,
-            None => 0.0,
-        };
+        self.arap_loss = self.params.finish_arap(arap, want, &mut grads)?;
         let psi_len = self.evo.psi().param_count();
         grads.push(bw.dpsi.clone().unwrap_or_else(|| vec![0.0f32; psi_len]));
         *out = grads;

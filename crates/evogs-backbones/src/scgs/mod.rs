@@ -507,15 +507,15 @@ impl ScgsParams {
         want_positions: bool,
         grads: &mut [Vec<f32>],
     ) -> Result<f64, BackboneError> {
-        let Some(terms) = self.arap_terms(lambda, partner, nodes)? else {
-            return Ok(0.0);
-        };
-        let mut d_nodes = vec![0f32; self.positions.len() * NODE_OUTPUT];
-        terms.add_to_nodes(&mut d_nodes);
-        let g = self.net.backward(net, &d_nodes, want_positions)?;
-        add_into(&mut grads[0], &g.mlp);
-        if let Some(p) = &g.positions {
-            add_into(&mut grads[1], p);
+        let terms = self.arap_terms(lambda, partner, nodes)?;
+        if let Some(terms) = &terms {
+            let mut d_nodes = vec![0f32; self.positions.len() * NODE_OUTPUT];
+            terms.add_to_nodes(&mut d_nodes);
+            let g = self.net.backward(net, &d_nodes, want_positions)?;
+            add_into(&mut grads[0], &g.mlp);
+            if let Some(p) = &g.positions {
+                add_into(&mut grads[1], p);
+            }
         }
         self.finish_arap(terms, want_positions, grads)
     }
@@ -549,13 +549,16 @@ impl ScgsParams {
 
     /// Spends what [`ArapTerms::add_to_nodes`] did not: the moved positions' gradient on the
     /// canonical positions (when `want_positions`) and the network's backward at the partner
-    /// time, into `grads`; returns the weighted loss.
+    /// time, into `grads`; returns the weighted loss (0 without terms: the loss off).
     fn finish_arap(
         &self,
-        terms: ArapTerms,
+        terms: Option<ArapTerms>,
         want_positions: bool,
         grads: &mut [Vec<f32>],
     ) -> Result<f64, BackboneError> {
+        let Some(terms) = terms else {
+            return Ok(0.0);
+        };
         let m = self.positions.len();
         if want_positions {
             add_into(&mut grads[1], &terms.d_first);
@@ -844,10 +847,7 @@ impl ScgsBackbone {
             terms.add_to_nodes(&mut skin.nodes);
         }
         let mut grads = self.params.node_gradients(&cache.net, skin, want)?;
-        self.arap_loss = match arap {
-            Some(terms) => self.params.finish_arap(terms, want, &mut grads)?,
-            None => 0.0,
-        };
+        self.arap_loss = self.params.finish_arap(arap, want, &mut grads)?;
         Ok(grads)
     }
 }
