@@ -491,6 +491,7 @@ pub fn run_train(args: &TrainArgs) -> Result<TrainSummary> {
         if !said_backend {
             println!("{}", trainer.backend());
             println!("{}", trainer.network());
+            println!("{}", trainer.loss_place());
             let n = report.gaussians;
             let mut line = trainer.memory_estimate().summary(n);
             if let Some(cap) = trainer.max_gaussians() {

@@ -93,6 +93,7 @@ impl LoadedRun {
                 .map(|(budget, p)| evogs_train::budget::BudgetSummary::new(budget, &p)),
             traffic_per_iteration: None,
             network: String::new(),
+            loss: String::new(),
         };
         Ok(Self {
             paths,

@@ -357,7 +357,7 @@ pub struct TrainConfig {
     /// Where the deformation network runs (`cpu`, `wgpu`, `auto`; `--net-backend`): `wgpu` on
     /// the rasterizer's device (the rasterizer on wgpu and a backbone with a device form,
     /// D-3DGS's today, or the run refuses to start), `auto` there when the rasterizer runs on a
-    /// hardware GPU and the backbone has one, `cpu` otherwise ([`crate::trainer::NetworkPlace`]).
+    /// hardware GPU and the backbone has one, `cpu` otherwise ([`crate::trainer::Placement`]).
     /// New runs default to `auto`; runs written before it existed read as `cpu`. A resumed
     /// run keeps it unless the resume asks for another.
     #[serde(default)]

@@ -33,6 +33,8 @@ pub mod budget;
 pub mod checkpoint;
 pub mod config;
 pub mod data;
+#[cfg(feature = "wgpu")]
+mod device_loss;
 pub mod error;
 pub mod gain_report;
 pub mod init;
@@ -47,4 +49,4 @@ pub mod trainer;
 pub use config::{BackboneKind, Background, Method, Preset, TrainConfig};
 pub use error::TrainError;
 pub use run::{RunPaths, TrainRequest, TrainSummary, train};
-pub use trainer::{NetworkPlace, StepReport, Trainer};
+pub use trainer::{Placement, StepReport, Trainer};

@@ -206,10 +206,14 @@ pub struct TrainSummary {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub traffic_per_iteration: Option<splat_raster::TrafficRate>,
     /// Where the last process ran the deformation network and why
-    /// ([`crate::trainer::NetworkPlace`]'s line); empty in files written before it was
+    /// ([`crate::trainer::Placement`]'s line); empty in files written before it was
     /// recorded.
     #[serde(default)]
     pub network: String,
+    /// Where the last process ran the loss and why ([`crate::trainer::Placement`]'s line);
+    /// empty in files written before it was recorded.
+    #[serde(default)]
+    pub loss: String,
 }
 
 impl TrainSummary {
@@ -624,6 +628,7 @@ pub fn train_with_clock(
             .map(|(budget, p)| BudgetSummary::new(budget, &p)),
         traffic_per_iteration,
         network: trainer.network().to_string(),
+        loss: trainer.loss_place().to_string(),
     };
     write_json(&paths.train_metrics(), &summary)?;
     Ok(summary)

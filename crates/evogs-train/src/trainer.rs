@@ -27,7 +27,10 @@
 //! form (cargo feature `wgpu`; D-3DGS's network today), on the CPU otherwise. On the device its
 //! gradient, Adam step and moments stay there too; [`Trainer::sync_host`] reads the parameters
 //! and moments back before a checkpoint, a weight file or a check of the values, so checkpoints
-//! and resume are the same on both.
+//! and resume are the same on both. The loss runs where the rendered image is
+//! ([`Trainer::loss_place`]): with the rasterizer on a device and a fixed background, on the
+//! device (`crate::device_loss`: the training images uploaded once, the image and the loss's
+//! gradient never read back or uploaded); on the CPU otherwise.
 //!
 //! Everything random is a pure function of (seed, iteration): the epoch's permutation is drawn
 //! from a generator seeded by (seed, epoch), densify's split sampling from (seed, iteration),
@@ -190,21 +193,24 @@ fn memory_estimate(config: &TrainConfig, data: DataSizes) -> Result<MemoryEstima
     ))
 }
 
-/// Where the deformation network runs and why ([`TrainConfig::net_backend`]), one line:
-/// `network: wgpu (wgpu: on the rasterizer's device)`, `network: cpu (auto: the rasterizer runs
-/// on the CPU)`.
+/// Where a part of the iteration runs and why, one line: `network: wgpu (wgpu: on the
+/// rasterizer's device)`, `network: cpu (auto: the rasterizer runs on the CPU)`, `loss: wgpu
+/// (on the rasterizer's device, …)`. The deformation network's is [`TrainConfig::net_backend`]'s
+/// ([`place_network`]); the loss's follows the rendered image ([`Trainer::loss_place`]).
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct NetworkPlace {
-    /// Whether the backbone's network runs on the rasterizer's device.
+pub struct Placement {
+    /// The part: `network` or `loss`.
+    pub part: &'static str,
+    /// Whether it runs on the rasterizer's device.
     pub on_device: bool,
     /// Why (the setting and what decided it).
     pub reason: String,
 }
 
-impl std::fmt::Display for NetworkPlace {
+impl std::fmt::Display for Placement {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let place = if self.on_device { "wgpu" } else { "cpu" };
-        write!(f, "network: {place} ({})", self.reason)
+        write!(f, "{}: {place} ({})", self.part, self.reason)
     }
 }
 
@@ -215,10 +221,11 @@ pub fn place_network(
     choice: splat_raster::BackendChoice,
     raster: &dyn splat_raster::Rasterizer,
     backbone: &mut dyn Backbone,
-) -> Result<NetworkPlace, TrainError> {
+) -> Result<Placement, TrainError> {
     use splat_raster::BackendChoice;
     let cpu = |reason: String| {
-        Ok(NetworkPlace {
+        Ok(Placement {
+            part: "network",
             on_device: false,
             reason,
         })
@@ -246,7 +253,8 @@ pub fn place_network(
             ));
         }
         if backbone.use_device(&ctx)? {
-            return Ok(NetworkPlace {
+            return Ok(Placement {
+                part: "network",
                 on_device: true,
                 reason: format!("{choice}: on the rasterizer's device"),
             });
@@ -276,6 +284,36 @@ pub fn place_network(
     }
 }
 
+/// Puts the loss where the rendered image is: on the rasterizer's device when it has one and
+/// the background is fixed (the training images uploaded once, [`crate::device_loss`]), on the
+/// CPU otherwise (a random background makes each iteration's target on the host).
+#[cfg(feature = "wgpu")]
+fn place_loss(
+    config: &TrainConfig,
+    raster: &dyn splat_raster::Rasterizer,
+    train: &SplitViews,
+) -> Result<(Placement, Option<crate::device_loss::DeviceLoss>), TrainError> {
+    let place = |on_device, reason| Placement {
+        part: "loss",
+        on_device,
+        reason,
+    };
+    let Some(ctx) = raster.device() else {
+        return Ok((place(false, "the rasterizer runs on the CPU".into()), None));
+    };
+    if config.background == Background::Random {
+        let why = "a random background makes each iteration's target on the host";
+        return Ok((place(false, why.into()), None));
+    }
+    let loss = crate::device_loss::DeviceLoss::new(ctx, train)?;
+    let why = format!(
+        "on the rasterizer's device, the {} training images there ({:.1} MiB)",
+        train.views.len(),
+        loss.image_bytes() as f64 / (1 << 20) as f64
+    );
+    Ok((place(true, why), Some(loss)))
+}
+
 /// A training run in memory.
 ///
 /// Its fields are private: the Gaussians' rows and the backbone's per-Gaussian rows stay aligned
@@ -301,7 +339,12 @@ pub struct Trainer {
     times: PhaseTimes,
     raster: DynRasterizer,
     backend: BackendInfo,
-    network: NetworkPlace,
+    network: Placement,
+    /// Where the loss runs and why.
+    loss_place: Placement,
+    /// The loss on the rasterizer's device, when it runs there.
+    #[cfg(feature = "wgpu")]
+    device_loss: Option<crate::device_loss::DeviceLoss>,
     densify: DensifyConfig,
     order: (u64, Vec<usize>),
     /// Buffers of the loss and its gradient, reused every iteration.
@@ -382,6 +425,14 @@ impl Trainer {
         }
         let (raster, backend) = select_rasterizer(config.backend)?;
         let network = place_network(config.net_backend, raster.as_ref(), backbone.as_mut())?;
+        #[cfg(feature = "wgpu")]
+        let (loss_place, device_loss) = place_loss(&config, raster.as_ref(), &train)?;
+        #[cfg(not(feature = "wgpu"))]
+        let loss_place = Placement {
+            part: "loss",
+            on_device: false,
+            reason: "built without wgpu".into(),
+        };
         let transmittance = if config.background == Background::Random {
             crate::data::load_transmittance(&train, config.downscale)?
         } else {
@@ -400,6 +451,9 @@ impl Trainer {
             raster,
             backend,
             network,
+            loss_place,
+            #[cfg(feature = "wgpu")]
+            device_loss,
             order: (u64::MAX, Vec::new()),
             loss: LossWorkspace::new(),
             geometry: DeformedGeometry::default(),
@@ -494,8 +548,14 @@ impl Trainer {
     }
 
     /// Where the deformation network runs and why ([`TrainConfig::net_backend`]).
-    pub fn network(&self) -> &NetworkPlace {
+    pub fn network(&self) -> &Placement {
         &self.network
+    }
+
+    /// Where the loss runs and why (on the rasterizer's device with `--backend wgpu` and a fixed
+    /// background).
+    pub fn loss_place(&self) -> &Placement {
+        &self.loss_place
     }
 
     /// The host–device traffic of the rasterizer's device since the trainer was made
@@ -616,21 +676,50 @@ impl Trainer {
             None => &view.image.pixels,
         };
         t = self.times.lap(Phase::Data, t);
-        let fwd = &mut self.fwd;
-        self.raster.forward_into(gview, &view.camera, &opts, fwd)?;
-        t = self.times.lap(Phase::RasterForward, t);
         let size = ImageSize::new(view.image.width as usize, view.image.height as usize);
-        let loss = self.loss.compute(size, &fwd.color, target)?;
+        #[cfg(feature = "wgpu")]
+        let resident = self.device_loss.as_mut();
+        #[cfg(not(feature = "wgpu"))]
+        let resident: Option<()> = None;
+        let loss = match resident {
+            #[cfg(feature = "wgpu")]
+            Some(device_loss) => {
+                // The image, the loss's gradient and the target stay on the device.
+                let fwd = &mut self.fwd;
+                self.raster
+                    .forward_resident(gview, &view.camera, &opts, fwd)?;
+                t = self.times.lap(Phase::RasterForward, t);
+                let color = fwd.device_color().expect("a resident forward pass");
+                let (loss, d_color) = device_loss.compute(vi, size, color)?;
+                t = self.times.lap(Phase::Loss, t);
+                self.raster.backward_resident(
+                    gview,
+                    &view.camera,
+                    &opts,
+                    fwd,
+                    d_color,
+                    &mut self.bwd,
+                )?;
+                loss
+            }
+            _ => {
+                let fwd = &mut self.fwd;
+                self.raster.forward_into(gview, &view.camera, &opts, fwd)?;
+                t = self.times.lap(Phase::RasterForward, t);
+                let loss = self.loss.compute(size, &fwd.color, target)?;
+                t = self.times.lap(Phase::Loss, t);
+                self.raster.backward_into(
+                    gview,
+                    &view.camera,
+                    &opts,
+                    fwd,
+                    PixelGrads::from_color(self.loss.gradient()),
+                    &mut self.bwd,
+                )?;
+                loss
+            }
+        };
         let train_psnr = psnr_from_mse(loss.mse);
-        t = self.times.lap(Phase::Loss, t);
-        self.raster.backward_into(
-            gview,
-            &view.camera,
-            &opts,
-            fwd,
-            PixelGrads::from_color(self.loss.gradient()),
-            &mut self.bwd,
-        )?;
         let (fwd, grads) = (&self.fwd, &self.bwd.grads);
         t = self.times.lap(Phase::RasterBackward, t);
         if deforms {

@@ -78,7 +78,8 @@ pub enum RasterError {
     #[error("wgpu backend ({stage}): {message}")]
     Gpu {
         /// Where it failed: `adapter`, `device` (an error the device reported while running),
-        /// `pipelines`, `buffers` or `read-back`.
+        /// `pipelines`, `buffers`, `read-back` or `resident` (a resident pass asked of a backend
+        /// without a device).
         stage: &'static str,
         /// What went wrong.
         message: String,

@@ -126,4 +126,49 @@ pub trait Rasterizer {
     fn device(&self) -> Option<std::sync::Arc<GpuContext>> {
         None
     }
+
+    /// [`forward_into`](Self::forward_into) with the images left on the backend's device, for
+    /// a loss there to read (the trainer's resident loss): `out.color`, `out.alpha` and
+    /// `out.depth` stay empty and [`ForwardOutput::device_color`] is the colour; the radii,
+    /// statistics and counters are read back as by `forward_into`. A backend without a device
+    /// (the CPU one, the default) refuses.
+    #[cfg(feature = "wgpu")]
+    fn forward_resident(
+        &self,
+        g: GaussiansView<'_>,
+        cam: &Camera,
+        opts: &RenderOptions,
+        out: &mut ForwardOutput,
+    ) -> Result<(), RasterError> {
+        let _ = (g, cam, opts, out);
+        Err(no_device("forward_resident"))
+    }
+
+    /// [`backward_into`](Self::backward_into) after [`forward_resident`](Self::forward_resident),
+    /// with `∂loss/∂colour` in `d_color`, a buffer of the backend's device (interleaved RGB f32,
+    /// one triple per pixel; no alpha or depth gradient). Unlike the host's, its values are not
+    /// checked for non-finite ones (they never reach the host): whoever makes them on the
+    /// device answers for them. A backend without a device (the default) refuses.
+    #[cfg(feature = "wgpu")]
+    fn backward_resident(
+        &self,
+        g: GaussiansView<'_>,
+        cam: &Camera,
+        opts: &RenderOptions,
+        fwd: &ForwardOutput,
+        d_color: &wgpu::Buffer,
+        out: &mut BackwardOutput,
+    ) -> Result<(), RasterError> {
+        let _ = (g, cam, opts, fwd, d_color, out);
+        Err(no_device("backward_resident"))
+    }
+}
+
+/// The error of a resident pass asked of a backend without a device.
+#[cfg(feature = "wgpu")]
+fn no_device(pass: &str) -> RasterError {
+    RasterError::Gpu {
+        stage: "resident",
+        message: format!("{pass}: this backend has no device to keep the images on"),
+    }
 }

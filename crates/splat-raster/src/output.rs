@@ -103,6 +103,18 @@ impl ForwardOutput {
         self.state.counters.blended as f64 / self.color.len().max(1) as f64
     }
 
+    /// The colour on the device after a
+    /// [`forward_resident`](crate::Rasterizer::forward_resident) (interleaved RGB f32, one
+    /// triple per pixel, background included; `color` is then empty), or `None` after any
+    /// other forward pass.
+    #[cfg(feature = "wgpu")]
+    pub fn device_color(&self) -> Option<&wgpu::Buffer> {
+        match &self.state.backend {
+            BackendState::Gpu(gpu) => gpu.color.as_deref(),
+            BackendState::Cpu(_) => None,
+        }
+    }
+
     /// Per-Gaussian screen radius in pixels (3σ of the major axis of Σ2d; 0 when culled).
     pub fn radii(&self) -> &[f32] {
         &self.state.radii

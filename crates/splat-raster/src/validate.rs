@@ -129,6 +129,29 @@ pub(crate) fn validate_backward(
     fwd: &ForwardOutput,
     d: PixelGrads<'_>,
 ) -> Result<u32, RasterError> {
+    let active = validate_backward_state(g, cam, opts, fwd)?;
+    let npix = cam.pixel_count();
+    check_pixels("d_color", d.color, npix, |c: [f32; 3]| {
+        c.iter().all(|v| v.is_finite())
+    })?;
+    if let Some(alpha) = d.alpha {
+        check_pixels("d_alpha", alpha, npix, f32::is_finite)?;
+    }
+    if let Some(depth) = d.depth {
+        check_pixels("d_depth", depth, npix, f32::is_finite)?;
+    }
+    Ok(active)
+}
+
+/// The checks of [`validate_backward`] but the pixel gradients': the inputs, and the forward
+/// output made from them (a backward whose pixel gradients are on the device checks those
+/// where they are made).
+pub(crate) fn validate_backward_state(
+    g: &GaussiansView<'_>,
+    cam: &Camera,
+    opts: &RenderOptions,
+    fwd: &ForwardOutput,
+) -> Result<u32, RasterError> {
     let active = validate(g, cam, opts)?;
     let st = &fwd.state;
     let mismatch = |what: String| Err(RasterError::ForwardMismatch(what));
@@ -150,16 +173,6 @@ pub(crate) fn validate_backward(
     }
     if st.background.map(f32::to_bits) != opts.background.map(f32::to_bits) {
         return mismatch("background differs".into());
-    }
-    let npix = cam.pixel_count();
-    check_pixels("d_color", d.color, npix, |c: [f32; 3]| {
-        c.iter().all(|v| v.is_finite())
-    })?;
-    if let Some(alpha) = d.alpha {
-        check_pixels("d_alpha", alpha, npix, f32::is_finite)?;
-    }
-    if let Some(depth) = d.depth {
-        check_pixels("d_depth", depth, npix, f32::is_finite)?;
     }
     Ok(active)
 }

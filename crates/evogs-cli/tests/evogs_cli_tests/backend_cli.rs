@@ -37,6 +37,9 @@ fn wgpu_training_matches_cpu_training_and_resume_keeps_the_backend() {
     );
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stdout(&o).contains("backend: wgpu on "), "{}", stdout(&o));
+    // The loss runs where the image is, and says so (the CPU run's on the CPU).
+    let on_device = "\nloss: wgpu (on the rasterizer's device, the ";
+    assert!(stdout(&o).contains(on_device), "{}", stdout(&o));
     assert_eq!(
         json(&gpu_run.join("config.json"))["train"]["backend"],
         "wgpu"
@@ -56,7 +59,19 @@ fn wgpu_training_matches_cpu_training_and_resume_keeps_the_backend() {
         "{}",
         stdout(&o)
     );
-    let traffic = &json(&gpu_run.join("train_metrics.json"))["traffic_per_iteration"];
+    let metrics = json(&gpu_run.join("train_metrics.json"));
+    assert!(
+        metrics["loss"]
+            .as_str()
+            .unwrap()
+            .starts_with("loss: wgpu (on the rasterizer's"),
+        "{metrics}"
+    );
+    assert_eq!(
+        json(&cpu_run.join("train_metrics.json"))["loss"],
+        "loss: cpu (the rasterizer runs on the CPU)"
+    );
+    let traffic = &metrics["traffic_per_iteration"];
     assert!(traffic["waits"].as_f64().unwrap() >= 3.0, "{traffic}");
     assert!(traffic["bytes_down"].as_f64().unwrap() > 0.0, "{traffic}");
     assert!(traffic["bytes_up"].as_f64().unwrap() > 0.0, "{traffic}");

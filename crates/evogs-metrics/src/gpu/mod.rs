@@ -19,8 +19,10 @@
 //! another order than the CPU's (vertical then horizontal there), so values differ by f32
 //! rounding (the tests' tolerances say how much).
 //!
-//! What it is not: the loss's reference (that is [`photometric_loss`](crate::photometric_loss)),
-//! nor wired into the trainer yet.
+//! [`GpuLoss::finish`] submits and reads the terms only, the gradient staying on the device: the
+//! trainer's resident loss (`evogs-train`, with the rasterizer on wgpu).
+//!
+//! What it is not: the loss's reference (that is [`photometric_loss`](crate::photometric_loss)).
 
 use gpu_core::buffers::{read_back, storage, storage_init, uniform};
 use gpu_core::encode::{bind, dispatch, groups_1d};
@@ -230,6 +232,22 @@ impl GpuLoss {
             &reduce,
             split_groups(b.reduce_groups, max_dim),
         );
+    }
+
+    /// Submits `encoder` (holding the passes [`encode`](Self::encode) recorded on `bufs`) and
+    /// reads back the loss's terms only: `12` bytes per workgroup of the reduction (118 at
+    /// 400 × 400), added on the host in order, in f64. The gradient stays on the device in
+    /// `bufs.gradient`, for a backward pass there.
+    pub fn finish(
+        &self,
+        ctx: &GpuContext,
+        encoder: wgpu::CommandEncoder,
+        bufs: &LossBuffers,
+    ) -> Result<LossValues, GpuError> {
+        let bytes = 12 * u64::from(bufs.reduce_groups);
+        let back = read_back(ctx, encoder, &[(&bufs.partials, 0, bytes)])?;
+        let partials: Vec<f32> = bytemuck::pod_collect_to_vec(&back[0]);
+        Ok(values(&partials, 3.0 * bufs.size.pixels() as f64))
     }
 
     /// The loss of `rendered` against `target` (`size` images), its terms and its gradient:

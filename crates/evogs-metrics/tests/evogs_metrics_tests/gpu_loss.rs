@@ -145,3 +145,38 @@ fn a_wrong_image_size_is_an_error() {
         "{err}"
     );
 }
+
+/// `finish`, the resident form: the images already on the device, the passes recorded by
+/// `encode`; it reads back the reduction's partial sums only (12 bytes per workgroup of 4 096
+/// values) and gives `compute`'s terms bit for bit, with `compute`'s gradient left on the device.
+#[test]
+fn finish_reads_back_the_terms_only() {
+    let ctx = &GpuContext::new().unwrap();
+    let loss = &GpuLoss::new(ctx).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(10);
+    let size = ImageSize::new(61, 47);
+    let (a, b) = (
+        image(&mut rng, size.pixels(), 0.0, 1.0),
+        image(&mut rng, size.pixels(), 0.0, 1.0),
+    );
+    let (want, want_grad) = loss.compute(ctx, size, &a, &b).unwrap();
+    let bufs = evogs_metrics::gpu::LossBuffers::new(ctx, size).unwrap();
+    let x = gpu_core::buffers::storage_init(ctx, "a", bytemuck::cast_slice(&a)).unwrap();
+    let y = gpu_core::buffers::storage_init(ctx, "b", bytemuck::cast_slice(&b)).unwrap();
+    let before = ctx.traffic();
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    loss.encode(ctx, &mut encoder, &x, &y, &bufs);
+    let got = loss.finish(ctx, encoder, &bufs).unwrap();
+    let counted = ctx.traffic().since(&before);
+    assert_eq!(got, want);
+    let groups = (3 * size.pixels() as u64).div_ceil(4096);
+    assert_eq!(
+        (counted.bytes_up, counted.bytes_down, counted.waits),
+        (0, 12 * groups, 1)
+    );
+    let encoder = ctx.device.create_command_encoder(&Default::default());
+    let bytes = 12 * size.pixels() as u64;
+    let back = gpu_core::buffers::read_back(ctx, encoder, &[(&bufs.gradient, 0, bytes)]).unwrap();
+    let grad: Vec<f32> = bytemuck::pod_collect_to_vec(&back[0]);
+    assert_eq!(grad, want_grad.as_flattened());
+}

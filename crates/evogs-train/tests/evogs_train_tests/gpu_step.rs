@@ -1,5 +1,6 @@
-//! One whole training step on wgpu (the rasterizer and the D-3DGS network on the device, the
-//! network's gradient, Adam step and moments resident there; lavapipe in CI) against the same
+//! One whole training step on wgpu (the rasterizer, the loss and the D-3DGS network on the
+//! device, the network's gradient, Adam step and moments and the loss's image, target and
+//! gradient resident there; lavapipe in CI) against the same
 //! step on the CPU, from the same state: the loss, every Adam moment of every group (the six
 //! per-Gaussian groups and the network's, read back) and every parameter after the step.
 //!
@@ -17,7 +18,7 @@ use crate::common;
 
 use evogs_io::Split;
 use evogs_train::data::load_split;
-use evogs_train::{Method, Preset, TrainConfig, Trainer};
+use evogs_train::{Background, Method, Preset, TrainConfig, Trainer};
 use splat_raster::{BackendChoice, Gaussians};
 use tiny_nn::{AdamGroup, StoreRef};
 
@@ -116,6 +117,8 @@ fn one_wgpu_step_matches_the_cpu_step_from_the_same_state() {
         (g.clone(), Trainer::new(g, views).unwrap())
     };
     assert!(gpu.network().on_device, "{}", gpu.network());
+    assert!(gpu.loss_place().on_device, "{}", gpu.loss_place());
+    assert!(!cpu.loss_place().on_device, "{}", cpu.loss_place());
     assert_eq!(gpu_config.net_backend, BackendChoice::Wgpu);
     let before = cpu.state().gaussians().clone();
     let net_before = host_copy(&cpu);
@@ -201,4 +204,53 @@ fn one_wgpu_step_matches_the_cpu_step_from_the_same_state() {
     eprintln!(
         "parameters whose gradient's sign flipped (all below 1 % of their group's rms): {flips}"
     );
+}
+
+/// With the rasterizer on wgpu and a fixed background the loss runs on the device: a step moves
+/// no image between host and device. Against the same step with the loss on the host (a random
+/// background, whose target is made on the host each iteration; otherwise the same bytes), it
+/// uploads `12` bytes a pixel less (the colour's gradient) and reads back `20` bytes a pixel
+/// less (colour, alpha, depth) but the loss's partial sums (12 bytes per 4 096 values), with
+/// one wait more (the loss's read-back). evogs-io's lego fixture: 100 × 100 views.
+#[test]
+fn the_loss_on_the_device_moves_no_image() {
+    let data =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../evogs-io/tests/data/dnerf-lego");
+    let first_step = |background| {
+        let mut c = TrainConfig::preset(Preset::Tiny);
+        c.background = background;
+        c.downscale = 1.0;
+        c.init_points = 300;
+        c.backend = BackendChoice::Wgpu;
+        c.net_backend = BackendChoice::Cpu;
+        let views = load_split(&data, Split::Train, c.time_from, background.rgb(), 1.0).unwrap();
+        let mut t = Trainer::new(c, views).unwrap();
+        let before = t.traffic().unwrap();
+        let report = t.step().unwrap();
+        assert!(!report.densified && report.loss.is_finite());
+        let moved = t.traffic().unwrap().since(&before);
+        (t.loss_place().clone(), moved)
+    };
+    let (host_place, host) = first_step(Background::Random);
+    let (device_place, device) = first_step(Background::Black);
+    assert!(!host_place.on_device, "{host_place}");
+    assert!(device_place.on_device, "{device_place}");
+    assert!(
+        device_place
+            .to_string()
+            .starts_with("loss: wgpu (on the rasterizer's device")
+    );
+    let npix = 100 * 100u64;
+    let groups = (3 * npix).div_ceil(4096);
+    assert_eq!(
+        host.bytes_up - device.bytes_up,
+        12 * npix,
+        "{host:?} {device:?}"
+    );
+    assert_eq!(
+        host.bytes_down - device.bytes_down,
+        20 * npix - 12 * groups,
+        "{host:?} {device:?}"
+    );
+    assert_eq!(device.waits, host.waits + 1);
 }

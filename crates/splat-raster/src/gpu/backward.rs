@@ -1,12 +1,13 @@
-//! The backward pass on the GPU: upload the pixel gradients, composite backward into
-//! per-Gaussian record gradients (atomics), chain them through the projection, read back.
+//! The backward pass on the GPU: upload the pixel gradients (or take them on the device, after
+//! a resident forward pass), composite backward into per-Gaussian record gradients (atomics),
+//! chain them through the projection, read back.
 
 use crate::camera::Camera;
 use crate::error::RasterError;
 use crate::gaussians::GaussiansView;
 use crate::options::RenderOptions;
 use crate::output::{BackendState, BackwardOutput, ForwardOutput, GaussianGrads, PixelGrads};
-use crate::validate::validate_backward;
+use crate::validate::{validate_backward, validate_backward_state};
 
 use super::WgpuRasterizer;
 use gpu_core::buffers::{pooled_storage, pooled_storage_init, pooled_uniform, read_back};
@@ -17,6 +18,15 @@ const RECORD_GRAD: u64 = 10;
 /// Floats per Gaussian of the projection backward's output (see project_bwd.wgsl).
 pub(crate) const OUT_STRIDE: usize = 14;
 
+/// Where a backward pass's pixel gradients are.
+#[derive(Clone, Copy)]
+pub(crate) enum PixelSource<'a> {
+    /// On the host, uploaded by the pass.
+    Host(PixelGrads<'a>),
+    /// `∂loss/∂colour` already on the device (interleaved RGB f32), no alpha or depth gradient.
+    Device(&'a wgpu::Buffer),
+}
+
 impl WgpuRasterizer {
     pub(crate) fn backward_impl(
         &self,
@@ -24,9 +34,25 @@ impl WgpuRasterizer {
         cam: &Camera,
         opts: &RenderOptions,
         fwd: &ForwardOutput,
-        d: PixelGrads<'_>,
+        d: PixelSource<'_>,
     ) -> Result<BackwardOutput, RasterError> {
-        validate_backward(&g, cam, opts, fwd, d)?;
+        match d {
+            PixelSource::Host(d) => validate_backward(&g, cam, opts, fwd, d)?,
+            PixelSource::Device(buffer) => {
+                let active = validate_backward_state(&g, cam, opts, fwd)?;
+                let need = cam.pixel_count() as u64 * 12;
+                if buffer.size() < need {
+                    return Err(RasterError::Gpu {
+                        stage: "buffers",
+                        message: format!(
+                            "d_color on the device holds {} bytes, the image needs {need}",
+                            buffer.size()
+                        ),
+                    });
+                }
+                active
+            }
+        };
         let st = &fwd.state;
         let mismatch = |what: &str| Err(RasterError::ForwardMismatch(what.into()));
         let gpu = match &st.backend {
@@ -44,16 +70,27 @@ impl WgpuRasterizer {
         let max_dim = device.limits().max_compute_workgroups_per_dimension;
         let n = g.len();
         let stride = g.sh_stride();
+        let (d_alpha, d_depth) = match d {
+            PixelSource::Host(d) => (d.alpha, d.depth),
+            PixelSource::Device(_) => (None, None),
+        };
         let mut frame = gpu.frame;
-        frame.use_d_alpha = u32::from(d.alpha.is_some());
-        frame.use_d_depth = u32::from(d.depth.is_some());
+        frame.use_d_alpha = u32::from(d_alpha.is_some());
+        frame.use_d_depth = u32::from(d_depth.is_some());
         // Pooled buffers, held until the read-back below has waited (`pooled_*`'s contract).
         let mut enc = device.create_command_encoder(&Default::default());
         let frame_buf = pooled_uniform(ctx, "frame", bytemuck::bytes_of(&frame));
         let mut upload = |label, data: &[u8]| pooled_storage_init(ctx, &mut enc, label, data);
-        let d_color_buf = upload("d_color", bytemuck::cast_slice(d.color))?;
-        let d_alpha_buf = upload("d_alpha", bytemuck::cast_slice(d.alpha.unwrap_or(&[])))?;
-        let d_depth_buf = upload("d_depth", bytemuck::cast_slice(d.depth.unwrap_or(&[])))?;
+        let uploaded;
+        let d_color_buf: &wgpu::Buffer = match d {
+            PixelSource::Host(d) => {
+                uploaded = upload("d_color", bytemuck::cast_slice(d.color))?;
+                &uploaded
+            }
+            PixelSource::Device(buffer) => buffer,
+        };
+        let d_alpha_buf = upload("d_alpha", bytemuck::cast_slice(d_alpha.unwrap_or(&[])))?;
+        let d_depth_buf = upload("d_depth", bytemuck::cast_slice(d_depth.unwrap_or(&[])))?;
         let n64 = n as u64;
         let grads = pooled_storage(ctx, &mut enc, "record_grads", n64 * RECORD_GRAD * 4)?;
         let out = pooled_storage(ctx, &mut enc, "raw_grads", n64 * OUT_STRIDE as u64 * 4)?;
@@ -71,7 +108,7 @@ impl WgpuRasterizer {
                     (4, &gpu.ranges),
                     (5, &gpu.final_t),
                     (6, &gpu.last),
-                    (7, &d_color_buf),
+                    (7, d_color_buf),
                     (8, &d_alpha_buf),
                     (9, &d_depth_buf),
                     (10, &grads),

@@ -1,7 +1,8 @@
 //! The forward pass on the GPU: projection, depth sort, tile counts and their prefix sum
 //! (the backend's one scan, [`gpu_core::PrefixSum`]),
 //! intersection emission, sort by tile, tile ranges, compositing; then the read-back of the
-//! images, radii and counters.
+//! images, radii and counters (a resident pass keeps the images on the device and reads back
+//! the radii and counters only).
 
 use crate::camera::Camera;
 use crate::error::RasterError;
@@ -48,11 +49,14 @@ fn f32s(bytes: &[u8]) -> Vec<f32> {
 }
 
 impl WgpuRasterizer {
+    /// The forward pass; `resident` leaves the colour, alpha and depth on the device (the
+    /// output's image vectors empty, the colour held by its state) instead of reading them back.
     pub(crate) fn forward_impl(
         &self,
         g: GaussiansView<'_>,
         cam: &Camera,
         opts: &RenderOptions,
+        resident: bool,
     ) -> Result<ForwardOutput, RasterError> {
         let active = validate(&g, cam, opts)?;
         let ctx = &*self.ctx;
@@ -225,19 +229,19 @@ impl WgpuRasterizer {
             &bg,
             (frame.tiles_x, frame.tiles_y),
         );
+        let n_pix = if resident { 0 } else { npix };
         let out = read_back(
             ctx,
             enc,
             &[
-                (&color, 0, npix * 12),
-                (&alpha, 0, npix * 4),
-                (&depth, 0, npix * 4),
                 (&radii, 0, n64 * 4),
                 (&tile_counters, 0, u64::from(n_tiles) * 8),
+                (&color, 0, n_pix * 12),
+                (&alpha, 0, n_pix * 4),
+                (&depth, 0, n_pix * 4),
             ],
         )?;
-        let color_flat = f32s(&out[0]);
-        let per_tile = u32s(&out[4]);
+        let per_tile = u32s(&out[1]);
         let counters = Counters {
             evaluations: per_tile.iter().step_by(2).map(|&v| u64::from(v)).sum(),
             blended: per_tile
@@ -250,19 +254,19 @@ impl WgpuRasterizer {
         Ok(ForwardOutput {
             width: cam.width,
             height: cam.height,
-            color: color_flat
+            color: f32s(&out[2])
                 .chunks_exact(3)
                 .map(|c| [c[0], c[1], c[2]])
                 .collect(),
-            alpha: f32s(&out[1]),
-            depth: f32s(&out[2]),
+            alpha: f32s(&out[3]),
+            depth: f32s(&out[4]),
             stats,
             state: BackwardState {
                 n_gaussians: n,
                 sh_degree: g.sh_degree,
                 active_degree: active,
                 background: opts.background,
-                radii: f32s(&out[3]),
+                radii: f32s(&out[0]),
                 counters,
                 tile_pairs: n_isect as usize,
                 backend: BackendState::Gpu(Box::new(GpuState {
@@ -274,6 +278,7 @@ impl WgpuRasterizer {
                     ranges,
                     final_t,
                     last,
+                    color: resident.then_some(color),
                 })),
             },
         })

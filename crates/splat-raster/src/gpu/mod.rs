@@ -90,6 +90,7 @@ use crate::gaussians::GaussiansView;
 use crate::options::RenderOptions;
 use crate::output::{BackwardOutput, ForwardOutput, PixelGrads};
 
+use backward::PixelSource;
 use gpu_core::RadixSorter;
 use pipelines::Pipelines;
 
@@ -191,7 +192,7 @@ impl Rasterizer for WgpuRasterizer {
         cam: &Camera,
         opts: &RenderOptions,
     ) -> Result<ForwardOutput, RasterError> {
-        self.checked(|| self.forward_impl(g, cam, opts))
+        self.checked(|| self.forward_impl(g, cam, opts, false))
     }
 
     fn backward(
@@ -202,7 +203,32 @@ impl Rasterizer for WgpuRasterizer {
         fwd: &ForwardOutput,
         d: PixelGrads<'_>,
     ) -> Result<BackwardOutput, RasterError> {
-        self.checked(|| self.backward_impl(g, cam, opts, fwd, d))
+        self.checked(|| self.backward_impl(g, cam, opts, fwd, PixelSource::Host(d)))
+    }
+
+    fn forward_resident(
+        &self,
+        g: GaussiansView<'_>,
+        cam: &Camera,
+        opts: &RenderOptions,
+        out: &mut ForwardOutput,
+    ) -> Result<(), RasterError> {
+        *out = self.checked(|| self.forward_impl(g, cam, opts, true))?;
+        Ok(())
+    }
+
+    fn backward_resident(
+        &self,
+        g: GaussiansView<'_>,
+        cam: &Camera,
+        opts: &RenderOptions,
+        fwd: &ForwardOutput,
+        d_color: &wgpu::Buffer,
+        out: &mut BackwardOutput,
+    ) -> Result<(), RasterError> {
+        *out =
+            self.checked(|| self.backward_impl(g, cam, opts, fwd, PixelSource::Device(d_color)))?;
+        Ok(())
     }
 
     fn traffic(&self) -> Option<crate::Traffic> {

@@ -18,4 +18,6 @@ pub(crate) struct GpuState {
     pub ranges: Arc<wgpu::Buffer>,
     pub final_t: Arc<wgpu::Buffer>,
     pub last: Arc<wgpu::Buffer>,
+    /// The colour, kept on the device by a resident forward pass (not read back).
+    pub color: Option<Arc<wgpu::Buffer>>,
 }

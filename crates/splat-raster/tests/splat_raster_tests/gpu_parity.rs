@@ -713,3 +713,82 @@ fn pooled_buffers_are_reused_only_when_free_and_start_as_zeros() {
     ctx.pool.trim();
     assert!(ctx.pool.held().0 < count, "trim drops the free buffers");
 }
+
+/// The resident passes (`forward_resident`, `backward_resident`): the forward keeps the images
+/// on the device (the output's vectors empty; the device's colour is the host pass's bit for
+/// bit, the radii and statistics the same) and reads back only the counts, radii and work
+/// counters; the backward takes `∂loss/∂colour` from a device buffer and gives the host pass's
+/// gradients (to the atomics' rounding, as `repeated_runs_agree`) with no image uploaded. The
+/// CPU backend and a short gradient buffer are refused.
+#[test]
+fn resident_passes_keep_the_images_on_the_device() {
+    let ctx = Arc::new(GpuContext::new().unwrap());
+    let r = WgpuRasterizer::with_context(ctx.clone(), AtomicMode::CompareExchange).unwrap();
+    let (g, cam, opts) = dense_scene(303, 3, 200, 45, 38);
+    let (dc, _, _) = pixel_grads(cam.pixel_count(), 8);
+    let host = r.forward(g.view(), &cam, &opts).unwrap();
+    let host_grads = r
+        .backward(g.view(), &cam, &opts, &host, PixelGrads::from_color(&dc))
+        .unwrap();
+    assert!(host.device_color().is_none());
+
+    let (n, k) = (g.len() as u64, 3 * 16u64);
+    let npix = cam.pixel_count() as u64;
+    let tiles = u64::from(cam.width.div_ceil(16) * cam.height.div_ceil(16));
+    let t0 = ctx.traffic();
+    let mut fwd = ForwardOutput::default();
+    r.forward_resident(g.view(), &cam, &opts, &mut fwd).unwrap();
+    let f = ctx.traffic().since(&t0);
+    assert_eq!(
+        f.bytes_down,
+        36 + 4 * n + 8 * tiles,
+        "no image read back: {f:?}"
+    );
+    assert!(fwd.color.is_empty() && fwd.alpha.is_empty() && fwd.depth.is_empty());
+    assert_eq!((fwd.radii(), fwd.stats), (host.radii(), host.stats));
+    let color = fwd.device_color().expect("the colour stays on the device");
+    let enc = ctx.device.create_command_encoder(&Default::default());
+    let back = gpu_core::buffers::read_back(&ctx, enc, &[(color, 0, npix * 12)]).unwrap();
+    let device_color: Vec<f32> = bytemuck::pod_collect_to_vec(&back[0]);
+    assert_eq!(device_color, host.color.as_flattened(), "bit for bit");
+
+    let d_color =
+        gpu_core::buffers::storage_init(&ctx, "d_color", bytemuck::cast_slice(&dc)).unwrap();
+    let t1 = ctx.traffic();
+    let mut grads = BackwardOutput::default();
+    r.backward_resident(g.view(), &cam, &opts, &fwd, &d_color, &mut grads)
+        .unwrap();
+    let b = ctx.traffic().since(&t1);
+    // Up: the frame uniform and the 64-byte placeholders of the alpha and depth gradients.
+    assert_eq!(b.bytes_up, 160 + 2 * 64, "no image uploaded: {b:?}");
+    assert_eq!(b.bytes_down, 4 * (14 + k) * n, "{b:?}");
+    for ((kind, a), (_, c)) in kinds(&grads.grads)
+        .into_iter()
+        .zip(kinds(&host_grads.grads))
+    {
+        let scale = rms(c);
+        for (i, (x, y)) in a.iter().zip(c).enumerate() {
+            close(&format!("{kind}[{i}]"), *x, *y, 1e-5 * y.abs().max(scale));
+        }
+    }
+
+    let short = gpu_core::buffers::storage(&ctx, "short", npix * 6).unwrap();
+    let err = r
+        .backward_resident(g.view(), &cam, &opts, &fwd, &short, &mut grads)
+        .unwrap_err();
+    assert!(err.to_string().contains("d_color"), "{err}");
+    let cpu = CpuRasterizer::new();
+    let err = cpu
+        .forward_resident(g.view(), &cam, &opts, &mut ForwardOutput::default())
+        .unwrap_err();
+    assert!(
+        matches!(
+            err,
+            RasterError::Gpu {
+                stage: "resident",
+                ..
+            }
+        ),
+        "{err}"
+    );
+}
