@@ -45,7 +45,7 @@ pub use context::{AdapterSummary, GpuContext, TrafficCounter};
 #[cfg(feature = "wgpu")]
 pub use scan::{PrefixSum, ScanPlan, level_lengths};
 #[cfg(feature = "wgpu")]
-pub use sort::RadixSorter;
+pub use sort::{RadixSorter, SortRecord};
 
 /// Hooks for this crate's own benches, not part of the API: compiled only with the cargo
 /// feature `test-support`, which only the crate's dev-dependency on itself turns on.

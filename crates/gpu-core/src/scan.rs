@@ -13,10 +13,9 @@
 //! with its own packed scan).
 
 use std::num::NonZeroU64;
+use std::sync::Arc;
 
-use wgpu::util::DeviceExt;
-
-use crate::buffers::{dynamic_uniform_entry, storage_entry, words};
+use crate::buffers::{dynamic_uniform_entry, pooled_uniform, storage_entry, words};
 use crate::context::{GpuContext, TrafficCounter};
 use crate::encode::dispatch_grid;
 
@@ -65,8 +64,14 @@ pub struct PrefixSum {
     max_groups_per_dim: u32,
 }
 
-/// One scan's bind groups and parameters, ready to be recorded (any number of times).
+/// One scan's bind groups and parameters, ready to be recorded (any number of times). Hold it
+/// until the encoder it was recorded into is submitted: its parameter record comes from the
+/// context's [`pool`](crate::pool), written through the queue, and dropped earlier it could be
+/// handed to another plan and written over before this one's work runs.
+#[must_use = "hold the plan until its work is submitted"]
 pub struct ScanPlan {
+    /// The records, one per level (held: see the type's doc).
+    _params: Arc<wgpu::Buffer>,
     lens: Vec<u32>,
     /// Level `i` scanned into level `i + 1`.
     groups: Vec<wgpu::BindGroup>,
@@ -136,14 +141,8 @@ impl PrefixSum {
                 .copy_from_slice(bytemuck::bytes_of(&record));
         }
         let device = &ctx.device;
-        ctx.traffic.buffer();
-        ctx.traffic.upload(bytes.len() as u64);
         ctx.traffic.bind_groups(lens.len() as u64 - 1);
-        let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("prefix sum params"),
-            contents: &bytes,
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
+        let params = pooled_uniform(ctx, "prefix sum params", &bytes);
         let groups = (0..lens.len() - 1)
             .map(|level| {
                 device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -171,6 +170,7 @@ impl PrefixSum {
             })
             .collect();
         ScanPlan {
+            _params: params,
             lens: lens.to_vec(),
             groups,
         }

@@ -23,14 +23,12 @@
 mod harness;
 
 use std::num::NonZeroU64;
-use std::sync::Mutex;
-
-use wgpu::util::DeviceExt;
+use std::sync::{Arc, Mutex};
 
 #[cfg(any(test, feature = "test-support"))]
 pub use harness::SortHarness;
 
-use crate::buffers::{dynamic_uniform_entry, storage_entry, words};
+use crate::buffers::{dynamic_uniform_entry, pooled_uniform, storage_entry, words};
 use crate::context::{GpuContext, TrafficCounter};
 use crate::encode::dispatch_grid;
 use crate::scan::{self, PrefixSum, ScanPlan};
@@ -73,6 +71,14 @@ struct Scratch {
     /// `levels[0]` holds the digit counts (16 per block); `levels[i + 1]` the chunk totals of
     /// `levels[i]`; the last one has a single element.
     levels: Vec<wgpu::Buffer>,
+}
+
+/// What one recorded sort holds until its encoder is submitted: its parameter records and its
+/// scan's, from the context's [`pool`](crate::pool), written through the queue (dropped earlier,
+/// they could be handed to another sort and written over before this one's work runs).
+#[must_use = "hold the record until the sort's encoder is submitted"]
+pub struct SortRecord {
+    _held: Option<(Arc<wgpu::Buffer>, ScanPlan)>,
 }
 
 /// A stable LSD radix sorter of (u32 key, u32 value) pairs on the GPU.
@@ -182,7 +188,8 @@ impl RadixSorter {
     /// Stable ascending sort of the first `n` (key, value) u32 pairs by the low `key_bits` bits of
     /// the key (1..=32). `keys`/`values` are STORAGE|COPY_SRC|COPY_DST buffers of at least n u32;
     /// the sorted result ends in the same buffers. Scratch buffers are owned by the sorter and
-    /// grown as needed.
+    /// grown as needed. Hold the returned [`SortRecord`] until `encoder` is submitted (its
+    /// parameter records come from the context's pool, as a [`ScanPlan`]'s).
     ///
     /// # Panics
     /// If `key_bits` is outside 1..=32 or a buffer holds fewer than `n` u32 (caller bugs).
@@ -194,7 +201,7 @@ impl RadixSorter {
         values: &wgpu::Buffer,
         n: u32,
         key_bits: u32,
-    ) {
+    ) -> SortRecord {
         assert!(
             (1..=32).contains(&key_bits),
             "RadixSorter::encode: key_bits must be in 1..=32, got {key_bits}"
@@ -207,7 +214,7 @@ impl RadixSorter {
             values.size()
         );
         if n == 0 {
-            return;
+            return SortRecord { _held: None };
         }
         let device = &ctx.device;
         let traffic = &ctx.traffic;
@@ -256,13 +263,7 @@ impl RadixSorter {
             bytes[i * stride..i * stride + PARAMS_SIZE as usize]
                 .copy_from_slice(bytemuck::bytes_of(r));
         }
-        traffic.buffer();
-        traffic.upload(bytes.len() as u64);
-        let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("radix sort params"),
-            contents: &bytes,
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
+        let params = pooled_uniform(ctx, "radix sort params", &bytes);
         let params_binding = wgpu::BindingResource::Buffer(wgpu::BufferBinding {
             buffer: &params,
             offset: 0,
@@ -342,6 +343,9 @@ impl RadixSorter {
         if passes % 2 == 1 {
             encoder.copy_buffer_to_buffer(&scratch.keys, 0, keys, 0, 4 * u64::from(n));
             encoder.copy_buffer_to_buffer(&scratch.values, 0, values, 0, 4 * u64::from(n));
+        }
+        SortRecord {
+            _held: Some((params, scan_plan)),
         }
     }
 

@@ -116,13 +116,48 @@ impl SortHarness {
             .ctx
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-        self.sorter
+        let record = self
+            .sorter
             .encode(&self.ctx, &mut encoder, &k, &v, n, key_bits);
         self.ctx.queue.submit([encoder.finish()]);
+        drop(record);
         (
             self.read_back(&k, keys.len()),
             self.read_back(&v, keys.len()),
         )
+    }
+
+    /// Two sorts recorded into one encoder and submitted together (each `(keys, key_bits)`,
+    /// values the positions), as the rasterizer records a sort beside other work: each sort's
+    /// pooled parameter records held until the submission. The sorted keys and values of each.
+    pub fn sort_two_in_one_submission(
+        &self,
+        a: (&[u32], u32),
+        b: (&[u32], u32),
+    ) -> [(Vec<u32>, Vec<u32>); 2] {
+        let mut encoder = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        let mut buffers = Vec::new();
+        let mut records = Vec::new();
+        for (keys, key_bits) in [a, b] {
+            let n = u32::try_from(keys.len()).expect("at most u32::MAX pairs");
+            let values: Vec<u32> = (0..n).collect();
+            let k = self.upload("sort keys", keys);
+            let v = self.upload("sort values", &values);
+            records.push(
+                self.sorter
+                    .encode(&self.ctx, &mut encoder, &k, &v, n, key_bits),
+            );
+            buffers.push((k, v, keys.len()));
+        }
+        self.ctx.queue.submit([encoder.finish()]);
+        drop(records);
+        let mut out = buffers
+            .iter()
+            .map(|(k, v, n)| (self.read_back(k, *n), self.read_back(v, *n)));
+        [out.next().expect("a"), out.next().expect("b")]
     }
 
     /// The exclusive prefix sum of `data` by the backend's scan on the GPU, and the total.
@@ -149,6 +184,7 @@ impl SortHarness {
             scan.record(&self.ctx.traffic, &mut cpass, &plan);
         }
         self.ctx.queue.submit([encoder.finish()]);
+        drop(plan);
         let total = self.read_back(buffers.last().expect("two levels"), 1)[0];
         (self.read_back(&buffers[0], data.len()), total)
     }
@@ -176,9 +212,11 @@ impl SortHarness {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
         encoder.copy_buffer_to_buffer(&l.original_keys, 0, &l.keys, 0, bytes);
         encoder.copy_buffer_to_buffer(&l.original_values, 0, &l.values, 0, bytes);
-        self.sorter
+        let record = self
+            .sorter
             .encode(&self.ctx, &mut encoder, &l.keys, &l.values, l.n, key_bits);
         self.ctx.queue.submit([encoder.finish()]);
+        drop(record);
         self.ctx
             .device
             .poll(wgpu::PollType::wait_indefinitely())

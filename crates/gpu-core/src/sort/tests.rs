@@ -226,3 +226,20 @@ proptest! {
         prop_assert_eq!(got_keys, want_keys);
     }
 }
+
+/// Two sorts in one submission, of other sizes and key widths (so other parameter records),
+/// each sort holding its pooled records until the submission: both sorted, twice over (the
+/// second time in records the pool hands out again). A sort that let its records go before
+/// the submission would have the second sort's written over the first's.
+#[test]
+fn two_sorts_in_one_submission_keep_their_parameters() {
+    let h = harness();
+    let mut rng = ChaCha8Rng::seed_from_u64(91);
+    for _ in 0..2 {
+        let a = random_keys(&mut rng, 5_000);
+        let b = random_keys(&mut rng, 1_234);
+        let [(ak, av), (bk, bv)] = h.sort_two_in_one_submission((&a, 32), (&b, 7));
+        assert_eq!((ak, av), reference(&a, 32));
+        assert_eq!((bk, bv), reference(&b, 7));
+    }
+}

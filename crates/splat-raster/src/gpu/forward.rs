@@ -103,6 +103,8 @@ impl WgpuRasterizer {
         // Stage 1: project, sort by depth, count tiles in depth order and scan the counts.
         let p = &self.pipelines;
         let per_gaussian = groups_1d(n32, max_dim);
+        // The sort's and the scan's pooled parameter records, held until submitted.
+        let mut held_stage1 = None;
         if n > 0 {
             let bg = bind(
                 ctx,
@@ -119,7 +121,8 @@ impl WgpuRasterizer {
                 ],
             );
             dispatch(ctx, &mut enc, &p.project, &bg, per_gaussian);
-            self.sorter
+            let depth_sort = self
+                .sorter
                 .encode(ctx, &mut enc, &depth_keys, &sort_ids, n32, 32);
             let bg = bind(
                 ctx,
@@ -142,8 +145,11 @@ impl WgpuRasterizer {
                 timestamp_writes: None,
             });
             scan.record(&ctx.traffic, &mut cpass, &plan);
+            drop(cpass);
+            held_stage1 = Some((depth_sort, plan));
         }
         let head = read_back(ctx, enc, &[(&stats, 0, 32), (&**total, 0, 4)])?;
+        drop(held_stage1);
         let counts = u32s(&head[0]);
         let n_isect = if n > 0 { u32s(&head[1])[0] } else { 0 };
         let stats = CullStats {
@@ -175,6 +181,7 @@ impl WgpuRasterizer {
         let final_t = storage("final_t", lanes * 4)?;
         let last = storage("last", lanes * 4)?;
         let tile_counters = storage("tile_counters", u64::from(n_tiles) * 8)?;
+        let mut tile_sort = None;
         if n_isect > 0 {
             let bg = bind(
                 ctx,
@@ -191,8 +198,11 @@ impl WgpuRasterizer {
             );
             dispatch(ctx, &mut enc, &p.emit, &bg, per_gaussian);
             let key_bits = (32 - (n_tiles.max(2) - 1).leading_zeros()).max(1);
-            self.sorter
-                .encode(ctx, &mut enc, &isect_keys, &isect_ids, n_isect, key_bits);
+            tile_sort =
+                Some(
+                    self.sorter
+                        .encode(ctx, &mut enc, &isect_keys, &isect_ids, n_isect, key_bits),
+                );
             let bg = bind(
                 ctx,
                 &p.tile_ranges,
@@ -241,6 +251,7 @@ impl WgpuRasterizer {
                 (&depth, 0, n_pix * 4),
             ],
         )?;
+        drop(tile_sort);
         let per_tile = u32s(&out[1]);
         let counters = Counters {
             evaluations: per_tile.iter().step_by(2).map(|&v| u64::from(v)).sum(),
