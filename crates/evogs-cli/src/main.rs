@@ -80,6 +80,16 @@ fn main() -> ExitCode {
             if let Some(t) = &s.traffic_per_iteration {
                 println!("host-device traffic per iteration: {t}");
             }
+            if let Some(d) = s.device_ms_per_iteration.as_ref().filter(|d| !d.is_empty()) {
+                let spans: Vec<String> = d
+                    .iter()
+                    .map(|(label, ms)| format!("{label} {ms:.3} ms"))
+                    .collect();
+                println!(
+                    "device time per iteration (GPU timestamps): {}",
+                    spans.join(", ")
+                );
+            }
         }),
         Command::Eval(args) => run_eval(args).map(|r| {
             if r.non_finite_views > 0 {

@@ -92,6 +92,7 @@ impl LoadedRun {
                 .zip(meta.budget)
                 .map(|(budget, p)| evogs_train::budget::BudgetSummary::new(budget, &p)),
             traffic_per_iteration: None,
+            device_ms_per_iteration: None,
             network: String::new(),
             loss: String::new(),
         };

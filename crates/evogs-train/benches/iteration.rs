@@ -11,7 +11,8 @@
 //! Measured with [`CpuTime::wall_equivalent`] (process CPU time over rayon's threads): the machine
 //! is shared. After each method's measurement the trainer's own per-phase timers over the measured
 //! iterations are printed (wall clock, so their shares, not their sums, are the comparable part),
-//! and on a GPU backend the host–device traffic per iteration.
+//! and on a GPU backend the host–device traffic per iteration and the device's own time per
+//! labelled span of work (GPU timestamps, where the adapter has them).
 //!
 //! Variants for a GPU machine (`scripts/gpu-check`), from the environment, all optional:
 //! `EVOGS_ITER_BACKEND` (`cpu`, `wgpu`, `auto`; on a GPU backend the clock is wall time, since
@@ -128,6 +129,7 @@ fn bench<M: Measurement>(c: &mut Criterion<M>, v: &Variant) {
         t.reset_times();
         let start = t.iteration();
         let traffic_start = t.traffic();
+        let device_start = t.device_times().unwrap_or_default();
         group.bench_function(format!("{method} ({n} Gaussians)"), |b| {
             b.iter(|| t.step().unwrap());
         });
@@ -155,6 +157,19 @@ fn bench<M: Measurement>(c: &mut Criterion<M>, v: &Variant) {
                 end.since(&start).per(steps as u64),
                 t.backend(),
                 t.network()
+            );
+        }
+        if let Some(end) = t.device_times() {
+            let spans: Vec<String> = end
+                .iter()
+                .map(|(label, (ms, _))| {
+                    let before = device_start.get(label).map_or(0.0, |b| b.0);
+                    format!("{label} {:.2} ms", (ms - before) / steps)
+                })
+                .collect();
+            eprintln!(
+                "{method}: device time per iteration (GPU timestamps): {}",
+                spans.join(", ")
             );
         }
     }

@@ -210,6 +210,13 @@ pub struct TrainSummary {
     /// recorded.
     #[serde(default)]
     pub network: String,
+    /// The device's own time per iteration of the last process, milliseconds per labelled span
+    /// of work (`raster forward`, `loss`, `raster backward`; GPU timestamps, means over its
+    /// iterations, evaluations and densification included: [`Trainer::device_times`]); absent
+    /// on the CPU backend, on an adapter without timestamps and in files written before it was
+    /// recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub device_ms_per_iteration: Option<std::collections::BTreeMap<String, f64>>,
     /// Where the last process ran the loss and why ([`crate::trainer::Placement`]'s line);
     /// empty in files written before it was recorded.
     #[serde(default)]
@@ -501,6 +508,7 @@ pub fn train_with_clock(
     let start_iteration = trainer.iteration();
     let started = Instant::now();
     let traffic_start = trainer.traffic();
+    let device_start = trainer.device_times();
     let mut last = None;
     let mut gain = trainer.new_gain_report();
     let last_quarter_from = trainer.config().iterations - trainer.config().iterations / 4;
@@ -611,6 +619,15 @@ pub fn train_with_clock(
         .traffic()
         .zip(traffic_start)
         .map(|(end, start)| end.since(&start).per(done));
+    let device_ms_per_iteration = trainer.device_times().map(|end| {
+        end.into_iter()
+            .map(|(label, (ms, _))| {
+                let before = device_start.as_ref().and_then(|s| s.get(&label));
+                let ms = ms - before.map_or(0.0, |b| b.0);
+                (label, ms / done.max(1) as f64)
+            })
+            .collect()
+    });
     let summary = TrainSummary {
         iteration: trainer.iteration(),
         iterations: trainer.config().iterations,
@@ -627,6 +644,7 @@ pub fn train_with_clock(
             .zip(budget_progress)
             .map(|(budget, p)| BudgetSummary::new(budget, &p)),
         traffic_per_iteration,
+        device_ms_per_iteration,
         network: trainer.network().to_string(),
         loss: trainer.loss_place().to_string(),
     };

@@ -552,6 +552,26 @@ impl Trainer {
         &self.network
     }
 
+    /// The device's own time per labelled span of work since the rasterizer's device was made
+    /// (GPU timestamps, `gpu_core::timestamps`: `raster forward`, `loss`, `raster backward`),
+    /// milliseconds and spans; `None` on the CPU backend, on an adapter without timestamps and
+    /// in a build without wgpu.
+    pub fn device_times(&self) -> Option<std::collections::BTreeMap<String, (f64, u64)>> {
+        #[cfg(feature = "wgpu")]
+        {
+            let ctx = self.raster.device()?;
+            let (totals, _missed) = ctx.timestamps.as_ref()?.totals();
+            Some(
+                totals
+                    .into_iter()
+                    .map(|(label, t)| (label.to_string(), (t.nanos * 1e-6, t.count)))
+                    .collect(),
+            )
+        }
+        #[cfg(not(feature = "wgpu"))]
+        None
+    }
+
     /// Where the loss runs and why (on the rasterizer's device with `--backend wgpu` and a fixed
     /// background).
     pub fn loss_place(&self) -> &Placement {

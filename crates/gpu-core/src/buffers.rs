@@ -219,7 +219,9 @@ pub fn write(
 }
 
 /// Copies `(buffer, byte offset, byte count)` regions to the host after the work already
-/// recorded in `encoder`, submits, and blocks until they are read.
+/// recorded in `encoder`, submits, and blocks until they are read. On a context with
+/// [`timestamps`](crate::timestamps) it also collects the spans ended since the last read-back
+/// (16 bytes a span in the same copy; not counted as traffic: they are the measurement's).
 pub fn read_back(
     ctx: &GpuContext,
     mut encoder: wgpu::CommandEncoder,
@@ -230,8 +232,13 @@ pub fn read_back(
         .iter()
         .map(|&(_, _, n)| n.next_multiple_of(4))
         .collect();
-    let total: u64 = sizes.iter().sum::<u64>().max(4);
-    ctx.traffic.read_back(total);
+    let asked: u64 = sizes.iter().sum::<u64>();
+    ctx.traffic.read_back(asked.max(4));
+    let stamps = ctx
+        .timestamps
+        .as_ref()
+        .and_then(|t| t.take().map(|c| (t, c)));
+    let total = (asked + stamps.as_ref().map_or(0, |(_, c)| c.bytes())).max(4);
     // From the pool: held here until unmapped, then free for the next read-back.
     let staging = take(
         ctx,
@@ -247,6 +254,9 @@ pub fn read_back(
             encoder.copy_buffer_to_buffer(buffer, from, &staging, offset, size);
         }
         offset += size;
+    }
+    if let Some((t, collection)) = &stamps {
+        t.record(&mut encoder, collection, &staging, offset);
     }
     queue.submit([encoder.finish()]);
     let slice = staging.slice(..total);
@@ -273,6 +283,10 @@ pub fn read_back(
     for (&(_, _, n), &size) in regions.iter().zip(&sizes) {
         out.push(view[offset..offset + n as usize].to_vec());
         offset += size as usize;
+    }
+    if let Some((t, collection)) = stamps {
+        let bytes = collection.bytes() as usize;
+        t.add(collection, &view[offset..offset + bytes]);
     }
     drop(view);
     staging.unmap();

@@ -6,6 +6,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::GpuError;
 use crate::pool::BufferPool;
+use crate::timestamps::Timestamps;
 use crate::traffic::Traffic;
 
 /// What the chosen adapter is.
@@ -60,6 +61,9 @@ pub struct GpuContext {
     pub traffic: TrafficCounter,
     /// Buffers kept between calls ([`crate::buffers::pooled_storage`] and its siblings).
     pub pool: BufferPool,
+    /// GPU timestamps of labelled spans, where the adapter writes them inside encoders
+    /// ([`crate::timestamps`]); `None` where it does not.
+    pub timestamps: Option<Timestamps>,
 }
 
 /// Running [`Traffic`] totals of one context, added to by the helpers that upload, read back,
@@ -157,6 +161,12 @@ impl GpuContext {
         if float32_atomics {
             required_features |= wgpu::Features::SHADER_FLOAT32_ATOMIC;
         }
+        let timestamp_features =
+            wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
+        let timestamps = adapter.features().contains(timestamp_features);
+        if timestamps {
+            required_features |= timestamp_features;
+        }
         let adapter_limits = adapter.limits();
         let required_limits = wgpu::Limits {
             max_storage_buffers_per_shader_stage: adapter_limits
@@ -199,7 +209,9 @@ impl GpuContext {
             ),
             float32_atomics,
         };
+        let timestamps = timestamps.then(|| Timestamps::new(&device, &queue));
         Ok(Self {
+            timestamps,
             device,
             queue,
             summary,
@@ -207,6 +219,27 @@ impl GpuContext {
             traffic: TrafficCounter::default(),
             pool: BufferPool::default(),
         })
+    }
+
+    /// Begins a timestamp span labelled `label` in `encoder` ([`Timestamps::begin`]); `None`,
+    /// and nothing written, where the adapter has no timestamps.
+    pub fn span_begin(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        label: &'static str,
+    ) -> Option<crate::timestamps::Span> {
+        self.timestamps.as_ref().map(|t| t.begin(encoder, label))
+    }
+
+    /// Ends a span of [`span_begin`](Self::span_begin) in the same encoder.
+    pub fn span_end(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        span: Option<crate::timestamps::Span>,
+    ) {
+        if let (Some(t), Some(span)) = (&self.timestamps, span) {
+            t.end(encoder, span);
+        }
     }
 
     /// What the adapter is.

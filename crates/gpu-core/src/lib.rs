@@ -4,8 +4,8 @@
 //! queue, what the adapter offers, and the host–device [`Traffic`] recorded on it), buffer and
 //! binding helpers that count what they move ([`buffers`]), dispatch helpers ([`encode`]), a
 //! stable radix sort of `u32` keys with `u32` values ([`RadixSorter`]) and the device-wide prefix
-//! sum it runs ([`PrefixSum`]), and [`wgsl_mirror!`] for uniforms mirrored between Rust and
-//! WGSL. Always (no GPU needed): [`Traffic`] and [`TrafficRate`], and [`wgsl_text`], which reads
+//! sum it runs ([`PrefixSum`]), GPU timestamps of labelled spans where the adapter has them
+//! ([`timestamps`]), and [`wgsl_mirror!`] for uniforms mirrored between Rust and WGSL. Always (no GPU needed): [`Traffic`] and [`TrafficRate`], and [`wgsl_text`], which reads
 //! constants and struct layouts out of WGSL sources for the tests that keep a kernel and its
 //! Rust side in step.
 //!
@@ -39,6 +39,8 @@ pub mod pool;
 mod scan;
 #[cfg(feature = "wgpu")]
 mod sort;
+#[cfg(feature = "wgpu")]
+pub mod timestamps;
 
 #[cfg(feature = "wgpu")]
 pub use context::{AdapterSummary, GpuContext, TrafficCounter};

@@ -49,7 +49,9 @@ pub use constants::{
 pub use cpu::{CpuKernel, CpuRasterizer};
 pub use error::RasterError;
 #[cfg(feature = "wgpu")]
-pub use gpu::{AdapterSummary, AtomicMode, GpuContext, WgpuRasterizer};
+pub use gpu::{
+    AdapterSummary, AtomicMode, GpuContext, SPAN_BACKWARD, SPAN_FORWARD, WgpuRasterizer,
+};
 pub use gpu_core::{Traffic, TrafficRate};
 pub use options::{CullStats, RenderOptions};
 pub use output::{BackwardOutput, ForwardOutput, GaussianGrads, PixelGrads};

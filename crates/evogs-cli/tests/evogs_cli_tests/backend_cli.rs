@@ -71,15 +71,35 @@ fn wgpu_training_matches_cpu_training_and_resume_keeps_the_backend() {
         json(&cpu_run.join("train_metrics.json"))["loss"],
         "loss: cpu (the rasterizer runs on the CPU)"
     );
+    // The device's own time per phase (lavapipe writes timestamps), printed and recorded.
+    assert!(
+        stdout(&o).contains("device time per iteration (GPU timestamps): loss "),
+        "{}",
+        stdout(&o)
+    );
+    let device = &metrics["device_ms_per_iteration"];
+    for label in ["raster forward", "loss", "raster backward"] {
+        let ms = device[label].as_f64();
+        assert!(
+            ms.is_some_and(|ms| ms.is_finite() && ms >= 0.0),
+            "{label}: {metrics}"
+        );
+    }
+    assert!(
+        device["raster forward"].as_f64().unwrap() > 0.0,
+        "{metrics}"
+    );
     let traffic = &metrics["traffic_per_iteration"];
     assert!(traffic["waits"].as_f64().unwrap() >= 3.0, "{traffic}");
     assert!(traffic["bytes_down"].as_f64().unwrap() > 0.0, "{traffic}");
     assert!(traffic["bytes_up"].as_f64().unwrap() > 0.0, "{traffic}");
-    assert!(
-        json(&cpu_run.join("train_metrics.json"))
-            .get("traffic_per_iteration")
-            .is_none()
-    );
+    for absent in ["traffic_per_iteration", "device_ms_per_iteration"] {
+        assert!(
+            json(&cpu_run.join("train_metrics.json"))
+                .get(absent)
+                .is_none()
+        );
+    }
 
     let cpu_psnr = json(&cpu_run.join("train_metrics.json"))["last_psnr"]
         .as_f64()

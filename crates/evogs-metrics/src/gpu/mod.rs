@@ -33,6 +33,8 @@ use crate::ssim::{SSIM_C1, SSIM_C2};
 use crate::{ImageSize, LossValues, ssim_kernel};
 
 const LOSS_WGSL: &str = include_str!("loss.wgsl");
+/// The label of the loss's GPU timestamp span ([`gpu_core::timestamps`]).
+pub const SPAN: &str = "loss";
 /// Elements one workgroup of `reduce` adds (`WORKGROUP · PER_THREAD` of loss.wgsl).
 const REDUCE_BLOCK: u32 = 256 * 16;
 
@@ -157,7 +159,8 @@ impl GpuLoss {
     }
 
     /// Records the five passes: the loss of `rendered` against `target` (interleaved RGB f32 of
-    /// `bufs.size()`, on the device) into `bufs.gradient` and `bufs.partials`.
+    /// `bufs.size()`, on the device) into `bufs.gradient` and `bufs.partials`, in a GPU
+    /// timestamp span labelled [`SPAN`] where the adapter has timestamps.
     pub fn encode(
         &self,
         ctx: &GpuContext,
@@ -166,6 +169,7 @@ impl GpuLoss {
         target: &wgpu::Buffer,
         bufs: &LossBuffers,
     ) {
+        let span = ctx.span_begin(encoder, SPAN);
         let b = bufs;
         let group = |pipeline, entries: &[(u32, &wgpu::Buffer)]| bind(ctx, pipeline, entries);
         let passes = [
@@ -232,6 +236,7 @@ impl GpuLoss {
             &reduce,
             split_groups(b.reduce_groups, max_dim),
         );
+        ctx.span_end(encoder, span);
     }
 
     /// Submits `encoder` (holding the passes [`encode`](Self::encode) recorded on `bufs`) and

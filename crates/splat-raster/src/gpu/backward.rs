@@ -13,6 +13,9 @@ use super::WgpuRasterizer;
 use gpu_core::buffers::{pooled_storage, pooled_storage_init, pooled_uniform, read_back};
 use gpu_core::encode::{bind, dispatch, groups_1d};
 
+/// The label of the backward pass's GPU timestamp span.
+pub const SPAN_BACKWARD: &str = "raster backward";
+
 /// Floats per Gaussian of the record gradient (u, v, a, b, c, opacity, r, g, b, z).
 const RECORD_GRAD: u64 = 10;
 /// Floats per Gaussian of the projection backward's output (see project_bwd.wgsl).
@@ -79,6 +82,7 @@ impl WgpuRasterizer {
         frame.use_d_depth = u32::from(d_depth.is_some());
         // Pooled buffers, held until the read-back below has waited (`pooled_*`'s contract).
         let mut enc = device.create_command_encoder(&Default::default());
+        let span = ctx.span_begin(&mut enc, SPAN_BACKWARD);
         let frame_buf = pooled_uniform(ctx, "frame", bytemuck::bytes_of(&frame));
         let mut upload = |label, data: &[u8]| pooled_storage_init(ctx, &mut enc, label, data);
         let uploaded;
@@ -141,6 +145,7 @@ impl WgpuRasterizer {
                 groups_1d(n as u32, max_dim),
             );
         }
+        ctx.span_end(&mut enc, span);
         let back = read_back(
             ctx,
             enc,

@@ -18,6 +18,9 @@ use gpu_core::buffers::{pooled_storage, pooled_storage_init, pooled_uniform, rea
 use gpu_core::encode::{bind, dispatch, groups_1d};
 use gpu_core::level_lengths;
 
+/// The label of the forward pass's GPU timestamp spans (both stages).
+pub const SPAN_FORWARD: &str = "raster forward";
+
 /// Bytes of one WGSL `Splat` record.
 pub(crate) const SPLAT_BYTES: u64 = 64;
 
@@ -76,6 +79,7 @@ impl WgpuRasterizer {
         // ends its stage has waited (`pooled_*`'s contract); those the backward pass reads
         // stay held by the output.
         let mut enc = device.create_command_encoder(&Default::default());
+        let span = ctx.span_begin(&mut enc, SPAN_FORWARD);
         let params = pooled_storage_init(
             ctx,
             &mut enc,
@@ -148,6 +152,7 @@ impl WgpuRasterizer {
             drop(cpass);
             held_stage1 = Some((depth_sort, plan));
         }
+        ctx.span_end(&mut enc, span);
         let head = read_back(ctx, enc, &[(&stats, 0, 32), (&**total, 0, 4)])?;
         drop(held_stage1);
         let counts = u32s(&head[0]);
@@ -170,6 +175,7 @@ impl WgpuRasterizer {
             .upload(std::mem::size_of::<FrameUniform>() as u64);
         queue.write_buffer(&frame_buf, 0, bytemuck::bytes_of(&frame));
         let mut enc = device.create_command_encoder(&Default::default());
+        let span = ctx.span_begin(&mut enc, SPAN_FORWARD);
         let mut storage = |label, bytes| pooled_storage(ctx, &mut enc, label, bytes);
         let isect_keys = storage("isect_keys", u64::from(n_isect) * 4)?;
         let isect_ids = storage("isect_ids", u64::from(n_isect) * 4)?;
@@ -239,6 +245,7 @@ impl WgpuRasterizer {
             &bg,
             (frame.tiles_x, frame.tiles_y),
         );
+        ctx.span_end(&mut enc, span);
         let n_pix = if resident { 0 } else { npix };
         let out = read_back(
             ctx,

@@ -80,6 +80,8 @@ pub(crate) mod state;
 
 use std::sync::Arc;
 
+pub use backward::SPAN_BACKWARD;
+pub use forward::SPAN_FORWARD;
 pub use gpu_core::{AdapterSummary, GpuContext};
 pub use pipelines::AtomicMode;
 
