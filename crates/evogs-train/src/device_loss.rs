@@ -23,6 +23,12 @@ use splat_raster::{GpuContext, RasterError};
 use crate::data::SplitViews;
 use crate::error::TrainError;
 
+/// Bytes of training images the device loss keeps on the device (4 GiB: wgpu cannot ask a
+/// device how much memory it has, so a fixed budget that a 8 GiB card holds beside a run's
+/// Gaussians and buffers; D-NeRF's 100–200 views at 400 × 400 take 0.2–0.4 GiB). Above it the
+/// loss stays on the host, and the `loss:` line says why.
+pub(crate) const IMAGE_BUDGET: u64 = 4 << 30;
+
 /// The loss's kernels, its buffers and the training images, on the rasterizer's device.
 #[derive(Debug)]
 pub(crate) struct DeviceLoss {

@@ -305,6 +305,9 @@ fn place_loss(
         let why = "a random background makes each iteration's target on the host";
         return Ok((place(false, why.into()), None));
     }
+    if let Some(why) = images_over_budget(train, crate::device_loss::IMAGE_BUDGET) {
+        return Ok((place(false, why), None));
+    }
     let loss = crate::device_loss::DeviceLoss::new(ctx, train)?;
     let why = format!(
         "on the rasterizer's device, the {} training images there ({:.1} MiB)",
@@ -312,6 +315,25 @@ fn place_loss(
         loss.image_bytes() as f64 / (1 << 20) as f64
     );
     Ok((place(true, why), Some(loss)))
+}
+
+/// Why `train`'s images stay off the device when they take more than `budget` bytes there
+/// (interleaved RGB f32), `None` when they fit.
+#[cfg(any(feature = "wgpu", test))]
+fn images_over_budget(train: &SplitViews, budget: u64) -> Option<String> {
+    let bytes: u64 = train
+        .views
+        .iter()
+        .map(|v| 12 * v.image.pixels.len() as u64)
+        .sum();
+    (bytes > budget).then(|| {
+        format!(
+            "the {} training images take {:.1} MiB, above the {:.1} MiB kept on the device",
+            train.views.len(),
+            bytes as f64 / (1u64 << 20) as f64,
+            budget as f64 / (1u64 << 20) as f64
+        )
+    })
 }
 
 /// A training run in memory.
@@ -1010,6 +1032,20 @@ mod tests {
         assert_eq!(cap(&c, 10), Some(60));
         c.gaussian_view_budget = None;
         assert_eq!(cap(&c, 1), Some(60));
+    }
+
+    #[test]
+    fn images_over_the_device_budget_stay_on_the_host() {
+        let v = views(3);
+        let bytes: u64 = v
+            .views
+            .iter()
+            .map(|w| 12 * w.image.pixels.len() as u64)
+            .sum();
+        assert!(bytes > 0);
+        assert_eq!(images_over_budget(&v, bytes), None);
+        let why = images_over_budget(&v, bytes - 1).expect("one byte over");
+        assert!(why.starts_with("the 3 training images take "), "{why}");
     }
 
     #[test]
