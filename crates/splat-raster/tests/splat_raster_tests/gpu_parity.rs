@@ -181,6 +181,17 @@ fn assert_gradient_parity(gpu: &BackwardOutput, cpu: &BackwardOutput, skip: &[us
     }
 }
 
+/// Two gradient sets of the same pass equal up to the atomics' summation order: each value
+/// within `1e-5 · max(|b|, s)`, `s` the root mean square of `b`'s values of its kind.
+fn assert_rounding_apart(a: &BackwardOutput, b: &BackwardOutput) {
+    for ((kind, x), (_, y)) in kinds(&a.grads).into_iter().zip(kinds(&b.grads)) {
+        let scale = rms(y);
+        for (k, (x, y)) in x.iter().zip(y).enumerate() {
+            close(&format!("{kind}[{k}]"), *x, *y, 1e-5 * y.abs().max(scale));
+        }
+    }
+}
+
 /// Per-pixel loss gradients: random in [-1, 1] (depth [-0.2, 0.2]) for a seed, or, for
 /// `seed == SMOOTH`, constant colour and alpha ones as in hard_cases.rs and none for depth (a
 /// Gaussian at depth 1e5 would make every per-pixel term of its sums 1e4 times larger).
@@ -452,12 +463,7 @@ fn repeated_runs_agree() {
             )
             .unwrap();
         // Atomic accumulation order may differ: equal up to rounding.
-        for ((kind, a), (_, b)) in kinds(&g1.grads).into_iter().zip(kinds(&g2.grads)) {
-            let scale = rms(b);
-            for (k, (x, y)) in a.iter().zip(b).enumerate() {
-                close(&format!("{kind}[{k}]"), *x, *y, 1e-5 * y.abs().max(scale));
-            }
-        }
+        assert_rounding_apart(&g1, &g2);
     }
 }
 
@@ -674,12 +680,7 @@ fn pooled_buffers_are_reused_only_when_free_and_start_as_zeros() {
     .unwrap();
     drop(other);
     let again = r.backward(g.view(), &cam, &opts, &first, d()).unwrap();
-    for ((kind, a), (_, b)) in kinds(&again.grads).into_iter().zip(kinds(&grads.grads)) {
-        let scale = rms(b);
-        for (k, (x, y)) in a.iter().zip(b).enumerate() {
-            close(&format!("{kind}[{k}]"), *x, *y, 1e-5 * y.abs().max(scale));
-        }
-    }
+    assert_rounding_apart(&again, &grads);
     let image = (
         first.color.clone(),
         first.alpha.clone(),
@@ -696,15 +697,7 @@ fn pooled_buffers_are_reused_only_when_free_and_start_as_zeros() {
         (&warm.color, &warm.alpha, &warm.depth),
         (&image.0, &image.1, &image.2)
     );
-    for ((kind, a), (_, b)) in kinds(&warm_grads.grads)
-        .into_iter()
-        .zip(kinds(&grads.grads))
-    {
-        let scale = rms(b);
-        for (k, (x, y)) in a.iter().zip(b).enumerate() {
-            close(&format!("{kind}[{k}]"), *x, *y, 1e-5 * y.abs().max(scale));
-        }
-    }
+    assert_rounding_apart(&warm_grads, &grads);
     assert_eq!(t.buffers_created, 0, "{t:?}");
     // Nothing new stays in the pool.
     assert_eq!(ctx.pool.held(), (count, bytes));
@@ -761,15 +754,7 @@ fn resident_passes_keep_the_images_on_the_device() {
     // Up: the frame uniform and the 64-byte placeholders of the alpha and depth gradients.
     assert_eq!(b.bytes_up, 160 + 2 * 64, "no image uploaded: {b:?}");
     assert_eq!(b.bytes_down, 4 * (14 + k) * n, "{b:?}");
-    for ((kind, a), (_, c)) in kinds(&grads.grads)
-        .into_iter()
-        .zip(kinds(&host_grads.grads))
-    {
-        let scale = rms(c);
-        for (i, (x, y)) in a.iter().zip(c).enumerate() {
-            close(&format!("{kind}[{i}]"), *x, *y, 1e-5 * y.abs().max(scale));
-        }
-    }
+    assert_rounding_apart(&grads, &host_grads);
 
     let short = gpu_core::buffers::storage(&ctx, "short", npix * 6).unwrap();
     let err = r
